@@ -1,0 +1,1 @@
+"""conformal: lattice graphs from unit cells and parts."""

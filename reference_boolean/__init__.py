@@ -1,0 +1,1 @@
+"""reference_boolean: exact per-hub B-rep reference of a lattice (see issue: reference)."""
