@@ -1,0 +1,850 @@
+"""Numba kernels of the combinatorial stitcher (Verma, Rankouhi & Suresh 2019).
+
+Arrays and scalars only: no I/O, no logging, no Python objects. The public
+wrappers in :mod:`fast_stitch.stitch` validate inputs, coerce dtypes, call
+these kernels and wrap the results.
+
+Vertex numbering: profile vertex ``k`` of strut ``e`` at end ``side`` has id
+``(2 * e + side) * P + k``, so ``V == 2 * M * P`` exactly.
+
+Every strut gets one frame ``(u, v)`` shared by both of its ends (no twist).
+The frame and a pseudo-random phase are derived from the strut's *quantised,
+unsigned* direction and the seed, so struts that are translates of each other
+get identical profiles; this makes hubs that are translates of each other
+identical too, so a periodic lattice needs each distinct hub computed once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+QSCALE = 1073741824.0  # 2**30: directions are snapped to this grid
+RSCALE = 1099511627776.0  # 2**40: radii (relative to the largest) are keyed on this grid
+
+# Status codes of hub construction (see fast_stitch.stitch for messages)
+HUB_OK = 0
+HUB_HULL_FAILED = 1
+HUB_BOUNDARY_MISMATCH = 2
+HUB_DEGENERATE = 3
+
+
+# ---------------------------------------------------------------- hashing
+@njit(cache=True, inline="always")
+def _mix64(x):
+    x = x + np.uint64(0x9E3779B97F4A7C15)
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
+@njit(cache=True, inline="always")
+def _hash_combine(h, v):
+    return _mix64(h ^ (np.uint64(v) + np.uint64(0x632BE59BD9B4E019)))
+
+
+# ------------------------------------------------------------- edge frames
+@njit(cache=True, parallel=True)
+def edge_frames(nodes, edges, P, seed, qdir, sign, axis, frame_u, frame_v, length):
+    """Per-strut canonical axis, frame and length.
+
+    Parameters
+    ----------
+    nodes : (N, 3) float64
+    edges : (M, 2) int64
+    P : int
+        Segments per profile.
+    seed : int
+        Seed of the per-strut phase.
+    qdir : (M, 3) int64, out
+        Quantised canonical (unsigned) direction: the first non-zero component is positive.
+    sign : (M,) int64, out
+        +1 if ``nodes[e1] - nodes[e0]`` points along the canonical axis, else -1.
+    axis : (M, 3) float64, out
+        Canonical unit axis (normalised ``qdir``); identical for translates.
+    frame_u, frame_v : (M, 3) float64, out
+        Orthonormal profile frame, ``u x v == axis``, rotated by the strut's phase.
+    length : (M,) float64, out
+    """
+    m = edges.shape[0]
+    two_pi_p = 2.0 * np.pi / P
+    for e in prange(m):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        dx = nodes[b, 0] - nodes[a, 0]
+        dy = nodes[b, 1] - nodes[a, 1]
+        dz = nodes[b, 2] - nodes[a, 2]
+        L = np.sqrt(dx * dx + dy * dy + dz * dz)
+        length[e] = L
+        qx = np.int64(np.rint(dx / L * QSCALE))
+        qy = np.int64(np.rint(dy / L * QSCALE))
+        qz = np.int64(np.rint(dz / L * QSCALE))
+        s = 1
+        if qx < 0 or (qx == 0 and (qy < 0 or (qy == 0 and qz < 0))):
+            s = -1
+        qx *= s
+        qy *= s
+        qz *= s
+        qdir[e, 0] = qx
+        qdir[e, 1] = qy
+        qdir[e, 2] = qz
+        sign[e] = s
+        cx = float(qx)
+        cy = float(qy)
+        cz = float(qz)
+        cn = np.sqrt(cx * cx + cy * cy + cz * cz)
+        cx /= cn
+        cy /= cn
+        cz /= cn
+        axis[e, 0] = cx
+        axis[e, 1] = cy
+        axis[e, 2] = cz
+        # Duff et al. 2017 orthonormal basis (branch on the quantised sign of z)
+        sg = 1.0 if qz >= 0 else -1.0
+        aa = -1.0 / (sg + cz)
+        bb = cx * cy * aa
+        b1x = 1.0 + sg * cx * cx * aa
+        b1y = sg * bb
+        b1z = -sg * cx
+        b2x = bb
+        b2y = sg + cy * cy * aa
+        b2z = -cy
+        # b1 x b2 == c (right-handed); phase from the seeded hash of qdir
+        h = _hash_combine(_mix64(np.uint64(seed)), qx)
+        h = _hash_combine(h, qy)
+        h = _hash_combine(h, qz)
+        phase = float(h >> np.uint64(11)) * (1.0 / 9007199254740992.0) * two_pi_p
+        cp = np.cos(phase)
+        sp = np.sin(phase)
+        frame_u[e, 0] = cp * b1x + sp * b2x
+        frame_u[e, 1] = cp * b1y + sp * b2y
+        frame_u[e, 2] = cp * b1z + sp * b2z
+        frame_v[e, 0] = -sp * b1x + cp * b2x
+        frame_v[e, 1] = -sp * b1y + cp * b2y
+        frame_v[e, 2] = -sp * b1z + cp * b2z
+
+
+# ----------------------------------------------------------- node ordering
+@njit(cache=True, inline="always")
+def _slot_less(qa, ra, qb, rb):
+    for c in range(3):
+        if qa[c] != qb[c]:
+            return qa[c] < qb[c]
+    return ra < rb
+
+
+@njit(cache=True, parallel=True)
+def node_slots(offsets, inc_edge, inc_side, qdir, sign, radii, rmax, slots, slot_q, slot_r, keys):
+    """Canonical order of the struts at each node, and a hash key per node.
+
+    Struts at a node are sorted by their quantised outward direction, so nodes
+    that are translates of each other list their struts in the same order.
+
+    Parameters
+    ----------
+    offsets : (N + 1,) int64
+    inc_edge, inc_side : (2M,) int64
+        CSR incidence (see ``LatticeGraph.incidence``).
+    qdir : (M, 3) int64
+    sign : (M,) int64
+    radii : (M, 2) float64
+    rmax : float
+        Largest radius (keys quantise radii relative to it).
+    slots : (2M,) int64, out
+        Incidence entries re-ordered canonically: entry ``offsets[n] + t`` is
+        ``2 * e + side`` of the t-th strut of node n.
+    slot_q : (2M, 3) int64, out
+        Quantised outward direction of each slot.
+    slot_r : (2M,) int64, out
+        Quantised radius of each slot.
+    keys : (N,) uint64, out
+        Hash of the node's sorted (direction, radius) slots; 0 for degree < 2.
+    """
+    n_nodes = offsets.shape[0] - 1
+    for n in prange(n_nodes):
+        lo = offsets[n]
+        hi = offsets[n + 1]
+        for t in range(lo, hi):
+            e = inc_edge[t]
+            side = inc_side[t]
+            s = sign[e] if side == 0 else -sign[e]
+            slots[t] = 2 * e + side
+            slot_q[t, 0] = s * qdir[e, 0]
+            slot_q[t, 1] = s * qdir[e, 1]
+            slot_q[t, 2] = s * qdir[e, 2]
+            slot_r[t] = np.int64(np.rint(radii[e, side] / rmax * RSCALE))
+        # insertion sort (degrees are small)
+        for t in range(lo + 1, hi):
+            j = t
+            while j > lo and _slot_less(slot_q[j], slot_r[j], slot_q[j - 1], slot_r[j - 1]):
+                for c in range(3):
+                    tmp = slot_q[j, c]
+                    slot_q[j, c] = slot_q[j - 1, c]
+                    slot_q[j - 1, c] = tmp
+                tr = slot_r[j]
+                slot_r[j] = slot_r[j - 1]
+                slot_r[j - 1] = tr
+                ts = slots[j]
+                slots[j] = slots[j - 1]
+                slots[j - 1] = ts
+                j -= 1
+        if hi - lo < 2:
+            keys[n] = np.uint64(0)
+            continue
+        h = _mix64(np.uint64(hi - lo))
+        for t in range(lo, hi):
+            h = _hash_combine(h, slot_q[t, 0])
+            h = _hash_combine(h, slot_q[t, 1])
+            h = _hash_combine(h, slot_q[t, 2])
+            h = _hash_combine(h, slot_r[t])
+        if h == np.uint64(0):
+            h = np.uint64(1)
+        keys[n] = h
+
+
+@njit(cache=True, parallel=True)
+def same_key(nodes_a, nodes_b, offsets, slot_q, slot_r, out):
+    """out[i] = node nodes_a[i] has exactly the slots of node nodes_b[i] (hash check)."""
+    for i in prange(nodes_a.shape[0]):
+        a = nodes_a[i]
+        b = nodes_b[i]
+        da = offsets[a + 1] - offsets[a]
+        ok = da == offsets[b + 1] - offsets[b]
+        if ok:
+            for t in range(da):
+                ta = offsets[a] + t
+                tb = offsets[b] + t
+                if (
+                    slot_r[ta] != slot_r[tb]
+                    or slot_q[ta, 0] != slot_q[tb, 0]
+                    or slot_q[ta, 1] != slot_q[tb, 1]
+                    or slot_q[ta, 2] != slot_q[tb, 2]
+                ):
+                    ok = False
+                    break
+        out[i] = ok
+
+
+# -------------------------------------------------------------- offsets
+@njit(cache=True)
+def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
+    """Profile offsets of one hub (distance from the node to each profile centre).
+
+    ``d_ij = (r_j + r_i cos t) / sin t`` (Verma et al., Fig. 9) is exactly the
+    offset at which the cones of the two struts from the node touch; the ideal
+    offset of strut i is the largest over j (times ``1 + margin``), and at least
+    ``r_i / floor_tan``. With ``shrink`` the offsets are then raised, as little
+    as possible, until every other profile lies strictly below the plane of
+    each profile (fixed-point iteration; the hub is then the convex hull of its
+    profiles with every profile a facet). Without ``shrink`` all profile
+    vertices lie on one sphere (the paper's unshrunk node hull).
+
+    Parameters
+    ----------
+    dirs : (d, 3) float64
+        Unit outward strut directions.
+    rad : (d,) float64
+        Strut radius at this node.
+    out_d : (d,) float64, out
+    out_det : (d,) int64, out
+        Slot whose constraint set the offset (-1: the floor), for messages.
+    """
+    d = dirs.shape[0]
+    cosm = np.empty((d, d))
+    sinm = np.empty((d, d))
+    for i in range(d):
+        for j in range(d):
+            c = dirs[i, 0] * dirs[j, 0] + dirs[i, 1] * dirs[j, 1] + dirs[i, 2] * dirs[j, 2]
+            c = min(1.0, max(-1.0, c))
+            cosm[i, j] = c
+            sinm[i, j] = np.sqrt(max(0.0, 1.0 - c * c))
+    ideal = np.empty(d)
+    for i in range(d):
+        best = rad[i] / floor_tan
+        arg = -1
+        for j in range(d):
+            if j == i or sinm[i, j] <= 1e-12:
+                continue
+            dij = (rad[j] + rad[i] * cosm[i, j]) / sinm[i, j] * (1.0 + margin)
+            if dij > best:
+                best = dij
+                arg = j
+        ideal[i] = best
+        out_det[i] = arg
+    rho2 = 0.0
+    for i in range(d):
+        rho2 = max(rho2, ideal[i] * ideal[i] + rad[i] * rad[i])
+    if not shrink:
+        for i in range(d):
+            out_d[i] = np.sqrt(rho2 - rad[i] * rad[i])
+        return
+    delta = margin * np.sqrt(rho2)
+    for i in range(d):
+        out_d[i] = ideal[i]
+    converged = False
+    for _sweep in range(200):
+        changed = False
+        for i in range(d):
+            for j in range(d):
+                if j == i:
+                    continue
+                dj = out_d[j] if cosm[i, j] > 0.0 else ideal[j]
+                need = dj * cosm[i, j] + rad[j] * sinm[i, j] + delta
+                if need > out_d[i] * (1.0 + 1e-12):
+                    out_d[i] = need
+                    out_det[i] = j
+                    changed = True
+        if not changed:
+            converged = True
+            break
+    if not converged:
+        for i in range(d):
+            out_d[i] = np.sqrt(rho2 - rad[i] * rad[i])
+    else:
+        # never beyond the common-sphere configuration
+        for i in range(d):
+            out_d[i] = min(out_d[i], np.sqrt(rho2 - rad[i] * rad[i]))
+
+
+# ------------------------------------------------------------ convex hull
+@njit(cache=True)
+def _plane(pts, a, b, c, nrm, off, f):
+    ux = pts[b, 0] - pts[a, 0]
+    uy = pts[b, 1] - pts[a, 1]
+    uz = pts[b, 2] - pts[a, 2]
+    vx = pts[c, 0] - pts[a, 0]
+    vy = pts[c, 1] - pts[a, 1]
+    vz = pts[c, 2] - pts[a, 2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if nn <= 1e-300:
+        return False
+    nx /= nn
+    ny /= nn
+    nz /= nn
+    nrm[f, 0] = nx
+    nrm[f, 1] = ny
+    nrm[f, 2] = nz
+    off[f] = nx * pts[a, 0] + ny * pts[a, 1] + nz * pts[a, 2]
+    return True
+
+
+@njit(cache=True)
+def convex_hull(pts, order, eps, cap):
+    """Incremental 3D convex hull of points in convex position.
+
+    Parameters
+    ----------
+    pts : (n, 3) float64
+        Points, scaled to about unit size.
+    order : (n,) int64
+        Insertion order (a permutation of 0..n-1).
+    eps : float
+        A point sees a face when it lies more than ``eps`` above its plane.
+    cap : int
+        Face capacity.
+
+    Returns
+    -------
+    faces : (F, 3) int64
+        Outward-oriented triangles (counter-clockwise seen from outside).
+    status : int
+        0 on success; 1 if the hull is degenerate or capacity ran out;
+        2 if some point is not a hull vertex.
+    """
+    n = pts.shape[0]
+    empty = np.zeros((0, 3), dtype=np.int64)
+    fv = np.empty((cap, 3), dtype=np.int64)
+    fnb = np.empty((cap, 3), dtype=np.int64)
+    alive = np.zeros(cap, dtype=np.bool_)
+    nrm = np.empty((cap, 3))
+    off = np.empty(cap)
+    # initial simplex: i0, farthest from it, farthest from the line, farthest from the plane
+    i0 = order[0]
+    best = -1.0
+    i1 = -1
+    for t in range(n):
+        q = order[t]
+        dx = pts[q, 0] - pts[i0, 0]
+        dy = pts[q, 1] - pts[i0, 1]
+        dz = pts[q, 2] - pts[i0, 2]
+        dd = dx * dx + dy * dy + dz * dz
+        if dd > best:
+            best = dd
+            i1 = q
+    ex = pts[i1, 0] - pts[i0, 0]
+    ey = pts[i1, 1] - pts[i0, 1]
+    ez = pts[i1, 2] - pts[i0, 2]
+    best = -1.0
+    i2 = -1
+    for t in range(n):
+        q = order[t]
+        dx = pts[q, 0] - pts[i0, 0]
+        dy = pts[q, 1] - pts[i0, 1]
+        dz = pts[q, 2] - pts[i0, 2]
+        cx = ey * dz - ez * dy
+        cy = ez * dx - ex * dz
+        cz = ex * dy - ey * dx
+        dd = cx * cx + cy * cy + cz * cz
+        if dd > best:
+            best = dd
+            i2 = q
+    if not _plane(pts, i0, i1, i2, nrm, off, 0):
+        return empty, 1
+    best = -1.0
+    i3 = -1
+    for t in range(n):
+        q = order[t]
+        dd = abs(nrm[0, 0] * pts[q, 0] + nrm[0, 1] * pts[q, 1] + nrm[0, 2] * pts[q, 2] - off[0])
+        if dd > best:
+            best = dd
+            i3 = q
+    if best <= eps:
+        return empty, 1
+    if nrm[0, 0] * pts[i3, 0] + nrm[0, 1] * pts[i3, 1] + nrm[0, 2] * pts[i3, 2] - off[0] > 0.0:
+        tmp = i1
+        i1 = i2
+        i2 = tmp
+    # faces of the tetrahedron, outward
+    tet = ((i0, i1, i2), (i0, i3, i1), (i1, i3, i2), (i2, i3, i0))
+    for f in range(4):
+        fv[f, 0] = tet[f][0]
+        fv[f, 1] = tet[f][1]
+        fv[f, 2] = tet[f][2]
+        alive[f] = True
+        if not _plane(pts, fv[f, 0], fv[f, 1], fv[f, 2], nrm, off, f):
+            return empty, 1
+    for f in range(4):
+        for j in range(3):
+            a = fv[f, j]
+            b = fv[f, (j + 1) % 3]
+            for g in range(4):
+                if g == f:
+                    continue
+                for k in range(3):
+                    if fv[g, k] == b and fv[g, (k + 1) % 3] == a:
+                        fnb[f, j] = g
+    nf = 4
+    used = np.zeros(n, dtype=np.bool_)
+    used[i0] = True
+    used[i1] = True
+    used[i2] = True
+    used[i3] = True
+    visible = np.zeros(cap, dtype=np.bool_)
+    vis_list = np.empty(cap, dtype=np.int64)
+    start_at = np.full(n, -1, dtype=np.int64)
+    end_at = np.full(n, -1, dtype=np.int64)
+    new_list = np.empty(cap, dtype=np.int64)
+    for t in range(n):
+        p = order[t]
+        if used[p]:
+            continue
+        px = pts[p, 0]
+        py = pts[p, 1]
+        pz = pts[p, 2]
+        nvis = 0
+        for f in range(nf):
+            if alive[f] and nrm[f, 0] * px + nrm[f, 1] * py + nrm[f, 2] * pz - off[f] > eps:
+                visible[f] = True
+                vis_list[nvis] = f
+                nvis += 1
+        if nvis == 0:
+            continue  # not extreme: reported below
+        used[p] = True
+        nnew = 0
+        for iv in range(nvis):
+            f = vis_list[iv]
+            for j in range(3):
+                g = fnb[f, j]
+                if visible[g]:
+                    continue
+                a = fv[f, j]
+                b = fv[f, (j + 1) % 3]
+                if nf >= cap or start_at[a] != -1 or end_at[b] != -1:
+                    return empty, 1
+                h = nf
+                nf += 1
+                fv[h, 0] = a
+                fv[h, 1] = b
+                fv[h, 2] = p
+                alive[h] = True
+                if not _plane(pts, a, b, p, nrm, off, h):
+                    return empty, 1
+                fnb[h, 0] = g
+                for k in range(3):
+                    if fnb[g, k] == f:
+                        fnb[g, k] = h
+                start_at[a] = h
+                end_at[b] = h
+                new_list[nnew] = h
+                nnew += 1
+        for iv in range(nnew):
+            h = new_list[iv]
+            a = fv[h, 0]
+            b = fv[h, 1]
+            nb1 = start_at[b]
+            nb2 = end_at[a]
+            if nb1 == -1 or nb2 == -1:
+                return empty, 1
+            fnb[h, 1] = nb1
+            fnb[h, 2] = nb2
+        for iv in range(nnew):
+            h = new_list[iv]
+            start_at[fv[h, 0]] = -1
+            end_at[fv[h, 1]] = -1
+        for iv in range(nvis):
+            f = vis_list[iv]
+            alive[f] = False
+            visible[f] = False
+    for q in range(n):
+        if not used[q]:
+            return empty, 2
+    count = 0
+    for f in range(nf):
+        if alive[f]:
+            count += 1
+    out = np.empty((count, 3), dtype=np.int64)
+    c = 0
+    for f in range(nf):
+        if alive[f]:
+            out[c, 0] = fv[f, 0]
+            out[c, 1] = fv[f, 1]
+            out[c, 2] = fv[f, 2]
+            c += 1
+    return out, 0
+
+
+# ------------------------------------------------------------------- hubs
+@njit(cache=True)
+def build_hub(dirs, rad, pu, pv, ccw, P, shrink, margin, floor_tan, out_d, out_det, out_tris):
+    """Offsets and triangles of one hub (node of degree d >= 2).
+
+    Parameters
+    ----------
+    dirs : (d, 3) float64
+        Unit outward directions of the struts, in canonical slot order.
+    rad : (d,) float64
+        Radius of each strut at this node.
+    pu, pv : (d, 3) float64
+        Profile frame of each strut (shared with the strut's other end).
+    ccw : (d,) bool
+        True when the profile order ``k = 0..P-1`` turns counter-clockwise about
+        the outward direction (i.e. ``pu x pv == dirs``).
+    out_d : (d,) float64, out
+    out_det : (d,) int64, out
+    out_tris : (d * P + 2 * d - 4, 3) int64, out
+        Local vertex ids ``slot * P + k``; outward-oriented.
+
+    Returns
+    -------
+    status : int
+        ``HUB_OK`` or an error code.
+    """
+    d = dirs.shape[0]
+    hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det)
+    n = d * P
+    pts = np.empty((n, 3))
+    scale = 0.0
+    for i in range(d):
+        for k in range(P):
+            ang = 2.0 * np.pi * k / P
+            ca = np.cos(ang) * rad[i]
+            sa = np.sin(ang) * rad[i]
+            q = i * P + k
+            for c in range(3):
+                pts[q, c] = out_d[i] * dirs[i, c] + ca * pu[i, c] + sa * pv[i, c]
+            scale = max(scale, np.sqrt(pts[q, 0] ** 2 + pts[q, 1] ** 2 + pts[q, 2] ** 2))
+    for q in range(n):
+        for c in range(3):
+            pts[q, c] /= scale
+    # round-robin insertion order over the profiles
+    order = np.empty(n, dtype=np.int64)
+    t = 0
+    for k in range(P):
+        for i in range(d):
+            order[t] = i * P + k
+            t += 1
+    faces, st = convex_hull(pts, order, 1e-12, 16 * n + 64)
+    if st != 0:
+        faces, st = convex_hull(pts, order, 1e-12, n * n + 64)
+        if st != 0:
+            return HUB_HULL_FAILED
+    expected = d * P + 2 * d - 4
+    c = 0
+    for f in range(faces.shape[0]):
+        g0 = faces[f, 0] // P
+        if g0 == faces[f, 1] // P and g0 == faces[f, 2] // P:
+            continue
+        if c >= expected:
+            return HUB_BOUNDARY_MISMATCH
+        out_tris[c, 0] = faces[f, 0]
+        out_tris[c, 1] = faces[f, 1]
+        out_tris[c, 2] = faces[f, 2]
+        c += 1
+    if c != expected:
+        return HUB_BOUNDARY_MISMATCH
+    # every profile edge must border the hub exactly once, in the right direction
+    seen = np.zeros(n, dtype=np.int64)
+    for f in range(expected):
+        for j in range(3):
+            a = out_tris[f, j]
+            b = out_tris[f, (j + 1) % 3]
+            if a // P != b // P:
+                continue
+            i = a // P
+            ka = a % P
+            kb = b % P
+            if ccw[i]:
+                if ka != (kb + 1) % P:
+                    return HUB_BOUNDARY_MISMATCH
+                seen[b] += 1
+            else:
+                if kb != (ka + 1) % P:
+                    return HUB_BOUNDARY_MISMATCH
+                seen[a] += 1
+        # area check (in unit-scaled coordinates)
+        a = out_tris[f, 0]
+        b = out_tris[f, 1]
+        cc = out_tris[f, 2]
+        ux = pts[b, 0] - pts[a, 0]
+        uy = pts[b, 1] - pts[a, 1]
+        uz = pts[b, 2] - pts[a, 2]
+        vx = pts[cc, 0] - pts[a, 0]
+        vy = pts[cc, 1] - pts[a, 1]
+        vz = pts[cc, 2] - pts[a, 2]
+        ar2 = (uy * vz - uz * vy) ** 2 + (uz * vx - ux * vz) ** 2 + (ux * vy - uy * vx) ** 2
+        if ar2 <= 1e-28:
+            return HUB_DEGENERATE
+    for q in range(n):
+        if seen[q] != 1:
+            return HUB_BOUNDARY_MISMATCH
+    return HUB_OK
+
+
+@njit(cache=True, parallel=True)
+def build_hubs(
+    reps,
+    offsets,
+    slots,
+    axis,
+    sign,
+    frame_u,
+    frame_v,
+    radii,
+    P,
+    shrink,
+    margin,
+    floor_tan,
+    rep_slot_start,
+    rep_tri_start,
+    rep_d,
+    rep_det,
+    rep_tris,
+    rep_status,
+):
+    """Build the hubs of representative nodes in parallel.
+
+    Parameters
+    ----------
+    reps : (R,) int64
+        Representative node of each distinct hub shape.
+    rep_slot_start : (R + 1,) int64
+        Start of each representative's slots in ``rep_d`` / ``rep_det``.
+    rep_tri_start : (R + 1,) int64
+        Start of each representative's triangles in ``rep_tris``.
+    rep_d : (S,) float64, out
+        Profile offset of each slot.
+    rep_det : (S,) int64, out
+        Slot (local) that determined each offset, -1 for the floor.
+    rep_tris : (T, 3) int64, out
+        Local triangles (``slot * P + k``).
+    rep_status : (R,) int64, out
+    """
+    for ri in prange(reps.shape[0]):
+        n = reps[ri]
+        lo = offsets[n]
+        d = offsets[n + 1] - lo
+        dirs = np.empty((d, 3))
+        rad = np.empty(d)
+        pu = np.empty((d, 3))
+        pv = np.empty((d, 3))
+        ccw = np.empty(d, dtype=np.bool_)
+        for t in range(d):
+            es = slots[lo + t]
+            e = es // 2
+            side = es % 2
+            s = 1.0 if (sign[e] == 1) == (side == 0) else -1.0
+            for c in range(3):
+                dirs[t, c] = s * axis[e, c]
+                pu[t, c] = frame_u[e, c]
+                pv[t, c] = frame_v[e, c]
+            rad[t] = radii[e, side]
+            ccw[t] = s > 0.0
+        s0 = rep_slot_start[ri]
+        t0 = rep_tri_start[ri]
+        rep_status[ri] = build_hub(
+            dirs,
+            rad,
+            pu,
+            pv,
+            ccw,
+            P,
+            shrink,
+            margin,
+            floor_tan,
+            rep_d[s0 : s0 + d],
+            rep_det[s0 : s0 + d],
+            rep_tris[t0 : rep_tri_start[ri + 1]],
+        )
+
+
+# --------------------------------------------------------------- assembly
+@njit(cache=True, parallel=True)
+def scatter_offsets(offsets, slots, node_rep, rep_slot_start, rep_d, end_offset):
+    """end_offset[e, side] = profile offset of strut e at that end (0 at leaves)."""
+    n_nodes = offsets.shape[0] - 1
+    for n in prange(n_nodes):
+        lo = offsets[n]
+        d = offsets[n + 1] - lo
+        if d == 1:
+            es = slots[lo]
+            end_offset[es // 2, es % 2] = 0.0
+        elif d >= 2:
+            s0 = rep_slot_start[node_rep[n]]
+            for t in range(d):
+                es = slots[lo + t]
+                end_offset[es // 2, es % 2] = rep_d[s0 + t]
+
+
+@njit(cache=True, parallel=True)
+def profile_vertices(nodes, edges, axis, sign, frame_u, frame_v, radii, end_offset, P, out):
+    """out[(2e + side) * P + k]: vertex k of the profile of strut e at that end."""
+    m = edges.shape[0]
+    for e in prange(m):
+        for side in range(2):
+            n = edges[e, side]
+            s = float(sign[e]) if side == 0 else -float(sign[e])
+            dd = end_offset[e, side] * s
+            r = radii[e, side]
+            base = (2 * e + side) * P
+            for k in range(P):
+                ang = 2.0 * np.pi * k / P
+                ca = np.cos(ang) * r
+                sa = np.sin(ang) * r
+                for c in range(3):
+                    out[base + k, c] = (
+                        nodes[n, c] + dd * axis[e, c] + ca * frame_u[e, c] + sa * frame_v[e, c]
+                    )
+
+
+@njit(cache=True, parallel=True)
+def cylinder_faces(sign, P, out):
+    """2P side triangles per strut, outward (rows ``2 * P * e`` onward)."""
+    m = sign.shape[0]
+    for e in prange(m):
+        a0 = 2 * e * P
+        a1 = a0 + P
+        base = 2 * P * e
+        for k in range(P):
+            k1 = (k + 1) % P
+            if sign[e] == 1:
+                out[base + 2 * k, 0] = a0 + k
+                out[base + 2 * k, 1] = a0 + k1
+                out[base + 2 * k, 2] = a1 + k1
+                out[base + 2 * k + 1, 0] = a0 + k
+                out[base + 2 * k + 1, 1] = a1 + k1
+                out[base + 2 * k + 1, 2] = a1 + k
+            else:
+                out[base + 2 * k, 0] = a0 + k
+                out[base + 2 * k, 1] = a1 + k1
+                out[base + 2 * k, 2] = a0 + k1
+                out[base + 2 * k + 1, 0] = a0 + k
+                out[base + 2 * k + 1, 1] = a1 + k
+                out[base + 2 * k + 1, 2] = a1 + k1
+
+
+@njit(cache=True, parallel=True)
+def node_faces(offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, out):
+    """Hub triangles (degree >= 2) and end caps (degree 1) of every node."""
+    n_nodes = offsets.shape[0] - 1
+    for n in prange(n_nodes):
+        lo = offsets[n]
+        d = offsets[n + 1] - lo
+        row = face_start[n]
+        if d == 1:
+            es = slots[lo]
+            e = es // 2
+            side = es % 2
+            base = es * P
+            ccw = (sign[e] == 1) == (side == 0)
+            for k in range(1, P - 1):
+                out[row, 0] = base
+                if ccw:
+                    out[row, 1] = base + k + 1
+                    out[row, 2] = base + k
+                else:
+                    out[row, 1] = base + k
+                    out[row, 2] = base + k + 1
+                row += 1
+        elif d >= 2:
+            r = node_rep[n]
+            for f in range(rep_tri_start[r], rep_tri_start[r + 1]):
+                for j in range(3):
+                    q = rep_tris[f, j]
+                    out[row, j] = slots[lo + q // P] * P + q % P
+                row += 1
+
+
+@njit(cache=True, parallel=True)
+def signed_volume(vertices, faces):
+    """Signed volume of a closed triangle mesh (divergence theorem)."""
+    total = 0.0
+    for f in prange(faces.shape[0]):
+        a = faces[f, 0]
+        b = faces[f, 1]
+        c = faces[f, 2]
+        total += (
+            vertices[a, 0] * (vertices[b, 1] * vertices[c, 2] - vertices[b, 2] * vertices[c, 1])
+            - vertices[a, 1] * (vertices[b, 0] * vertices[c, 2] - vertices[b, 2] * vertices[c, 0])
+            + vertices[a, 2] * (vertices[b, 0] * vertices[c, 1] - vertices[b, 1] * vertices[c, 0])
+        )
+    return total / 6.0
+
+
+@njit(cache=True, parallel=True)
+def stl_records(vertices, faces, start, stop, out):
+    """Fill binary-STL records for faces[start:stop].
+
+    out : (stop - start, 12) float32
+        Normal (3) then the three vertices (9), in single precision.
+    Returns the number of records whose triangle has zero area in float32.
+    """
+    bad = 0
+    for i in prange(stop - start):
+        f = start + i
+        for j in range(3):
+            v = faces[f, j]
+            for c in range(3):
+                out[i, 3 + 3 * j + c] = np.float32(vertices[v, c])
+        ux = float(out[i, 6]) - float(out[i, 3])
+        uy = float(out[i, 7]) - float(out[i, 4])
+        uz = float(out[i, 8]) - float(out[i, 5])
+        vx = float(out[i, 9]) - float(out[i, 3])
+        vy = float(out[i, 10]) - float(out[i, 4])
+        vz = float(out[i, 11]) - float(out[i, 5])
+        nx = uy * vz - uz * vy
+        ny = uz * vx - ux * vz
+        nz = ux * vy - uy * vx
+        nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if nn > 0.0:
+            out[i, 0] = np.float32(nx / nn)
+            out[i, 1] = np.float32(ny / nn)
+            out[i, 2] = np.float32(nz / nn)
+        else:
+            out[i, 0] = 0.0
+            out[i, 1] = 0.0
+            out[i, 2] = 0.0
+            bad += 1
+    return bad

@@ -1,0 +1,337 @@
+"""Graph -> watertight triangle mesh (Verma, Rankouhi & Suresh 2019).
+
+Algorithm (per node of degree d >= 2, in parallel over distinct hub shapes):
+
+1. pairwise minimum profile offsets ``d_ij = (r_j + r_i cos t) / sin t``; the
+   ideal offset of strut i is the largest over j (it is exactly where the
+   cones of the two struts touch), never below ``r_i * tan(10 deg)``;
+2. volume reduction (``shrink=True``): each profile starts at its ideal
+   offset and is pushed out only as far as needed for every other profile to
+   lie strictly below its plane; without it, all profiles sit on one sphere;
+3. the hub is the convex hull of its profile vertices (incremental hull in
+   plain floating point); the triangles inside each profile are removed,
+   which leaves exactly ``d * P + 2d - 4`` triangles (Euler);
+4. open cylinders (frustums for tapered struts) join the two profiles of each
+   strut with ``2P`` triangles; degree-1 nodes get a flat cap of ``P - 2``.
+
+Profiles use one frame per strut (no twist) with a seeded pseudo-random
+phase derived from the strut's direction, so hubs that are translates of
+each other are identical and are computed once (periodic lattices).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from fast_stitch import _kernels
+from fast_stitch.mesh import Mesh, stl_size
+from lattice_cad.errors import InvalidGraphError, StitchError
+from lattice_cad.graph import LatticeGraph
+
+__all__ = ["stitch", "estimate", "Estimate", "ProgressCallback"]
+
+#: Relative safety margin on profile offsets (keeps hull triangles away from slivers).
+OFFSET_MARGIN = 1e-2
+#: Profiles are never closer to their node than ``r * tan(FLOOR_ANGLE)``.
+FLOOR_ANGLE_DEG = 10.0
+#: Struts must keep at least this fraction of their length as open cylinder.
+MIN_CYLINDER_FRACTION = 1e-6
+_CHUNK = 1 << 15
+
+ProgressCallback = Callable[[str, int, int], Any]
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Exact output size of :func:`stitch`, known before building anything."""
+
+    vertices: int
+    triangles: int
+    stl_bytes: int
+
+
+def _check_segments(segments: int) -> int:
+    if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)):
+        raise TypeError(f"segments must be an integer >= 3, got {segments!r}")
+    if segments < 3:
+        raise ValueError(f"segments must be >= 3, got {segments}")
+    return int(segments)
+
+
+def _face_counts(degree: NDArray[np.int64], P: int) -> NDArray[np.int64]:
+    """(N,) int64: hub (d >= 2) or cap (d == 1) triangles of each node."""
+    counts = np.where(degree >= 2, degree * P + 2 * degree - 4, 0)
+    counts = np.where(degree == 1, P - 2, counts)
+    return counts.astype(np.int64)
+
+
+def estimate(graph: LatticeGraph, segments: int = 6) -> Estimate:
+    """Exact vertex and triangle counts, and binary STL size, of ``stitch(graph, segments)``.
+
+    ``V = 2 M P`` and ``F = 2 M P + sum_{d >= 2} (d P + 2 d - 4) + (P - 2) * #leaves``.
+    """
+    P = _check_segments(segments)
+    if not isinstance(graph, LatticeGraph):
+        raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
+    m = graph.num_edges
+    tri = 2 * m * P + int(_face_counts(graph.degree, P).sum())
+    return Estimate(vertices=2 * m * P, triangles=tri, stl_bytes=stl_size(tri))
+
+
+class _Progress:
+    def __init__(self, progress: bool | ProgressCallback | None, total: int) -> None:
+        self._cb: ProgressCallback | None = None
+        self._bar = None
+        if callable(progress):
+            self._cb = progress
+        elif progress:
+            from tqdm.auto import tqdm
+
+            self._bar = tqdm(total=total, desc="stitch", unit="hub", leave=False)
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if self._cb is not None:
+            self._cb(stage, done, total)
+        if self._bar is not None:
+            self._bar.set_description(f"stitch: {stage}")
+            self._bar.n = done
+            self._bar.total = total
+            self._bar.refresh()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def stitch(
+    graph: LatticeGraph,
+    segments: int = 6,
+    *,
+    shrink: bool = True,
+    seed: int = 0,
+    workers: int | None = None,
+    progress: bool | ProgressCallback | None = None,
+) -> Mesh:
+    """Build the watertight triangle mesh of a lattice graph.
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+    segments : int
+        P, the number of sides of every strut's polygonal profile (>= 3).
+    shrink : bool
+        Reduce hub volume: each profile sits as close to its node as the
+        geometry allows, instead of all on one sphere.
+    seed : int
+        Seed of the per-strut profile phase. Same graph and seed give
+        byte-identical output.
+    workers : int, optional
+        Threads to use (default: numba's default, all cores).
+    progress : bool or callable, optional
+        ``True`` shows a tqdm bar; a callable is called as
+        ``progress(stage, done, total)``. The run can be interrupted with
+        Ctrl-C between chunks.
+
+    Returns
+    -------
+    Mesh
+        ``vertices`` (2 M P, 3) float64 and ``faces`` (F, 3) int64, with F as
+        given by :func:`estimate`. Watertight, 2-manifold, outward oriented,
+        without zero-area triangles.
+
+    Raises
+    ------
+    StitchError
+        The graph has no struts; struts at a node meet at so small an angle
+        that the profiles of a strut's two ends would cross (the message names
+        the node, both struts, the angle and the shortest length that fits);
+        two struts at a node are parallel.
+    """
+    P = _check_segments(segments)
+    if not isinstance(graph, LatticeGraph):
+        raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    m = graph.num_edges
+    if m == 0:
+        raise StitchError("the graph has no struts: nothing to stitch")
+    prev_threads = numba.get_num_threads()
+    if workers is not None:
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        numba.set_num_threads(min(int(workers), numba.config.NUMBA_NUM_THREADS))
+    bar = _Progress(progress, graph.num_nodes)
+    try:
+        return _stitch(graph, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar)
+    finally:
+        bar.close()
+        numba.set_num_threads(prev_threads)
+
+
+def _stitch(graph: LatticeGraph, P: int, shrink: bool, seed: int, progress: _Progress) -> Mesh:
+    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    n_nodes, m = graph.num_nodes, graph.num_edges
+    offsets, inc_edge, inc_side = graph.incidence
+    degree = graph.degree
+
+    qdir = np.empty((m, 3), dtype=np.int64)
+    sign = np.empty(m, dtype=np.int64)
+    axis = np.empty((m, 3))
+    fu = np.empty((m, 3))
+    fv = np.empty((m, 3))
+    length = np.empty(m)
+    _kernels.edge_frames(nodes, edges, P, seed, qdir, sign, axis, fu, fv, length)
+
+    slots = np.empty(2 * m, dtype=np.int64)
+    slot_q = np.empty((2 * m, 3), dtype=np.int64)
+    slot_r = np.empty(2 * m, dtype=np.int64)
+    keys = np.empty(n_nodes, dtype=np.uint64)
+    rmax = float(radii.max())
+    _kernels.node_slots(offsets, inc_edge, inc_side, qdir, sign, radii, rmax, slots, slot_q, slot_r, keys)
+    _check_parallel(offsets, slots, slot_q, degree)
+
+    # distinct hub shapes: group nodes by key, verify the key really matches
+    hubs = np.flatnonzero(degree >= 2)
+    node_rep = np.full(n_nodes, -1, dtype=np.int64)
+    if len(hubs):
+        uniq, first, inverse = np.unique(keys[hubs], return_index=True, return_inverse=True)
+        rep_nodes = hubs[first]
+        cand = rep_nodes[inverse]
+        ok = np.empty(len(hubs), dtype=np.bool_)
+        _kernels.same_key(hubs, cand, offsets, slot_q, slot_r, ok)
+        node_rep[hubs] = inverse
+        if not ok.all():  # hash collision: those nodes get hubs of their own
+            extra = hubs[~ok]
+            node_rep[extra] = len(rep_nodes) + np.arange(len(extra))
+            rep_nodes = np.concatenate([rep_nodes, extra])
+    else:
+        rep_nodes = np.zeros(0, dtype=np.int64)
+    n_rep = len(rep_nodes)
+    rep_deg = degree[rep_nodes]
+    rep_slot_start = np.zeros(n_rep + 1, dtype=np.int64)
+    np.cumsum(rep_deg, out=rep_slot_start[1:])
+    rep_tri_start = np.zeros(n_rep + 1, dtype=np.int64)
+    np.cumsum(rep_deg * P + 2 * rep_deg - 4, out=rep_tri_start[1:])
+    rep_d = np.empty(int(rep_slot_start[-1]))
+    rep_det = np.empty(int(rep_slot_start[-1]), dtype=np.int64)
+    rep_tris = np.empty((int(rep_tri_start[-1]), 3), dtype=np.int64)
+    rep_status = np.empty(n_rep, dtype=np.int64)
+    floor_tan = 1.0 / math.tan(math.radians(FLOOR_ANGLE_DEG))
+    # chunks keep Ctrl-C responsive and drive the progress report
+    for lo in range(0, n_rep, _CHUNK):
+        hi = min(n_rep, lo + _CHUNK)
+        _kernels.build_hubs(
+            rep_nodes[lo:hi], offsets, slots, axis, sign, fu, fv, radii, P, shrink,
+            OFFSET_MARGIN, floor_tan,
+            rep_slot_start[lo : hi + 1], rep_tri_start[lo : hi + 1] - rep_tri_start[lo],
+            rep_d[rep_slot_start[lo] : rep_slot_start[hi]],
+            rep_det[rep_slot_start[lo] : rep_slot_start[hi]],
+            rep_tris[rep_tri_start[lo] : rep_tri_start[hi]],
+            rep_status[lo:hi],
+        )  # fmt: skip
+        progress("hubs", hi, n_rep)
+    bad = np.flatnonzero(rep_status != _kernels.HUB_OK)
+    if len(bad):
+        n = int(rep_nodes[bad[0]])
+        raise StitchError(
+            f"node {n}: could not build a valid hub (status {int(rep_status[bad[0]])}) from its "
+            f"{int(degree[n])} struts {_edges_at(graph, n)}; this is a bug, please report it with "
+            "the graph"
+        )
+
+    end_offset = np.empty((m, 2))
+    _kernels.scatter_offsets(offsets, slots, node_rep, rep_slot_start, rep_d, end_offset)
+    _check_fit(graph, end_offset, length, offsets, slots, node_rep, rep_slot_start, rep_det)
+
+    vertices = np.empty((2 * m * P, 3))
+    _kernels.profile_vertices(nodes, edges, axis, sign, fu, fv, radii, end_offset, P, vertices)
+    counts = _face_counts(degree, P)
+    face_start = np.empty(n_nodes, dtype=np.int64)
+    face_start[0:1] = 2 * m * P
+    if n_nodes > 1:
+        np.cumsum(counts[:-1], out=face_start[1:])
+        face_start[1:] += 2 * m * P
+    faces = np.empty((2 * m * P + int(counts.sum()), 3), dtype=np.int64)
+    _kernels.cylinder_faces(sign, P, faces)
+    _kernels.node_faces(offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, faces)
+    progress("done", n_rep, n_rep)
+    return Mesh(vertices=vertices, faces=faces)
+
+
+def _edges_at(graph: LatticeGraph, n: int) -> list[int]:
+    offsets, inc_edge, _ = graph.incidence
+    return [int(e) for e in inc_edge[offsets[n] : offsets[n + 1]]]
+
+
+def _angle_deg(graph: LatticeGraph, n: int, e: int, f: int) -> float:
+    def out_dir(k: int) -> NDArray[np.float64]:
+        a, b = graph.edges[k]
+        v = graph.nodes[b] - graph.nodes[a]
+        return v if a == n else -v
+
+    u, w = out_dir(e), out_dir(f)
+    c = float(np.dot(u, w) / (np.linalg.norm(u) * np.linalg.norm(w)))
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+
+
+def _check_parallel(
+    offsets: NDArray[np.int64], slots: NDArray[np.int64], slot_q: NDArray[np.int64], degree: NDArray[np.int64]
+) -> None:
+    """Two struts of one node with the same (quantised) direction cannot be stitched."""
+    idx = np.flatnonzero(degree >= 2)
+    if not len(idx):
+        return
+    node_of = np.repeat(np.arange(len(degree)), degree)
+    same = (slot_q[1:] == slot_q[:-1]).all(axis=1) & (node_of[1:] == node_of[:-1])
+    if same.any():
+        t = int(np.flatnonzero(same)[0])
+        n = int(node_of[t])
+        e, f = sorted((int(slots[t] // 2), int(slots[t + 1] // 2)))
+        raise StitchError(f"node {n}: struts {e} and {f} leave it in the same direction (parallel)")
+
+
+def _check_fit(
+    graph: LatticeGraph,
+    end_offset: NDArray[np.float64],
+    length: NDArray[np.float64],
+    offsets: NDArray[np.int64],
+    slots: NDArray[np.int64],
+    node_rep: NDArray[np.int64],
+    rep_slot_start: NDArray[np.int64],
+    rep_det: NDArray[np.int64],
+) -> None:
+    """Raise StitchError if the two profiles of some strut would meet or cross."""
+    need = end_offset.sum(axis=1)
+    over = need >= length * (1.0 - MIN_CYLINDER_FRACTION)
+    if not over.any():
+        return
+    e = int(np.flatnonzero(over)[np.argmax((need / length)[over])])
+    side = int(np.argmax(end_offset[e]))
+    n = int(graph.edges[e, side])
+    lo = int(offsets[n])
+    t = int(np.flatnonzero(slots[lo : offsets[n + 1]] == 2 * e + side)[0])
+    det = int(rep_det[rep_slot_start[node_rep[n]] + t])
+    other = int(graph.edges[e, 1 - side])
+    needs = (
+        f"{end_offset[e, side]:.4g} at node {n} + {end_offset[e, 1 - side]:.4g} at node {other}"
+    )
+    fits = f"it would need to be longer than {need[e]:.4g}"
+    if det >= 0:
+        f = int(slots[lo + det] // 2)
+        ang = _angle_deg(graph, n, e, f)
+        raise StitchError(
+            f"node {n}: struts {e} and {f} meet at {ang:.3g} degrees, too small an angle for "
+            f"strut {e} (length {length[e]:.4g}): its end profiles need {needs} and would cross; "
+            f"{fits} (or use thinner struts or a larger angle)"
+        )
+    raise StitchError(
+        f"strut {e} (nodes {n}, {other}, length {length[e]:.4g}) is too short for its radius: its "
+        f"end profiles need {needs} and would cross; {fits}"
+    )
