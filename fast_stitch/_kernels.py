@@ -30,7 +30,7 @@ HUB_DEGENERATE = 3
 
 
 # ---------------------------------------------------------------- hashing
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _mix64(x):
     x = x + np.uint64(0x9E3779B97F4A7C15)
     x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
@@ -38,13 +38,13 @@ def _mix64(x):
     return x ^ (x >> np.uint64(31))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _hash_combine(h, v):
     return _mix64(h ^ (np.uint64(v) + np.uint64(0x632BE59BD9B4E019)))
 
 
 # ------------------------------------------------------------- edge frames
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def edge_frames(nodes, edges, P, seed, qdir, sign, axis, frame_u, frame_v, length):
     """Per-strut canonical axis, frame and length.
 
@@ -125,7 +125,7 @@ def edge_frames(nodes, edges, P, seed, qdir, sign, axis, frame_u, frame_v, lengt
 
 
 # ----------------------------------------------------------- node ordering
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _slot_less(qa, ra, qb, rb):
     for c in range(3):
         if qa[c] != qb[c]:
@@ -133,7 +133,7 @@ def _slot_less(qa, ra, qb, rb):
     return ra < rb
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def node_slots(offsets, inc_edge, inc_side, qdir, sign, radii, rmax, slots, slot_q, slot_r, keys):
     """Canonical order of the struts at each node, and a hash key per node.
 
@@ -202,7 +202,7 @@ def node_slots(offsets, inc_edge, inc_side, qdir, sign, radii, rmax, slots, slot
         keys[n] = h
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def same_key(nodes_a, nodes_b, offsets, slot_q, slot_r, out):
     """out[i] = node nodes_a[i] has exactly the slots of node nodes_b[i] (hash check)."""
     for i in prange(nodes_a.shape[0]):
@@ -226,7 +226,7 @@ def same_key(nodes_a, nodes_b, offsets, slot_q, slot_r, out):
 
 
 # -------------------------------------------------------------- offsets
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
     """Profile offsets of one hub (distance from the node to each profile centre).
 
@@ -307,7 +307,7 @@ def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
 
 
 # ------------------------------------------------------------ convex hull
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _plane(pts, a, b, c, nrm, off, f):
     ux = pts[b, 0] - pts[a, 0]
     uy = pts[b, 1] - pts[a, 1]
@@ -331,7 +331,7 @@ def _plane(pts, a, b, c, nrm, off, f):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def convex_hull(pts, order, eps, cap):
     """Incremental 3D convex hull of points in convex position.
 
@@ -437,6 +437,7 @@ def convex_hull(pts, order, eps, cap):
     start_at = np.full(n, -1, dtype=np.int64)
     end_at = np.full(n, -1, dtype=np.int64)
     new_list = np.empty(cap, dtype=np.int64)
+    last = 0
     for t in range(n):
         p = order[t]
         if used[p]:
@@ -444,14 +445,48 @@ def convex_hull(pts, order, eps, cap):
         px = pts[p, 0]
         py = pts[p, 1]
         pz = pts[p, 2]
-        nvis = 0
-        for f in range(nf):
-            if alive[f] and nrm[f, 0] * px + nrm[f, 1] * py + nrm[f, 2] * pz - off[f] > eps:
-                visible[f] = True
-                vis_list[nvis] = f
-                nvis += 1
-        if nvis == 0:
-            continue  # not extreme: reported below
+        # walk from the last new face towards p (greedy on the plane distance),
+        # then flood-fill the connected visible region
+        f = last
+        dist = nrm[f, 0] * px + nrm[f, 1] * py + nrm[f, 2] * pz - off[f]
+        for _step in range(nf):
+            if dist > eps:
+                break
+            best_g = -1
+            best_dist = dist
+            for j in range(3):
+                g = fnb[f, j]
+                dg = nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g]
+                if dg > best_dist:
+                    best_dist = dg
+                    best_g = g
+            if best_g == -1:
+                break
+            f = best_g
+            dist = best_dist
+        if dist <= eps:  # stuck on a local maximum: scan every face
+            f = -1
+            for g in range(nf):
+                if alive[g] and nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] > eps:
+                    f = g
+                    break
+            if f == -1:
+                continue  # not extreme: reported below
+        visible[f] = True
+        vis_list[0] = f
+        nvis = 1
+        head = 0
+        while head < nvis:
+            g0 = vis_list[head]
+            head += 1
+            for j in range(3):
+                g = fnb[g0, j]
+                if not visible[g] and (
+                    nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] > eps
+                ):
+                    visible[g] = True
+                    vis_list[nvis] = g
+                    nvis += 1
         used[p] = True
         nnew = 0
         for iv in range(nvis):
@@ -498,6 +533,7 @@ def convex_hull(pts, order, eps, cap):
             f = vis_list[iv]
             alive[f] = False
             visible[f] = False
+        last = new_list[0]
     for q in range(n):
         if not used[q]:
             return empty, 2
@@ -517,7 +553,7 @@ def convex_hull(pts, order, eps, cap):
 
 
 # ------------------------------------------------------------------- hubs
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def build_hub(dirs, rad, pu, pv, ccw, P, shrink, margin, floor_tan, out_d, out_det, out_tris):
     """Offsets and triangles of one hub (node of degree d >= 2).
 
@@ -547,11 +583,15 @@ def build_hub(dirs, rad, pu, pv, ccw, P, shrink, margin, floor_tan, out_d, out_d
     n = d * P
     pts = np.empty((n, 3))
     scale = 0.0
+    cosk = np.empty(P)
+    sink = np.empty(P)
+    for k in range(P):
+        cosk[k] = np.cos(2.0 * np.pi * k / P)
+        sink[k] = np.sin(2.0 * np.pi * k / P)
     for i in range(d):
         for k in range(P):
-            ang = 2.0 * np.pi * k / P
-            ca = np.cos(ang) * rad[i]
-            sa = np.sin(ang) * rad[i]
+            ca = cosk[k] * rad[i]
+            sa = sink[k] * rad[i]
             q = i * P + k
             for c in range(3):
                 pts[q, c] = out_d[i] * dirs[i, c] + ca * pu[i, c] + sa * pv[i, c]
@@ -559,13 +599,9 @@ def build_hub(dirs, rad, pu, pv, ccw, P, shrink, margin, floor_tan, out_d, out_d
     for q in range(n):
         for c in range(3):
             pts[q, c] /= scale
-    # round-robin insertion order over the profiles
-    order = np.empty(n, dtype=np.int64)
-    t = 0
-    for k in range(P):
-        for i in range(d):
-            order[t] = i * P + k
-            t += 1
+    # profile by profile: consecutive points are neighbours, so the walk to
+    # the first visible face is short
+    order = np.arange(n)
     faces, st = convex_hull(pts, order, 1e-12, 16 * n + 64)
     if st != 0:
         faces, st = convex_hull(pts, order, 1e-12, n * n + 64)
@@ -623,7 +659,7 @@ def build_hub(dirs, rad, pu, pv, ccw, P, shrink, margin, floor_tan, out_d, out_d
     return HUB_OK
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def build_hubs(
     reps,
     offsets,
@@ -701,7 +737,7 @@ def build_hubs(
 
 
 # --------------------------------------------------------------- assembly
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def scatter_offsets(offsets, slots, node_rep, rep_slot_start, rep_d, end_offset):
     """end_offset[e, side] = profile offset of strut e at that end (0 at leaves)."""
     n_nodes = offsets.shape[0] - 1
@@ -718,7 +754,7 @@ def scatter_offsets(offsets, slots, node_rep, rep_slot_start, rep_d, end_offset)
                 end_offset[es // 2, es % 2] = rep_d[s0 + t]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def profile_vertices(nodes, edges, axis, sign, frame_u, frame_v, radii, end_offset, P, out):
     """out[(2e + side) * P + k]: vertex k of the profile of strut e at that end."""
     m = edges.shape[0]
@@ -739,7 +775,7 @@ def profile_vertices(nodes, edges, axis, sign, frame_u, frame_v, radii, end_offs
                     )
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def cylinder_faces(sign, P, out):
     """2P side triangles per strut, outward (rows ``2 * P * e`` onward)."""
     m = sign.shape[0]
@@ -765,7 +801,7 @@ def cylinder_faces(sign, P, out):
                 out[base + 2 * k + 1, 2] = a1 + k1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def node_faces(offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, out):
     """Hub triangles (degree >= 2) and end caps (degree 1) of every node."""
     n_nodes = offsets.shape[0] - 1
@@ -797,7 +833,7 @@ def node_faces(offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_sta
                 row += 1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def signed_volume(vertices, faces):
     """Signed volume of a closed triangle mesh (divergence theorem)."""
     total = 0.0
@@ -813,7 +849,7 @@ def signed_volume(vertices, faces):
     return total / 6.0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def stl_records(vertices, faces, start, stop, out):
     """Fill binary-STL records for faces[start:stop].
 

@@ -230,7 +230,8 @@ def _stitch(graph: LatticeGraph, P: int, shrink: bool, seed: int, progress: _Pro
         _kernels.build_hubs(
             rep_nodes[lo:hi], offsets, slots, axis, sign, fu, fv, radii, P, shrink,
             OFFSET_MARGIN, floor_tan,
-            rep_slot_start[lo : hi + 1], rep_tri_start[lo : hi + 1] - rep_tri_start[lo],
+            rep_slot_start[lo : hi + 1] - rep_slot_start[lo],
+            rep_tri_start[lo : hi + 1] - rep_tri_start[lo],
             rep_d[rep_slot_start[lo] : rep_slot_start[hi]],
             rep_det[rep_slot_start[lo] : rep_slot_start[hi]],
             rep_tris[rep_tri_start[lo] : rep_tri_start[hi]],
@@ -281,6 +282,18 @@ def _angle_deg(graph: LatticeGraph, n: int, e: int, f: int) -> float:
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))
 
 
+def _smallest_angle(graph: LatticeGraph, n: int) -> tuple[int, int, float]:
+    """The two struts of node n that meet at the smallest angle, and that angle in degrees."""
+    inc = _edges_at(graph, n)
+    best = (inc[0], inc[1], 180.0)
+    for i, e in enumerate(inc):
+        for f in inc[i + 1 :]:
+            ang = _angle_deg(graph, n, e, f)
+            if ang < best[2]:
+                best = (e, f, ang)
+    return best
+
+
 def _check_parallel(
     offsets: NDArray[np.int64], slots: NDArray[np.int64], slot_q: NDArray[np.int64], degree: NDArray[np.int64]
 ) -> None:
@@ -326,10 +339,14 @@ def _check_fit(
     if det >= 0:
         f = int(slots[lo + det] // 2)
         ang = _angle_deg(graph, n, e, f)
+        a, b, amin = _smallest_angle(graph, n)
+        cause = "" if {a, b} == {e, f} else (
+            f"; the hub is that large because struts {a} and {b} meet at only {amin:.3g} degrees"
+        )
         raise StitchError(
             f"node {n}: struts {e} and {f} meet at {ang:.3g} degrees, too small an angle for "
             f"strut {e} (length {length[e]:.4g}): its end profiles need {needs} and would cross; "
-            f"{fits} (or use thinner struts or a larger angle)"
+            f"{fits} (or use thinner struts or a larger angle){cause}"
         )
     raise StitchError(
         f"strut {e} (nodes {n}, {other}, length {length[e]:.4g}) is too short for its radius: its "

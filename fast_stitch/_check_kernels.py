@@ -1,0 +1,1171 @@
+"""Numba kernels behind :func:`fast_stitch.check.check` (private).
+
+Everything here is an ``@numba.njit(cache=True)`` function on arrays and
+scalars; input validation, dtype coercion and result wrapping live in
+:mod:`fast_stitch.check`. Conventions: vertices are ``(V, 3) float64``
+(C-contiguous), faces are ``(F, 3) int64`` with indices already checked to be
+in ``[0, V)``. Half-edge ``h = 3 * f + k`` of face ``f`` runs from
+``faces[f, k]`` to ``faces[f, (k + 1) % 3]``; corner ``c = 3 * f + k`` is the
+use of vertex ``faces[f, k]`` by face ``f``.
+
+Geometric predicates
+--------------------
+``_orient3d`` and ``_orient2d`` return the *exact* sign of the usual
+determinants of the float64 input coordinates: a floating-point evaluation
+with Shewchuk's static error bound, falling back to exact expansion arithmetic
+(Dekker/Knuth error-free transformations) when the filter cannot decide. All
+triangle/triangle decisions for faces that do not share an edge are built on
+these signs only, so they are exact for the given coordinates: a pair is
+reported if and only if the closed triangles really meet (touching counts),
+apart from the shared vertex of faces that share one.
+
+Faces sharing an edge are the one place where a tolerance is used (see
+``_shared_edge_intersect``): they are reported when they are folded onto each
+other, i.e. the apex of the lower face lies within ``tol`` of the other face's
+plane on the same side of the shared edge.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+_EPS = 2.0**-53
+_SPLITTER = 134217729.0  # 2**27 + 1
+_O3D_ERRBOUND = (7.0 + 56.0 * _EPS) * _EPS
+_CCW_ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
+_EXP_BUF = 256  # long enough for every expansion built below (orient3d needs <= 192)
+
+# --------------------------------------------------------------------------------------
+# Error-free transformations and expansion arithmetic (Shewchuk 1997)
+# --------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _two_sum(a, b):
+    """Exact ``a + b = x + y`` with ``x = fl(a + b)``."""
+    x = a + b
+    bv = x - a
+    av = x - bv
+    return x, (a - av) + (b - bv)
+
+
+@numba.njit(cache=True)
+def _two_diff(a, b):
+    """Exact ``a - b = x + y`` with ``x = fl(a - b)``."""
+    x = a - b
+    bv = a - x
+    av = x + bv
+    return x, (a - av) + (bv - b)
+
+
+@numba.njit(cache=True)
+def _split(a):
+    c = _SPLITTER * a
+    big = c - a
+    hi = c - big
+    return hi, a - hi
+
+
+@numba.njit(cache=True)
+def _two_product(a, b):
+    """Exact ``a * b = x + y`` with ``x = fl(a * b)`` (Dekker's product)."""
+    x = a * b
+    ahi, alo = _split(a)
+    bhi, blo = _split(b)
+    err1 = x - ahi * bhi
+    err2 = err1 - alo * bhi
+    err3 = err2 - ahi * blo
+    return x, alo * blo - err3
+
+
+@numba.njit(cache=True)
+def _exp_scale(e, elen, b, h):
+    """``h = e * b`` for an expansion ``e[:elen]`` (float64); returns the length of ``h``."""
+    q, hh = _two_product(e[0], b)
+    n = 0
+    if hh != 0.0:
+        h[n] = hh
+        n += 1
+    for i in range(1, elen):
+        p1, p0 = _two_product(e[i], b)
+        s, hh = _two_sum(q, p0)
+        if hh != 0.0:
+            h[n] = hh
+            n += 1
+        q, hh = _two_sum(p1, s)
+        if hh != 0.0:
+            h[n] = hh
+            n += 1
+    if q != 0.0 or n == 0:
+        h[n] = q
+        n += 1
+    return n
+
+
+@numba.njit(cache=True)
+def _exp_sum(e, elen, f, flen, h):
+    """``h = e + f``: merge by magnitude, then a Two-Sum chain (zero components dropped)."""
+    i = 0
+    j = 0
+    if abs(f[0]) > abs(e[0]):
+        q = e[0]
+        i = 1
+    else:
+        q = f[0]
+        j = 1
+    n = 0
+    while i < elen or j < flen:
+        if j >= flen or (i < elen and abs(f[j]) > abs(e[i])):
+            g = e[i]
+            i += 1
+        else:
+            g = f[j]
+            j += 1
+        q, hh = _two_sum(q, g)
+        if hh != 0.0:
+            h[n] = hh
+            n += 1
+    if q != 0.0 or n == 0:
+        h[n] = q
+        n += 1
+    return n
+
+
+@numba.njit(cache=True)
+def _exp_diff2(a, b, out):
+    """Exact ``a - b`` as an expansion in ``out``; returns its length (1 or 2)."""
+    x, y = _two_diff(a, b)
+    if y != 0.0:
+        out[0] = y
+        out[1] = x
+        return 2
+    out[0] = x
+    return 1
+
+
+@numba.njit(cache=True)
+def _exp_mul(e, elen, f, flen, h, t1, t2):
+    """``h = e * f`` for two expansions; ``t1``, ``t2`` are work buffers."""
+    n = _exp_scale(e, elen, f[0], h)
+    for k in range(1, flen):
+        m = _exp_scale(e, elen, f[k], t1)
+        n = _exp_sum(h, n, t1, m, t2)
+        for i in range(n):
+            h[i] = t2[i]
+    return n
+
+
+@numba.njit(cache=True)
+def _exp_two_by_two(e1, l1, f1, m1, e2, l2, f2, m2, h, w):
+    """``h = e1 * f1 - e2 * f2``; ``w`` is a (4, _EXP_BUF) work array."""
+    n1 = _exp_mul(e1, l1, f1, m1, w[0], w[2], w[3])
+    n2 = _exp_mul(e2, l2, f2, m2, w[1], w[2], w[3])
+    for i in range(n2):
+        w[1, i] = -w[1, i]
+    return _exp_sum(w[0], n1, w[1], n2, h)
+
+
+@numba.njit(cache=True)
+def _exp_sign(e, n):
+    x = e[n - 1]
+    if x > 0.0:
+        return 1
+    if x < 0.0:
+        return -1
+    return 0
+
+
+# --------------------------------------------------------------------------------------
+# Orientation predicates on mesh vertices (by index)
+# --------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _orient3d_exact(vertices, a, b, c, d):
+    buf = np.empty((9, 2))
+    ln = np.empty(9, np.int64)
+    for k in range(3):
+        ln[k] = _exp_diff2(vertices[a, k], vertices[d, k], buf[k])
+        ln[3 + k] = _exp_diff2(vertices[b, k], vertices[d, k], buf[3 + k])
+        ln[6 + k] = _exp_diff2(vertices[c, k], vertices[d, k], buf[6 + k])
+    w = np.empty((4, _EXP_BUF))
+    m = np.empty(_EXP_BUF)
+    p = np.empty((3, _EXP_BUF))
+    pl = np.empty(3, np.int64)
+    acc = np.empty(_EXP_BUF)
+    acc2 = np.empty(_EXP_BUF)
+    # det[A; B; C] = A . (B x C) with A = a - d, B = b - d, C = c - d
+    for k in range(3):
+        k1 = (k + 1) % 3
+        k2 = (k + 2) % 3
+        # (B x C)_k = B_k1 * C_k2 - B_k2 * C_k1
+        mn = _exp_two_by_two(
+            buf[3 + k1], ln[3 + k1], buf[6 + k2], ln[6 + k2],
+            buf[3 + k2], ln[3 + k2], buf[6 + k1], ln[6 + k1], m, w,
+        )  # fmt: skip
+        pl[k] = _exp_mul(m, mn, buf[k], ln[k], p[k], w[0], w[1])
+    n = _exp_sum(p[0], pl[0], p[1], pl[1], acc)
+    n = _exp_sum(acc, n, p[2], pl[2], acc2)
+    return _exp_sign(acc2, n)
+
+
+@numba.njit(cache=True)
+def _orient3d(vertices, a, b, c, d):
+    """Exact sign of ``det[a - d; b - d; c - d]`` for vertex indices ``a, b, c, d``.
+
+    Zero iff the four points are coplanar; swapping two arguments flips the sign.
+    """
+    adx = vertices[a, 0] - vertices[d, 0]
+    ady = vertices[a, 1] - vertices[d, 1]
+    adz = vertices[a, 2] - vertices[d, 2]
+    bdx = vertices[b, 0] - vertices[d, 0]
+    bdy = vertices[b, 1] - vertices[d, 1]
+    bdz = vertices[b, 2] - vertices[d, 2]
+    cdx = vertices[c, 0] - vertices[d, 0]
+    cdy = vertices[c, 1] - vertices[d, 1]
+    cdz = vertices[c, 2] - vertices[d, 2]
+    bdxcdy = bdx * cdy
+    cdxbdy = cdx * bdy
+    cdxady = cdx * ady
+    adxcdy = adx * cdy
+    adxbdy = adx * bdy
+    bdxady = bdx * ady
+    det = adz * (bdxcdy - cdxbdy) + bdz * (cdxady - adxcdy) + cdz * (adxbdy - bdxady)
+    perm = (
+        (abs(bdxcdy) + abs(cdxbdy)) * abs(adz)
+        + (abs(cdxady) + abs(adxcdy)) * abs(bdz)
+        + (abs(adxbdy) + abs(bdxady)) * abs(cdz)
+    )
+    bound = _O3D_ERRBOUND * perm
+    if det > bound:
+        return 1
+    if -det > bound:
+        return -1
+    if perm == 0.0:
+        return 0
+    return _orient3d_exact(vertices, a, b, c, d)
+
+
+@numba.njit(cache=True)
+def _orient2d_exact(vertices, a, b, c, i, j):
+    buf = np.empty((4, 2))
+    l0 = _exp_diff2(vertices[a, i], vertices[c, i], buf[0])
+    l1 = _exp_diff2(vertices[a, j], vertices[c, j], buf[1])
+    l2 = _exp_diff2(vertices[b, i], vertices[c, i], buf[2])
+    l3 = _exp_diff2(vertices[b, j], vertices[c, j], buf[3])
+    w = np.empty((4, 16))
+    h = np.empty(16)
+    n = _exp_two_by_two(buf[0], l0, buf[3], l3, buf[1], l1, buf[2], l2, h, w)
+    return _exp_sign(h, n)
+
+
+@numba.njit(cache=True)
+def _orient2d(vertices, a, b, c, i, j):
+    """Exact sign of the 2D orientation of vertices ``a, b, c`` projected on axes ``(i, j)``."""
+    acx = vertices[a, i] - vertices[c, i]
+    bcy = vertices[b, j] - vertices[c, j]
+    acy = vertices[a, j] - vertices[c, j]
+    bcx = vertices[b, i] - vertices[c, i]
+    left = acx * bcy
+    right = acy * bcx
+    det = left - right
+    bound = _CCW_ERRBOUND * (abs(left) + abs(right))
+    if det > bound:
+        return 1
+    if -det > bound:
+        return -1
+    if left == 0.0 and right == 0.0:
+        return 0
+    return _orient2d_exact(vertices, a, b, c, i, j)
+
+
+@numba.njit(cache=True)
+def _drop_axis(vertices, a, b, c):
+    """Index of the largest component of the (float) normal of triangle ``a, b, c``."""
+    ux = vertices[b, 0] - vertices[a, 0]
+    uy = vertices[b, 1] - vertices[a, 1]
+    uz = vertices[b, 2] - vertices[a, 2]
+    vx = vertices[c, 0] - vertices[a, 0]
+    vy = vertices[c, 1] - vertices[a, 1]
+    vz = vertices[c, 2] - vertices[a, 2]
+    nx = abs(uy * vz - uz * vy)
+    ny = abs(uz * vx - ux * vz)
+    nz = abs(ux * vy - uy * vx)
+    if nx >= ny and nx >= nz:
+        return 0
+    if ny >= nz:
+        return 1
+    return 2
+
+
+@numba.njit(cache=True)
+def _collinear(vertices, a, b, c):
+    """True iff the three points are exactly collinear (or coincide)."""
+    k = _drop_axis(vertices, a, b, c)
+    if _orient2d(vertices, a, b, c, (k + 1) % 3, (k + 2) % 3) != 0:
+        return False
+    if _orient2d(vertices, a, b, c, (k + 2) % 3, k) != 0:
+        return False
+    return _orient2d(vertices, a, b, c, k, (k + 1) % 3) == 0
+
+
+# --------------------------------------------------------------------------------------
+# Exact segment / triangle tests
+# --------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _mixed(s1, s2, s3):
+    """True iff the three signs contain both a strictly positive and a strictly negative one."""
+    return (s1 > 0 or s2 > 0 or s3 > 0) and (s1 < 0 or s2 < 0 or s3 < 0)
+
+
+@numba.njit(cache=True)
+def _point_in_tri_2d(vertices, x, a, b, c, i, j):
+    """Closed point-in-triangle test in the projection on axes ``(i, j)``."""
+    return not _mixed(
+        _orient2d(vertices, a, b, x, i, j),
+        _orient2d(vertices, b, c, x, i, j),
+        _orient2d(vertices, c, a, x, i, j),
+    )
+
+
+@numba.njit(cache=True)
+def _seg_seg_2d(vertices, p, q, a, b, i, j):
+    """Closed segment/segment intersection in the projection on axes ``(i, j)``."""
+    o1 = _orient2d(vertices, p, q, a, i, j)
+    o2 = _orient2d(vertices, p, q, b, i, j)
+    if o1 * o2 > 0:
+        return False
+    o3 = _orient2d(vertices, a, b, p, i, j)
+    o4 = _orient2d(vertices, a, b, q, i, j)
+    if o3 * o4 > 0:
+        return False
+    if o1 == 0 and o2 == 0:
+        # collinear: the intervals must overlap on both axes
+        for ax in (i, j):
+            lo1 = min(vertices[p, ax], vertices[q, ax])
+            hi1 = max(vertices[p, ax], vertices[q, ax])
+            lo2 = min(vertices[a, ax], vertices[b, ax])
+            hi2 = max(vertices[a, ax], vertices[b, ax])
+            if max(lo1, lo2) > min(hi1, hi2):
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def _seg_tri_coplanar(vertices, p, q, a, b, c):
+    k = _drop_axis(vertices, a, b, c)
+    i = (k + 1) % 3
+    j = (k + 2) % 3
+    if _point_in_tri_2d(vertices, p, a, b, c, i, j):
+        return True
+    if _point_in_tri_2d(vertices, q, a, b, c, i, j):
+        return True
+    return (
+        _seg_seg_2d(vertices, p, q, a, b, i, j)
+        or _seg_seg_2d(vertices, p, q, b, c, i, j)
+        or _seg_seg_2d(vertices, p, q, c, a, i, j)
+    )
+
+
+@numba.njit(cache=True)
+def _seg_tri(vertices, p, q, a, b, c, op, oq):
+    """Closed segment ``pq`` / closed triangle ``abc``; ``op``, ``oq`` = orient3d(a, b, c, .)."""
+    if op * oq > 0:
+        return False
+    if op == 0 and oq == 0:
+        return _seg_tri_coplanar(vertices, p, q, a, b, c)
+    return not _mixed(
+        _orient3d(vertices, p, q, a, b),
+        _orient3d(vertices, p, q, b, c),
+        _orient3d(vertices, p, q, c, a),
+    )
+
+
+@numba.njit(cache=True)
+def _tri_tri_coplanar(vertices, a, b, c, d, e, f):
+    k = _drop_axis(vertices, a, b, c)
+    i = (k + 1) % 3
+    j = (k + 2) % 3
+    t1 = (a, b, c)
+    t2 = (d, e, f)
+    for m in range(3):
+        p = t1[m]
+        q = t1[(m + 1) % 3]
+        for n in range(3):
+            if _seg_seg_2d(vertices, p, q, t2[n], t2[(n + 1) % 3], i, j):
+                return True
+    # no edge crossings: intersect iff one triangle lies inside the other
+    if _point_in_tri_2d(vertices, d, a, b, c, i, j):
+        return True
+    return _point_in_tri_2d(vertices, a, d, e, f, i, j)
+
+
+@numba.njit(cache=True)
+def _tri_tri(vertices, a, b, c, d, e, f):
+    """Exact closed triangle/triangle intersection for triangles without common vertices."""
+    od = _orient3d(vertices, a, b, c, d)
+    oe = _orient3d(vertices, a, b, c, e)
+    of = _orient3d(vertices, a, b, c, f)
+    if (od > 0 and oe > 0 and of > 0) or (od < 0 and oe < 0 and of < 0):
+        return False
+    oa = _orient3d(vertices, d, e, f, a)
+    ob = _orient3d(vertices, d, e, f, b)
+    oc = _orient3d(vertices, d, e, f, c)
+    if (oa > 0 and ob > 0 and oc > 0) or (oa < 0 and ob < 0 and oc < 0):
+        return False
+    if od == 0 and oe == 0 and of == 0:
+        return _tri_tri_coplanar(vertices, a, b, c, d, e, f)
+    # Not coplanar: the intersection (if any) is a segment of the planes' common line
+    # whose end points lie on an edge of one triangle inside the other one.
+    return (
+        _seg_tri(vertices, d, e, a, b, c, od, oe)
+        or _seg_tri(vertices, e, f, a, b, c, oe, of)
+        or _seg_tri(vertices, f, d, a, b, c, of, od)
+        or _seg_tri(vertices, a, b, d, e, f, oa, ob)
+        or _seg_tri(vertices, b, c, d, e, f, ob, oc)
+        or _seg_tri(vertices, c, a, d, e, f, oc, oa)
+    )
+
+
+@numba.njit(cache=True)
+def _shared_vertex_intersect(vertices, p, a, b, c, d):
+    """Triangles ``(p, a, b)`` and ``(p, c, d)`` meet somewhere other than ``p`` (exact).
+
+    They do iff edge ``ab`` meets triangle ``pcd`` or edge ``cd`` meets triangle ``pab``
+    (both in the coplanar and in the general case).
+    """
+    oc = _orient3d(vertices, p, a, b, c)
+    od = _orient3d(vertices, p, a, b, d)
+    if oc * od > 0:
+        return False
+    oa = _orient3d(vertices, p, c, d, a)
+    ob = _orient3d(vertices, p, c, d, b)
+    if oa * ob > 0:
+        return False
+    return _seg_tri(vertices, c, d, p, a, b, oc, od) or _seg_tri(vertices, a, b, p, c, d, oa, ob)
+
+
+@numba.njit(cache=True)
+def _shared_edge_intersect(vertices, a, b, c, d, tol):
+    """Triangles ``(a, b, c)`` and ``(a, b, d)`` sharing edge ``ab`` overlap (folded).
+
+    Not coplanar, they only meet along ``ab``. Let ``u`` and ``w`` be the components of
+    ``c - a`` and ``d - a`` orthogonal to ``ab`` (the heights of the two faces over the
+    shared edge, as vectors). The pair is reported when both apexes are on the same side
+    (``u . w > 0``), both heights exceed ``tol`` and the lower apex lies within ``tol`` of
+    the other face's plane: ``min(|u|, |w|) * sin(angle(u, w)) <= tol``.
+    """
+    ex = vertices[b, 0] - vertices[a, 0]
+    ey = vertices[b, 1] - vertices[a, 1]
+    ez = vertices[b, 2] - vertices[a, 2]
+    ee = ex * ex + ey * ey + ez * ez
+    if ee == 0.0:
+        return False
+    ux = vertices[c, 0] - vertices[a, 0]
+    uy = vertices[c, 1] - vertices[a, 1]
+    uz = vertices[c, 2] - vertices[a, 2]
+    wx = vertices[d, 0] - vertices[a, 0]
+    wy = vertices[d, 1] - vertices[a, 1]
+    wz = vertices[d, 2] - vertices[a, 2]
+    su = (ux * ex + uy * ey + uz * ez) / ee
+    sw = (wx * ex + wy * ey + wz * ez) / ee
+    ux -= su * ex
+    uy -= su * ey
+    uz -= su * ez
+    wx -= sw * ex
+    wy -= sw * ey
+    wz -= sw * ez
+    if ux * wx + uy * wy + uz * wz <= 0.0:
+        return False
+    nu = np.sqrt(ux * ux + uy * uy + uz * uz)
+    nw = np.sqrt(wx * wx + wy * wy + wz * wz)
+    if min(nu, nw) <= tol:
+        return False
+    cx = uy * wz - uz * wy
+    cy = uz * wx - ux * wz
+    cz = ux * wy - uy * wx
+    cross = np.sqrt(cx * cx + cy * cy + cz * cz)
+    return cross <= tol * max(nu, nw)
+
+
+@numba.njit(cache=True)
+def _match(faces, f, v):
+    """Position of vertex ``v`` in face ``f``, or -1."""
+    if faces[f, 0] == v:
+        return 0
+    if faces[f, 1] == v:
+        return 1
+    if faces[f, 2] == v:
+        return 2
+    return -1
+
+
+@numba.njit(cache=True)
+def _faces_intersect(vertices, faces, fi, fj, tol):
+    """Do faces ``fi`` and ``fj`` (both non-degenerate) intersect beyond their shared part?"""
+    s0 = _match(faces, fj, faces[fi, 0])
+    s1 = _match(faces, fj, faces[fi, 1])
+    s2 = _match(faces, fj, faces[fi, 2])
+    ns = (s0 >= 0) + (s1 >= 0) + (s2 >= 0)
+    if ns == 0:
+        return _tri_tri(
+            vertices, faces[fi, 0], faces[fi, 1], faces[fi, 2], faces[fj, 0], faces[fj, 1], faces[fj, 2]
+        )
+    if ns == 3:
+        return True
+    if ns == 1:
+        if s0 >= 0:
+            m = 0
+            n = s0
+        elif s1 >= 0:
+            m = 1
+            n = s1
+        else:
+            m = 2
+            n = s2
+        return _shared_vertex_intersect(
+            vertices,
+            faces[fi, m],
+            faces[fi, (m + 1) % 3],
+            faces[fi, (m + 2) % 3],
+            faces[fj, (n + 1) % 3],
+            faces[fj, (n + 2) % 3],
+        )
+    # ns == 2: m is the apex of fi, n the apex of fj
+    if s0 < 0:
+        m = 0
+    elif s1 < 0:
+        m = 1
+    else:
+        m = 2
+    n = 3 - (s0 + s1 + s2 + 1)
+    return _shared_edge_intersect(
+        vertices, faces[fi, (m + 1) % 3], faces[fi, (m + 2) % 3], faces[fi, m], faces[fj, n], tol
+    )
+
+
+# --------------------------------------------------------------------------------------
+# Per-face geometry
+# --------------------------------------------------------------------------------------
+
+
+@numba.njit(parallel=True, cache=True)
+def face_geometry(vertices, faces, center):
+    """Per-face area, signed volume, bounding box and degeneracy.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    center : (3,) float64
+        Reference point of the volume integrals (any point; a central one is most accurate).
+
+    Returns
+    -------
+    area : (F,) float64
+        ``0.5 * |(v1 - v0) x (v2 - v0)|``.
+    volume : (F,) float64
+        Signed volume of the tetrahedron ``(center, v0, v1, v2)``.
+    boxes : (F, 6) float64
+        ``(xmin, ymin, zmin, xmax, ymax, zmax)``.
+    degenerate : (F,) bool
+        Repeated vertex index, or three exactly collinear points.
+    """
+    n = faces.shape[0]
+    area = np.empty(n)
+    volume = np.empty(n)
+    boxes = np.empty((n, 6))
+    degenerate = np.zeros(n, np.bool_)
+    for f in numba.prange(n):
+        i0 = faces[f, 0]
+        i1 = faces[f, 1]
+        i2 = faces[f, 2]
+        ux = vertices[i1, 0] - vertices[i0, 0]
+        uy = vertices[i1, 1] - vertices[i0, 1]
+        uz = vertices[i1, 2] - vertices[i0, 2]
+        vx = vertices[i2, 0] - vertices[i0, 0]
+        vy = vertices[i2, 1] - vertices[i0, 1]
+        vz = vertices[i2, 2] - vertices[i0, 2]
+        nx = uy * vz - uz * vy
+        ny = uz * vx - ux * vz
+        nz = ux * vy - uy * vx
+        area[f] = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
+        ax = vertices[i0, 0] - center[0]
+        ay = vertices[i0, 1] - center[1]
+        az = vertices[i0, 2] - center[2]
+        bx = vertices[i1, 0] - center[0]
+        by = vertices[i1, 1] - center[1]
+        bz = vertices[i1, 2] - center[2]
+        cx = vertices[i2, 0] - center[0]
+        cy = vertices[i2, 1] - center[1]
+        cz = vertices[i2, 2] - center[2]
+        volume[f] = (ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)) / 6.0
+        for k in range(3):
+            lo = min(vertices[i0, k], vertices[i1, k], vertices[i2, k])
+            hi = max(vertices[i0, k], vertices[i1, k], vertices[i2, k])
+            boxes[f, k] = lo
+            boxes[f, 3 + k] = hi
+        if i0 == i1 or i1 == i2 or i2 == i0:
+            degenerate[f] = True
+        else:
+            degenerate[f] = _collinear(vertices, i0, i1, i2)
+    return area, volume, boxes, degenerate
+
+
+# --------------------------------------------------------------------------------------
+# Edge topology
+# --------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _find(parent, x):
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
+@numba.njit(cache=True)
+def _union(parent, x, y):
+    """Union by smallest root index (deterministic labels)."""
+    rx = _find(parent, x)
+    ry = _find(parent, y)
+    if rx < ry:
+        parent[ry] = rx
+    elif ry < rx:
+        parent[rx] = ry
+
+
+@numba.njit(cache=True)
+def edge_topology(faces, n_vertices, max_report):
+    """Edge, vertex-fan and component analysis of a triangle mesh.
+
+    Half-edges whose two end points are the same vertex index are ignored; every
+    other half-edge belongs to the undirected edge ``(min, max)`` of its end points.
+
+    Parameters
+    ----------
+    faces : (F, 3) int64
+    n_vertices : int
+    max_report : int
+        Maximum number of examples stored per kind of problem.
+
+    Returns
+    -------
+    counts : (7,) int64
+        ``n_edges, n_boundary_edges, n_nonmanifold_edges, n_inconsistent_edges,
+        n_nonmanifold_vertices, n_unused_vertices, n_components``.
+    boundary : (K, 3) int64
+        Examples ``(v0, v1, face)``: edge ``v0 < v1`` and the lowest face using it.
+    nonmanifold : (K, 3) int64
+        Same for edges used by more than two faces.
+    inconsistent : (K, 3) int64
+        Same for edges used by two faces in the same direction.
+    nm_vertices : (K,) int64
+        Vertices whose incident faces form several fans (linked across edges at the vertex).
+    unused : (K,) int64
+        Vertices not used by any face.
+    labels : (F,) int64
+        Connected component of each face (faces linked across shared edges), numbered in
+        order of their lowest face.
+    used : (V,) bool
+        Vertices used by some face.
+    """
+    nf = faces.shape[0]
+    nh = 3 * nf
+    # ---- counting sort of the half-edges by their lower vertex
+    start = np.zeros(n_vertices + 1, np.int64)
+    for h in range(nh):
+        f = h // 3
+        k = h - 3 * f
+        a = faces[f, k]
+        b = faces[f, (k + 1) % 3]
+        if a != b:
+            start[min(a, b) + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+    n_valid = start[n_vertices]
+    order = np.empty(n_valid, np.int64)
+    other = np.empty(n_valid, np.int64)  # higher vertex of each sorted half-edge
+    pos = start[:n_vertices].copy()
+    for h in range(nh):
+        f = h // 3
+        k = h - 3 * f
+        a = faces[f, k]
+        b = faces[f, (k + 1) % 3]
+        if a != b:
+            lo = min(a, b)
+            order[pos[lo]] = h
+            other[pos[lo]] = max(a, b)
+            pos[lo] += 1
+    # ---- stable sort of each bucket by the higher vertex
+    for v in range(n_vertices):
+        s = start[v]
+        e = start[v + 1]
+        if e - s <= 1:
+            continue
+        if e - s <= 32:
+            for i in range(s + 1, e):
+                kh = order[i]
+                ko = other[i]
+                j = i - 1
+                while j >= s and other[j] > ko:
+                    order[j + 1] = order[j]
+                    other[j + 1] = other[j]
+                    j -= 1
+                order[j + 1] = kh
+                other[j + 1] = ko
+        else:
+            idx = np.argsort(other[s:e], kind="mergesort")
+            o2 = order[s:e][idx]
+            h2 = other[s:e][idx]
+            order[s:e] = o2
+            other[s:e] = h2
+    # ---- scan the groups of equal edges
+    face_parent = np.arange(nf)
+    corner_parent = np.arange(nh)
+    boundary = np.empty((max_report, 3), np.int64)
+    nonmanifold = np.empty((max_report, 3), np.int64)
+    inconsistent = np.empty((max_report, 3), np.int64)
+    n_edges = 0
+    n_boundary = 0
+    n_nonmanifold = 0
+    n_inconsistent = 0
+    lo_vertex = 0
+    g0 = 0
+    while g0 < n_valid:
+        while start[lo_vertex + 1] <= g0:
+            lo_vertex += 1
+        hi_vertex = other[g0]
+        g1 = g0 + 1
+        while g1 < start[lo_vertex + 1] and other[g1] == hi_vertex:
+            g1 += 1
+        n_edges += 1
+        count = g1 - g0
+        h0 = order[g0]
+        f0 = h0 // 3
+        forward = 0
+        c_lo0 = -1
+        c_hi0 = -1
+        for g in range(g0, g1):
+            h = order[g]
+            f = h // 3
+            k = h - 3 * f
+            c_start = h
+            c_end = 3 * f + (k + 1) % 3
+            if faces[f, k] == lo_vertex:
+                forward += 1
+                c_lo = c_start
+                c_hi = c_end
+            else:
+                c_lo = c_end
+                c_hi = c_start
+            if g == g0:
+                c_lo0 = c_lo
+                c_hi0 = c_hi
+            else:
+                _union(face_parent, f0, f)
+                _union(corner_parent, c_lo0, c_lo)
+                _union(corner_parent, c_hi0, c_hi)
+        if count == 1:
+            if n_boundary < max_report:
+                boundary[n_boundary, 0] = lo_vertex
+                boundary[n_boundary, 1] = hi_vertex
+                boundary[n_boundary, 2] = f0
+            n_boundary += 1
+        elif count > 2:
+            if n_nonmanifold < max_report:
+                nonmanifold[n_nonmanifold, 0] = lo_vertex
+                nonmanifold[n_nonmanifold, 1] = hi_vertex
+                nonmanifold[n_nonmanifold, 2] = f0
+            n_nonmanifold += 1
+        elif forward != 1:
+            if n_inconsistent < max_report:
+                inconsistent[n_inconsistent, 0] = lo_vertex
+                inconsistent[n_inconsistent, 1] = hi_vertex
+                inconsistent[n_inconsistent, 2] = f0
+            n_inconsistent += 1
+        g0 = g1
+    # ---- corners of one face at the same vertex belong to the same fan
+    for f in range(nf):
+        for k in range(3):
+            for k2 in range(k + 1, 3):
+                if faces[f, k] == faces[f, k2]:
+                    _union(corner_parent, 3 * f + k, 3 * f + k2)
+    # ---- fans per vertex
+    fans = np.zeros(n_vertices, np.int64)
+    used = np.zeros(n_vertices, np.bool_)
+    for c in range(nh):
+        f = c // 3
+        v = faces[f, c - 3 * f]
+        used[v] = True
+        if _find(corner_parent, c) == c:
+            fans[v] += 1
+    nm_vertices = np.empty(max_report, np.int64)
+    unused = np.empty(max_report, np.int64)
+    n_nm_vertices = 0
+    n_unused = 0
+    for v in range(n_vertices):
+        if fans[v] > 1:
+            if n_nm_vertices < max_report:
+                nm_vertices[n_nm_vertices] = v
+            n_nm_vertices += 1
+        if not used[v]:
+            if n_unused < max_report:
+                unused[n_unused] = v
+            n_unused += 1
+    # ---- face components
+    labels = np.empty(nf, np.int64)
+    n_components = 0
+    for f in range(nf):
+        r = _find(face_parent, f)
+        if r == f:
+            labels[f] = n_components
+            n_components += 1
+        else:
+            labels[f] = labels[r]  # r < f: already labelled
+    counts = np.array(
+        [n_edges, n_boundary, n_nonmanifold, n_inconsistent, n_nm_vertices, n_unused, n_components],
+        dtype=np.int64,
+    )
+    return (
+        counts,
+        boundary[: min(n_boundary, max_report)].copy(),
+        nonmanifold[: min(n_nonmanifold, max_report)].copy(),
+        inconsistent[: min(n_inconsistent, max_report)].copy(),
+        nm_vertices[: min(n_nm_vertices, max_report)].copy(),
+        unused[: min(n_unused, max_report)].copy(),
+        labels,
+        used,
+    )
+
+
+# --------------------------------------------------------------------------------------
+# Components: representative faces and winding numbers
+# --------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def component_rep_faces(labels, area, n_components):
+    """Largest-area face of each component (lowest index on ties).
+
+    Parameters
+    ----------
+    labels : (F,) int64
+    area : (F,) float64
+    n_components : int
+
+    Returns
+    -------
+    rep : (C,) int64
+    """
+    rep = np.full(n_components, -1, np.int64)
+    for f in range(labels.shape[0]):
+        c = labels[f]
+        if rep[c] < 0 or area[f] > area[rep[c]]:
+            rep[c] = f
+    return rep
+
+
+@numba.njit(parallel=True, cache=True)
+def winding_numbers(vertices, faces, labels, queries, query_labels):
+    """Generalized winding number of the faces *not* in ``query_labels[q]`` at ``queries[q]``.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    labels : (F,) int64
+        Component of each face.
+    queries : (Q, 3) float64
+    query_labels : (Q,) int64
+        Component whose faces are left out for each query point.
+
+    Returns
+    -------
+    w : (Q,) float64
+        Sum of the signed solid angles over ``4 pi`` (about +1 inside a closed, outward
+        oriented surface, 0 outside). Summed in fixed chunks: independent of threading.
+    """
+    nf = faces.shape[0]
+    nq = queries.shape[0]
+    n_chunks = 64
+    chunk = (nf + n_chunks - 1) // n_chunks
+    partial = np.zeros((n_chunks, nq))
+    for ch in numba.prange(n_chunks):
+        f_start = ch * chunk
+        f_end = min(nf, f_start + chunk)
+        for f in range(f_start, f_end):
+            i0 = faces[f, 0]
+            i1 = faces[f, 1]
+            i2 = faces[f, 2]
+            if i0 == i1 or i1 == i2 or i2 == i0:
+                continue
+            for q in range(nq):
+                if labels[f] == query_labels[q]:
+                    continue
+                ax = vertices[i0, 0] - queries[q, 0]
+                ay = vertices[i0, 1] - queries[q, 1]
+                az = vertices[i0, 2] - queries[q, 2]
+                bx = vertices[i1, 0] - queries[q, 0]
+                by = vertices[i1, 1] - queries[q, 1]
+                bz = vertices[i1, 2] - queries[q, 2]
+                cx = vertices[i2, 0] - queries[q, 0]
+                cy = vertices[i2, 1] - queries[q, 1]
+                cz = vertices[i2, 2] - queries[q, 2]
+                la = np.sqrt(ax * ax + ay * ay + az * az)
+                lb = np.sqrt(bx * bx + by * by + bz * bz)
+                lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+                det = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+                den = (
+                    la * lb * lc
+                    + (ax * bx + ay * by + az * bz) * lc
+                    + (ax * cx + ay * cy + az * cz) * lb
+                    + (bx * cx + by * cy + bz * cz) * la
+                )
+                partial[ch, q] += 2.0 * np.arctan2(det, den)
+    w = np.zeros(nq)
+    for ch in range(n_chunks):
+        for q in range(nq):
+            w[q] += partial[ch, q]
+    return w / (4.0 * np.pi)
+
+
+# --------------------------------------------------------------------------------------
+# Self-intersections: hashed uniform grid broadphase + exact narrowphase
+# --------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _cell_hash(ix, iy, iz, mask):
+    k = (
+        np.uint64(ix) * np.uint64(0x9E3779B97F4A7C15)
+        ^ np.uint64(iy) * np.uint64(0xC2B2AE3D27D4EB4F)
+        ^ np.uint64(iz) * np.uint64(0x165667B19E3779F9)
+    )
+    k ^= k >> np.uint64(31)
+    k *= np.uint64(0xBF58476D1CE4E5B9)
+    k ^= k >> np.uint64(29)
+    return np.int64(k & np.uint64(mask))
+
+
+@numba.njit(cache=True)
+def _cell(x, o, h):
+    return np.int64(np.floor((x - o) / h))
+
+
+@numba.njit(parallel=True, cache=True)
+def grid_entry_count(boxes, active, origin, h):
+    """Number of (cell, face) entries of the grid of cell size ``h``.
+
+    Parameters
+    ----------
+    boxes : (F, 6) float64
+    active : (F,) bool
+    origin : (3,) float64
+    h : float
+
+    Returns
+    -------
+    total : int
+    """
+    total = 0
+    for f in numba.prange(boxes.shape[0]):
+        if active[f]:
+            nx = _cell(boxes[f, 3], origin[0], h) - _cell(boxes[f, 0], origin[0], h) + 1
+            ny = _cell(boxes[f, 4], origin[1], h) - _cell(boxes[f, 1], origin[1], h) + 1
+            nz = _cell(boxes[f, 5], origin[2], h) - _cell(boxes[f, 2], origin[2], h) + 1
+            total += nx * ny * nz
+    return total
+
+
+@numba.njit(cache=True)
+def grid_fill(boxes, active, origin, h, n_buckets):
+    """Bucket the active faces by the hashed grid cells their boxes overlap.
+
+    Parameters
+    ----------
+    boxes : (F, 6) float64
+    active : (F,) bool
+    origin : (3,) float64
+    h : float
+    n_buckets : int
+        A power of two.
+
+    Returns
+    -------
+    bucket_start : (n_buckets + 1,) int64
+    entries : (N,) int32
+        Face indices; ascending inside each bucket (a face may repeat, consecutively).
+    """
+    mask = n_buckets - 1
+    bucket_start = np.zeros(n_buckets + 1, np.int64)
+    nf = boxes.shape[0]
+    for f in range(nf):
+        if not active[f]:
+            continue
+        x0 = _cell(boxes[f, 0], origin[0], h)
+        y0 = _cell(boxes[f, 1], origin[1], h)
+        z0 = _cell(boxes[f, 2], origin[2], h)
+        x1 = _cell(boxes[f, 3], origin[0], h)
+        y1 = _cell(boxes[f, 4], origin[1], h)
+        z1 = _cell(boxes[f, 5], origin[2], h)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    bucket_start[_cell_hash(ix, iy, iz, mask) + 1] += 1
+    for b in range(n_buckets):
+        bucket_start[b + 1] += bucket_start[b]
+    entries = np.empty(bucket_start[n_buckets], np.int32)
+    pos = bucket_start[:n_buckets].copy()
+    for f in range(nf):
+        if not active[f]:
+            continue
+        x0 = _cell(boxes[f, 0], origin[0], h)
+        y0 = _cell(boxes[f, 1], origin[1], h)
+        z0 = _cell(boxes[f, 2], origin[2], h)
+        x1 = _cell(boxes[f, 3], origin[0], h)
+        y1 = _cell(boxes[f, 4], origin[1], h)
+        z1 = _cell(boxes[f, 5], origin[2], h)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    b = _cell_hash(ix, iy, iz, mask)
+                    entries[pos[b]] = f
+                    pos[b] += 1
+    return bucket_start, entries
+
+
+@numba.njit(parallel=True, cache=True)
+def grid_pairs(
+    vertices,
+    faces,
+    boxes,
+    origin,
+    h,
+    bucket_start,
+    entries,
+    tol,
+    mode,
+    max_first,
+    prev_counts,
+    offsets,
+    face_hit,
+    pairs,
+):
+    """Count (or collect) the intersecting face pairs of the grid.
+
+    Each candidate pair is examined in exactly one bucket: the one of the grid cell that
+    holds the lower corner of the intersection of the two boxes.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    boxes : (F, 6) float64
+    origin : (3,) float64
+    h : float
+    bucket_start : (B + 1,) int64
+    entries : (N,) int32
+    tol : float
+        Absolute fold tolerance for faces that share an edge.
+    mode : int
+        0: count all pairs per bucket and flag the faces involved in ``face_hit``;
+        1: count pairs whose first face is ``<= max_first`` (buckets with
+        ``prev_counts > 0`` only); 2: like 1 but write them into ``pairs`` from
+        ``offsets[bucket]`` on.
+    max_first : int
+    prev_counts : (B,) int64
+        Counts of the previous pass (ignored in mode 0).
+    offsets : (B,) int64
+        Write position per bucket (mode 2).
+    face_hit : (F,) uint8
+        Set to 1 for faces involved in some intersection (mode 0).
+    pairs : (P, 2) int64
+        Output of mode 2, ``pairs[:, 0] < pairs[:, 1]``.
+
+    Returns
+    -------
+    counts : (B,) int64
+        Pairs found per bucket.
+    """
+    nb = bucket_start.shape[0] - 1
+    mask = nb - 1
+    counts = np.zeros(nb, np.int64)
+    for bkt in numba.prange(nb):
+        s = bucket_start[bkt]
+        e = bucket_start[bkt + 1]
+        if e - s < 2:
+            continue
+        if mode != 0 and prev_counts[bkt] == 0:
+            continue
+        cnt = 0
+        for k1 in range(s, e - 1):
+            fi = entries[k1]
+            if k1 > s and entries[k1 - 1] == fi:
+                continue
+            if mode != 0 and fi > max_first:
+                break
+            for k2 in range(k1 + 1, e):
+                fj = entries[k2]
+                if fj == entries[k2 - 1]:
+                    continue
+                lx = max(boxes[fi, 0], boxes[fj, 0])
+                if lx > min(boxes[fi, 3], boxes[fj, 3]):
+                    continue
+                ly = max(boxes[fi, 1], boxes[fj, 1])
+                if ly > min(boxes[fi, 4], boxes[fj, 4]):
+                    continue
+                lz = max(boxes[fi, 2], boxes[fj, 2])
+                if lz > min(boxes[fi, 5], boxes[fj, 5]):
+                    continue
+                ref = _cell_hash(
+                    _cell(lx, origin[0], h), _cell(ly, origin[1], h), _cell(lz, origin[2], h), mask
+                )
+                if ref != bkt:
+                    continue
+                if _faces_intersect(vertices, faces, fi, fj, tol):
+                    if mode == 2:
+                        pairs[offsets[bkt] + cnt, 0] = fi
+                        pairs[offsets[bkt] + cnt, 1] = fj
+                    elif mode == 0:
+                        face_hit[fi] = 1
+                        face_hit[fj] = 1
+                    cnt += 1
+        counts[bkt] = cnt
+    return counts
+
+
+@numba.njit(cache=True)
+def faces_intersect(vertices, faces, fi, fj, tol):
+    """Public (to the package) single-pair test, for checks and debugging.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    fi, fj : int
+        Non-degenerate faces.
+    tol : float
+        Fold tolerance for faces sharing an edge (absolute).
+
+    Returns
+    -------
+    bool
+    """
+    return _faces_intersect(vertices, faces, fi, fj, tol)
+
+
+@numba.njit(cache=True)
+def orient3d_sign(vertices, a, b, c, d):
+    """Exact sign of ``det[a - d; b - d; c - d]`` (vertex indices; see ``_orient3d``)."""
+    return _orient3d(vertices, a, b, c, d)
+
+
+@numba.njit(cache=True)
+def orient2d_sign(vertices, a, b, c, i, j):
+    """Exact sign of the 2D orientation on axes ``(i, j)`` (see ``_orient2d``)."""
+    return _orient2d(vertices, a, b, c, i, j)
