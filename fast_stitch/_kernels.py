@@ -258,6 +258,8 @@ def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
             c = min(1.0, max(-1.0, c))
             cosm[i, j] = c
             sinm[i, j] = np.sqrt(max(0.0, 1.0 - c * c))
+    # the floor: cone half-angle at most alpha_max, tan(alpha_max) == floor_tan
+    alpha_max = np.arctan(floor_tan)
     ideal = np.empty(d)
     for i in range(d):
         best = rad[i] / floor_tan
@@ -265,7 +267,17 @@ def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
         for j in range(d):
             if j == i or sinm[i, j] <= 1e-12:
                 continue
-            dij = (rad[j] + rad[i] * cosm[i, j]) / sinm[i, j] * (1.0 + margin)
+            # tangent split of the angle between the two cones
+            dij = (rad[j] + rad[i] * cosm[i, j]) / sinm[i, j]
+            dji = (rad[i] + rad[j] * cosm[i, j]) / sinm[i, j]
+            if dji * floor_tan < rad[j]:
+                # j's share would exceed alpha_max: j is floored anyway, so i
+                # only has to stay within theta - alpha_max
+                rest = np.arccos(cosm[i, j]) - alpha_max
+                if rest >= 0.5 * np.pi:
+                    continue
+                dij = rad[i] / np.tan(rest)
+            dij *= 1.0 + margin
             if dij > best:
                 best = dij
                 arg = j

@@ -223,7 +223,7 @@ def _stitch(graph: LatticeGraph, P: int, shrink: bool, seed: int, progress: _Pro
     rep_det = np.empty(int(rep_slot_start[-1]), dtype=np.int64)
     rep_tris = np.empty((int(rep_tri_start[-1]), 3), dtype=np.int64)
     rep_status = np.empty(n_rep, dtype=np.int64)
-    floor_tan = 1.0 / math.tan(math.radians(FLOOR_ANGLE_DEG))
+    floor_tan = math.tan(math.radians(90.0 - FLOOR_ANGLE_DEG))  # r / d_floor
     # chunks keep Ctrl-C responsive and drive the progress report
     for lo in range(0, n_rep, _CHUNK):
         hi = min(n_rep, lo + _CHUNK)

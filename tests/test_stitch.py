@@ -1,0 +1,324 @@
+"""fast_stitch.stitch: guarantees, golden counts, errors, determinism, I/O."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+from conftest import assert_valid, cubic_grid, independent_check, star_graph
+from reference_stitch import canonical_faces, reference_stitch
+
+import fast_stitch
+from conformal.cells import block
+from fast_stitch import ExportError, StitchError
+from lattice_cad import LatticeGraph, LatticeWarning
+
+
+def counts_ok(mesh, graph, P):
+    est = fast_stitch.estimate(graph, P)
+    return len(mesh.vertices) == est.vertices == 2 * graph.num_edges * P and len(
+        mesh.faces
+    ) == est.triangles
+
+
+def axis_dirs():
+    return np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+
+
+def edge_dirs():
+    return np.array(
+        [[a, b, 0] for a in (1, -1) for b in (1, -1)]
+        + [[a, 0, b] for a in (1, -1) for b in (1, -1)]
+        + [[0, a, b] for a in (1, -1) for b in (1, -1)],
+        float,
+    )
+
+
+def planar_star(d):
+    t = 2 * np.pi * np.arange(d) / d
+    return np.column_stack([np.cos(t), np.sin(t), np.zeros(d)])
+
+
+# ------------------------------------------------------------ golden counts
+@pytest.mark.parametrize(
+    ("dirs", "expected"),
+    [
+        (planar_star(4), 252),
+        (planar_star(8), 508),
+        (planar_star(16), 1020),
+        (np.vstack([axis_dirs(), edge_dirs()]), 1148),
+    ],
+    ids=["4 beams", "8 beams", "16 beams", "18 beams 3D"],
+)
+def test_paper_table1_counts(dirs, expected):
+    """Verma et al. Table 1: beams of length 1, radius 0.1, P = 16."""
+    g = star_graph(dirs, 1.0, 0.1)
+    mesh = fast_stitch.stitch(g, 16)
+    assert len(mesh.faces) == expected
+    assert counts_ok(mesh, g, 16)
+    assert_valid(mesh)
+
+
+def test_estimate_formula_by_hand():
+    g = LatticeGraph([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [[0, 1], [0, 2], [1, 3]], 0.1)
+    # degrees: node0 2, node1 2, node2 1, node3 1
+    P = 5
+    est = fast_stitch.estimate(g, P)
+    assert est.vertices == 2 * 3 * P
+    assert est.triangles == 2 * 3 * P + 2 * (2 * P + 0) + 2 * (P - 2)
+    assert est.stl_bytes == 84 + 50 * est.triangles
+
+
+# ------------------------------------------------------ closed-form volumes
+@pytest.mark.parametrize("P", [3, 4, 6, 11, 32])
+def test_single_strut_is_an_exact_prism(P):
+    r, L = 0.3, 2.5
+    g = LatticeGraph([[0, 0, 0], [1.5, 2.0, 0]], [[0, 1]], r)  # length 2.5
+    mesh = fast_stitch.stitch(g, P)
+    polygon = 0.5 * P * r * r * math.sin(2 * math.pi / P)
+    assert mesh.volume == pytest.approx(polygon * L, rel=1e-12)
+    assert len(mesh.faces) == 2 * P + 2 * (P - 2)
+    assert_valid(mesh)
+
+
+def test_tapered_strut_is_an_exact_frustum():
+    P, r0, r1, L = 8, 0.4, 0.1, 3.0
+    g = LatticeGraph([[0, 0, 0], [0, 0, L]], [[0, 1]], [[r0, r1]])
+    mesh = fast_stitch.stitch(g, P)
+    area = lambda r: 0.5 * P * r * r * math.sin(2 * math.pi / P)  # noqa: E731
+    a0, a1 = area(r0), area(r1)
+    assert mesh.volume == pytest.approx(L / 3 * (a0 + a1 + math.sqrt(a0 * a1)), rel=1e-12)
+    assert_valid(mesh)
+
+
+def test_collinear_chain_is_one_exact_prism():
+    """Collinear degree-2 nodes: parallel struts share a phase, so the hub is a prism slice."""
+    P, r = 6, 0.1
+    x = np.array([0.0, 1.0, 2.5, 3.0, 4.2])
+    g = LatticeGraph(np.column_stack([x, 0 * x, 0 * x]), [[0, 1], [1, 2], [3, 2], [3, 4]], r)
+    mesh = fast_stitch.stitch(g, P)
+    assert mesh.volume == pytest.approx(0.5 * P * r * r * math.sin(2 * math.pi / P) * 4.2, rel=1e-9)
+    assert counts_ok(mesh, g, P)
+    assert_valid(mesh)
+
+
+# --------------------------------------------- property tests on many graphs
+def random_star(rng, d, *, planar=False, tapered=False):
+    dirs = rng.normal(size=(d, 3))
+    if planar:
+        dirs[:, 2] = 0
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    cos = np.clip(dirs @ dirs.T, -1, 1) - 2 * np.eye(d)
+    min_angle = math.acos(cos.max())
+    rmax = 0.9 * math.tan(min_angle / 2) * 1.0  # profiles fit in struts of length ~ 3
+    shape = (d, 2) if tapered else (d,)
+    radii = rng.uniform(0.2, 1.0, size=shape) * min(rmax / 3, 0.2)
+    return star_graph(dirs, rng.uniform(3.0, 4.0, d), radii)
+
+
+@pytest.mark.parametrize("d", [2, 3, 4, 5, 6, 8, 10, 12, 14, 18, 22, 26])
+@pytest.mark.parametrize("kind", ["3d", "planar", "tapered"])
+def test_random_stars_are_valid(rng, d, kind):
+    for trial in range(3):
+        g = random_star(rng, d, planar=kind == "planar", tapered=kind == "tapered")
+        P = int(rng.choice([3, 4, 6, 8, 12]))
+        mesh = fast_stitch.stitch(g, P, seed=trial)
+        assert counts_ok(mesh, g, P)
+        assert_valid(mesh)
+
+
+def test_stars_match_the_slow_reference(rng):
+    for trial in range(12):
+        g = random_star(rng, int(rng.integers(2, 15)), tapered=bool(trial % 2))
+        P = int(rng.choice([3, 5, 6, 9]))
+        shrink = bool(trial % 3)
+        mesh = fast_stitch.stitch(g, P, seed=trial, shrink=shrink)
+        v, f = reference_stitch(g, P, seed=trial, shrink=shrink)
+        np.testing.assert_allclose(mesh.vertices, v, rtol=0, atol=1e-12)
+        assert canonical_faces(mesh.faces) == canonical_faces(f)
+
+
+def test_jittered_grid_matches_reference_and_is_valid(rng):
+    nodes, edges = cubic_grid(4, 1.0)
+    nodes = nodes + rng.uniform(-0.2, 0.2, nodes.shape)
+    g = LatticeGraph(nodes, edges, rng.uniform(0.03, 0.08, (len(edges), 2)))
+    mesh = fast_stitch.stitch(g, 7, seed=3)
+    v, f = reference_stitch(g, 7, seed=3)
+    np.testing.assert_allclose(mesh.vertices, v, rtol=0, atol=1e-12)
+    assert canonical_faces(mesh.faces) == canonical_faces(f)
+    assert counts_ok(mesh, g, 7)
+    assert_valid(mesh)
+
+
+@pytest.mark.parametrize(
+    "cell", ["cubic", "bcc", "bccz", "fcc", "fccz", "box-bcc", "octet", "kelvin", "diamond",
+             "rhombic-dodecahedron", "reentrant"],
+)  # fmt: skip
+def test_unit_cell_blocks_are_valid(cell):
+    g = block(cell, (3, 3, 2), cell_size=10.0, radius=0.35)
+    P = 6
+    mesh = fast_stitch.stitch(g, P)
+    assert counts_ok(mesh, g, P)
+    assert_valid(mesh)
+
+
+def test_jittered_octet_block_is_valid(rng):
+    g0 = block("octet", 3, cell_size=10.0, radius=0.3)
+    g = LatticeGraph(g0.nodes + rng.uniform(-0.6, 0.6, g0.nodes.shape), g0.edges, g0.radii)
+    mesh = fast_stitch.stitch(g, 6)
+    assert counts_ok(mesh, g, 6)
+    assert_valid(mesh)
+
+
+def test_shrink_reduces_volume_and_both_are_valid():
+    """A tight pair makes a big hub; shrinking pulls the other profiles back in."""
+    t = math.radians(20)
+    dirs = [[1, 0, 0], [math.cos(t), math.sin(t), 0], [0, 0, 1], [0, 0, -1], [-1, 0, 0]]
+    g = star_graph(dirs, 3.0, 0.1)
+    small = fast_stitch.stitch(g, 8, shrink=True)
+    big = fast_stitch.stitch(g, 8, shrink=False)
+    assert small.volume < 0.9 * big.volume
+    assert len(small.faces) == len(big.faces)
+    assert_valid(small)
+    assert_valid(big)
+
+
+# ------------------------------------------------------------- at the limit
+def tight_v(angle_deg, r=0.05, L=1.0):
+    t = math.radians(angle_deg)
+    return star_graph([[1, 0, 0], [math.cos(t), math.sin(t), 0]], L, r)
+
+
+@pytest.mark.parametrize("angle", [0.5, 2.0, 5.0, 20.0])
+def test_small_angle_error_names_node_edges_angle_and_length(angle):
+    with pytest.raises(StitchError) as err:
+        fast_stitch.stitch(tight_v(angle, r=0.05, L=0.5 / math.tan(math.radians(angle) / 2) * 0.1))
+    msg = str(err.value)
+    assert re.search(r"node 0: struts [01] and [01] meet at", msg), msg
+    assert f"{angle:.3g} degrees" in msg
+    needed = float(re.search(r"longer than ([0-9.e+-]+)", msg).group(1))
+    # the reported length really is (just) the shortest one that fits
+    ok = fast_stitch.stitch(tight_v(angle, r=0.05, L=needed * 1.001))
+    assert_valid(ok)
+    with pytest.raises(StitchError):
+        fast_stitch.stitch(tight_v(angle, r=0.05, L=needed * 0.98))
+
+
+@pytest.mark.parametrize("angle", [0.5, 3.0, 10.0, 30.0, 150.0, 175.0, 179.0, 179.99])
+def test_near_parallel_and_near_collinear_struts_at_the_limit(angle):
+    g = tight_v(angle, r=0.05, L=1000.0)  # long enough for any offset
+    mesh = fast_stitch.stitch(g, 6)
+    assert counts_ok(mesh, g, 6)
+    assert_valid(mesh)
+
+
+def test_short_strut_between_two_hubs_is_reported():
+    # two tight V's joined by a short strut
+    g = LatticeGraph(
+        [[0, 0, 0], [0.3, 0, 0], [5, 0.3, 0], [-5, 0.3, 0], [5.3, 0.3, 0]],
+        [[0, 1], [0, 2], [1, 3], [1, 4]], 0.05,
+    )  # fmt: skip
+    with pytest.raises(StitchError, match=r"strut 0 \(length 0.3\)"):
+        fast_stitch.stitch(g)
+
+
+def test_parallel_struts_are_reported():
+    # distinct nodes on the same ray from node 0 (quantised to one direction)
+    g = LatticeGraph([[0, 0, 0], [1, 0, 0], [2, 1e-12, 0]], [[0, 1], [0, 2]], 0.01)
+    with pytest.raises(StitchError, match="node 0: struts 0 and 1 leave it in the same direction"):
+        fast_stitch.stitch(g)
+
+
+# ---------------------------------------------------------------- API edges
+def test_bad_arguments():
+    g = tight_v(90)
+    with pytest.raises(ValueError, match="segments must be >= 3"):
+        fast_stitch.stitch(g, 2)
+    with pytest.raises(TypeError, match="segments"):
+        fast_stitch.stitch(g, 6.0)
+    with pytest.raises(TypeError, match="LatticeGraph"):
+        fast_stitch.stitch(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="seed"):
+        fast_stitch.stitch(g, seed=-1)
+    with pytest.raises(ValueError, match="workers"):
+        fast_stitch.stitch(g, workers=0)
+    with pytest.raises(StitchError, match="no struts"):
+        fast_stitch.stitch(LatticeGraph(np.zeros((0, 3)), np.zeros((0, 2), int), 0.1))
+
+
+def test_isolated_nodes_are_ignored():
+    with pytest.warns(LatticeWarning):
+        g = LatticeGraph([[0, 0, 0], [1, 0, 0], [0, 1, 0], [9, 9, 9]], [[0, 1], [0, 2]], 0.1)
+    mesh = fast_stitch.stitch(g, 6)
+    assert counts_ok(mesh, g, 6)
+    assert_valid(mesh)
+
+
+def test_same_seed_is_byte_identical_and_seed_changes_phase(tmp_path):
+    g = block("bcc", 2, cell_size=5.0, radius=0.3)
+    a = fast_stitch.stitch(g, 6, seed=7, workers=1).save(tmp_path / "a.stl")
+    b = fast_stitch.stitch(g, 6, seed=7, workers=2).save(tmp_path / "b.stl")
+    c = fast_stitch.stitch(g, 6, seed=8).save(tmp_path / "c.stl")
+    assert a.read_bytes() == b.read_bytes()
+    assert a.read_bytes() != c.read_bytes() and a.stat().st_size == c.stat().st_size
+
+
+def test_translated_hubs_are_identical():
+    """The hub cache: a periodic block's hubs are translates of each other."""
+    g = block("bcc", 3, cell_size=4.0, radius=0.3)
+    shift = np.array([400.0, -800.0, 1200.0])
+    moved = LatticeGraph(g.nodes + shift, g.edges, g.radii)
+    a, b = fast_stitch.stitch(g), fast_stitch.stitch(moved)
+    assert np.array_equal(a.faces, b.faces)
+    np.testing.assert_allclose(b.vertices - shift, a.vertices, atol=1e-9)
+
+
+def test_progress_callback_and_bar():
+    g = block("bcc", 2, cell_size=5.0, radius=0.3)
+    calls = []
+    fast_stitch.stitch(g, progress=lambda stage, done, total: calls.append((stage, done, total)))
+    assert calls and calls[-1][0] == "done" and calls[-1][1] == calls[-1][2]
+    fast_stitch.stitch(g, progress=False)
+
+
+# ----------------------------------------------------------------------- STL
+def test_stl_is_binary_checked_and_reads_back(tmp_path):
+    import trimesh
+
+    g = block("octet", 2, cell_size=5.0, radius=0.25)
+    mesh = fast_stitch.stitch(g, 6)
+    path = mesh.save(tmp_path / "lattice.stl")
+    data = path.read_bytes()
+    assert not data[:80].lower().startswith(b"solid")
+    n = int(np.frombuffer(data[80:84], "<u4")[0])
+    assert n == len(mesh.faces) and len(data) == 84 + 50 * n == fast_stitch.estimate(g, 6).stl_bytes
+    back = trimesh.load(path, process=True)
+    assert back.is_watertight and back.is_winding_consistent
+    assert back.volume == pytest.approx(mesh.volume, rel=1e-5)
+
+
+def test_stl_float32_collapse_is_refused_and_nothing_is_written(tmp_path):
+    g = LatticeGraph([[1e7, 0, 0], [1e7 + 0.01, 0, 0], [1e7, 0.01, 0]], [[0, 1], [0, 2]], 1e-4)
+    mesh = fast_stitch.stitch(g, 6)
+    assert_valid(mesh, self_intersections=False)  # fine in float64
+    with pytest.raises(ExportError, match="single precision"):
+        mesh.save(tmp_path / "far.stl")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_save_refuses_other_suffixes(tmp_path):
+    mesh = fast_stitch.stitch(tight_v(90), 6)
+    with pytest.raises(ValueError, match=".obj"):
+        mesh.save(tmp_path / "x.obj")
+
+
+def test_independent_checker_catches_a_broken_mesh():
+    """The checker used above can fail: drop a face and flip another."""
+    mesh = fast_stitch.stitch(tight_v(60), 6)
+    rep = independent_check(type(mesh)(mesh.vertices, mesh.faces[1:]))
+    assert not rep["watertight"] and not rep["manifold3d"]
+    flipped = mesh.faces.copy()
+    flipped[0] = flipped[0, ::-1]
+    assert not independent_check(type(mesh)(mesh.vertices, flipped))["winding_consistent"]
