@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from fast_stitch._check_kernels import _tri_tri
+
 QSCALE = 1073741824.0  # 2**30: directions are snapped to this grid
 RSCALE = 1099511627776.0  # 2**40: radii (relative to the largest) are keyed on this grid
 
@@ -896,3 +898,206 @@ def stl_records(vertices, faces, start, stop, out):
             out[i, 2] = 0.0
             bad += 1
     return bad
+
+
+# -------------------------------------------------------------- clearance
+@njit(cache=True, inline="always", error_model="numpy")
+def _dot3(ax, ay, az, bx, by, bz):
+    return ax * bx + ay * by + az * bz
+
+
+@njit(cache=True, error_model="numpy")
+def _seg_seg_dist2(sa, sb, i, j):
+    """Squared distance between segments sa[i]-sb[i] and sa[j]-sb[j] (scalar arithmetic)."""
+    d1x = sb[i, 0] - sa[i, 0]
+    d1y = sb[i, 1] - sa[i, 1]
+    d1z = sb[i, 2] - sa[i, 2]
+    d2x = sb[j, 0] - sa[j, 0]
+    d2y = sb[j, 1] - sa[j, 1]
+    d2z = sb[j, 2] - sa[j, 2]
+    rx = sa[i, 0] - sa[j, 0]
+    ry = sa[i, 1] - sa[j, 1]
+    rz = sa[i, 2] - sa[j, 2]
+    a = _dot3(d1x, d1y, d1z, d1x, d1y, d1z)
+    e = _dot3(d2x, d2y, d2z, d2x, d2y, d2z)
+    f = _dot3(d2x, d2y, d2z, rx, ry, rz)
+    s = 0.0
+    t = 0.0
+    if a <= 1e-300 and e <= 1e-300:
+        pass
+    elif a <= 1e-300:
+        t = min(1.0, max(0.0, f / e))
+    else:
+        c = _dot3(d1x, d1y, d1z, rx, ry, rz)
+        if e <= 1e-300:
+            s = min(1.0, max(0.0, -c / a))
+        else:
+            b = _dot3(d1x, d1y, d1z, d2x, d2y, d2z)
+            den = a * e - b * b
+            s = min(1.0, max(0.0, (b * f - c * e) / den)) if den > 1e-300 else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t = 0.0
+                s = min(1.0, max(0.0, -c / a))
+            elif t > 1.0:
+                t = 1.0
+                s = min(1.0, max(0.0, (b - c) / a))
+    wx = rx + d1x * s - d2x * t
+    wy = ry + d1y * s - d2y * t
+    wz = rz + d1z * s - d2z * t
+    return _dot3(wx, wy, wz, wx, wy, wz)
+
+
+@njit(cache=True, error_model="numpy")
+def _elem_rows(el, m, edges, degree, face_start, P, rows):
+    """Face rows of element el (struts 0..m-1 incl. leaf caps; hubs m + node)."""
+    c = 0
+    if el < m:
+        for k in range(2 * P):
+            rows[c] = 2 * P * el + k
+            c += 1
+        for side in range(2):
+            n = edges[el, side]
+            if degree[n] == 1:
+                for k in range(P - 2):
+                    rows[c] = face_start[n] + k
+                    c += 1
+    else:
+        n = el - m
+        d = degree[n]
+        for k in range(d * P + 2 * d - 4):
+            rows[c] = face_start[n] + k
+            c += 1
+    return c
+
+
+@njit(cache=True, error_model="numpy")
+def _excluded(i, j, m, edges, offsets, inc_edge):
+    """Pairs whose disjointness the construction already guarantees."""
+    if i < m and j < m:
+        return (
+            edges[i, 0] == edges[j, 0]
+            or edges[i, 0] == edges[j, 1]
+            or edges[i, 1] == edges[j, 0]
+            or edges[i, 1] == edges[j, 1]
+        )
+    if i < m:
+        n = j - m
+        return edges[i, 0] == n or edges[i, 1] == n
+    if j < m:
+        n = i - m
+        return edges[j, 0] == n or edges[j, 1] == n
+    a = i - m
+    b = j - m
+    for t in range(offsets[a], offsets[a + 1]):
+        e = inc_edge[t]
+        if edges[e, 0] == b or edges[e, 1] == b:
+            return True
+    return False
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def clearance(
+    vertices, faces, edges, degree, offsets, inc_edge, face_start, P,
+    seg_a, seg_b, rad, lo, hi, cell, origin, dims, max_rows, found,
+):  # fmt: skip
+    """Find overlapping non-incident elements (struts, hubs) of a stitched mesh.
+
+    Elements ``0..m-1`` are struts: capsules ``seg_a[i]``-``seg_b[i]`` of radius
+    ``rad[i]``; elements ``m + n`` are hubs: balls around ``seg_a`` of radius
+    ``rad`` (``seg_b == seg_a``); elements with ``rad < 0`` are skipped. Pairs
+    are found with a uniform grid over the boxes ``lo``/``hi``, kept when their
+    bounding capsules/balls overlap, and confirmed with an exact
+    triangle/triangle test.
+
+    found : (cells, 2) int64, out
+        For each grid cell (flattened), the first confirmed pair or -1.
+    """
+    n_el = seg_a.shape[0]
+    m = edges.shape[0]
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    n_cells = nx * ny * nz
+    # counting sort of (cell, element) insertions
+    count = np.zeros(n_cells + 1, dtype=np.int64)
+    for i in range(n_el):
+        if rad[i] < 0.0:
+            continue
+        x0 = min(nx - 1, max(0, int((lo[i, 0] - origin[0]) / cell)))
+        x1 = min(nx - 1, max(0, int((hi[i, 0] - origin[0]) / cell)))
+        y0 = min(ny - 1, max(0, int((lo[i, 1] - origin[1]) / cell)))
+        y1 = min(ny - 1, max(0, int((hi[i, 1] - origin[1]) / cell)))
+        z0 = min(nz - 1, max(0, int((lo[i, 2] - origin[2]) / cell)))
+        z1 = min(nz - 1, max(0, int((hi[i, 2] - origin[2]) / cell)))
+        for x in range(x0, x1 + 1):
+            for y in range(y0, y1 + 1):
+                for z in range(z0, z1 + 1):
+                    count[(x * ny + y) * nz + z + 1] += 1
+    for c in range(n_cells):
+        count[c + 1] += count[c]
+    members = np.empty(count[n_cells], dtype=np.int64)
+    fill = count[:-1].copy()
+    for i in range(n_el):
+        if rad[i] < 0.0:
+            continue
+        x0 = min(nx - 1, max(0, int((lo[i, 0] - origin[0]) / cell)))
+        x1 = min(nx - 1, max(0, int((hi[i, 0] - origin[0]) / cell)))
+        y0 = min(ny - 1, max(0, int((lo[i, 1] - origin[1]) / cell)))
+        y1 = min(ny - 1, max(0, int((hi[i, 1] - origin[1]) / cell)))
+        z0 = min(nz - 1, max(0, int((lo[i, 2] - origin[2]) / cell)))
+        z1 = min(nz - 1, max(0, int((hi[i, 2] - origin[2]) / cell)))
+        for x in range(x0, x1 + 1):
+            for y in range(y0, y1 + 1):
+                for z in range(z0, z1 + 1):
+                    c = (x * ny + y) * nz + z
+                    members[fill[c]] = i
+                    fill[c] += 1
+    for c in prange(n_cells):
+        found[c, 0] = -1
+        found[c, 1] = -1
+        cx = c // (ny * nz)
+        cy = (c // nz) % ny
+        cz = c % nz
+        for u in range(count[c], count[c + 1]):
+            i = members[u]
+            for w in range(u + 1, count[c + 1]):
+                j = members[w]
+                # boxes overlap?
+                if (
+                    lo[i, 0] > hi[j, 0] or lo[j, 0] > hi[i, 0]
+                    or lo[i, 1] > hi[j, 1] or lo[j, 1] > hi[i, 1]
+                    or lo[i, 2] > hi[j, 2] or lo[j, 2] > hi[i, 2]
+                ):  # fmt: skip
+                    continue
+                # test the pair only in the cell holding the low corner of the overlap
+                ox = min(nx - 1, max(0, int((max(lo[i, 0], lo[j, 0]) - origin[0]) / cell)))
+                oy = min(ny - 1, max(0, int((max(lo[i, 1], lo[j, 1]) - origin[1]) / cell)))
+                oz = min(nz - 1, max(0, int((max(lo[i, 2], lo[j, 2]) - origin[2]) / cell)))
+                if ox != cx or oy != cy or oz != cz:
+                    continue
+                a = min(i, j)
+                b = max(i, j)
+                if _excluded(a, b, m, edges, offsets, inc_edge):
+                    continue
+                reach = rad[a] + rad[b]
+                if _seg_seg_dist2(seg_a, seg_b, a, b) >= reach * reach:
+                    continue
+                rows_i = np.empty(max_rows, dtype=np.int64)
+                rows_j = np.empty(max_rows, dtype=np.int64)
+                na = _elem_rows(a, m, edges, degree, face_start, P, rows_i)
+                nb = _elem_rows(b, m, edges, degree, face_start, P, rows_j)
+                hit = False
+                for p in range(na):
+                    fa = rows_i[p]
+                    for q in range(nb):
+                        fb = rows_j[q]
+                        if _tri_tri(
+                            vertices, faces[fa, 0], faces[fa, 1], faces[fa, 2],
+                            faces[fb, 0], faces[fb, 1], faces[fb, 2],
+                        ):  # fmt: skip
+                            hit = True
+                            break
+                    if hit:
+                        break
+                if hit and found[c, 0] == -1:
+                    found[c, 0] = a
+                    found[c, 1] = b

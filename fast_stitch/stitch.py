@@ -118,6 +118,7 @@ def stitch(
     seed: int = 0,
     workers: int | None = None,
     progress: bool | ProgressCallback | None = None,
+    check_clearance: bool = True,
 ) -> Mesh:
     """Build the watertight triangle mesh of a lattice graph.
 
@@ -138,6 +139,11 @@ def stitch(
         ``True`` shows a tqdm bar; a callable is called as
         ``progress(stage, done, total)``. The run can be interrupted with
         Ctrl-C between chunks.
+    check_clearance : bool
+        Verify that struts and hubs that share no node do not overlap (struts
+        crossing away from a node, a strut through another node's joint). The
+        construction guarantees everything else; this makes the no
+        self-intersection guarantee hold for every graph that stitches.
 
     Returns
     -------
@@ -152,7 +158,8 @@ def stitch(
         The graph has no struts; struts at a node meet at so small an angle
         that the profiles of a strut's two ends would cross (the message names
         the node, both struts, the angle and the shortest length that fits);
-        two struts at a node are parallel.
+        two struts at a node are parallel; struts or joints that share no node
+        overlap (with ``check_clearance``).
     """
     P = _check_segments(segments)
     if not isinstance(graph, LatticeGraph):
@@ -169,13 +176,22 @@ def stitch(
         numba.set_num_threads(min(int(workers), numba.config.NUMBA_NUM_THREADS))
     bar = _Progress(progress, graph.num_nodes)
     try:
-        return _stitch(graph, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar)
+        mesh, end_offset, face_start = _stitch(
+            graph, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar
+        )
+        if check_clearance:
+            bar("clearance", 0, 1)
+            _check_clearance(graph, mesh, end_offset, face_start, P)
+        bar("done", 1, 1)
+        return mesh
     finally:
         bar.close()
         numba.set_num_threads(prev_threads)
 
 
-def _stitch(graph: LatticeGraph, P: int, shrink: bool, seed: int, progress: _Progress) -> Mesh:
+def _stitch(
+    graph: LatticeGraph, P: int, shrink: bool, seed: int, progress: _Progress
+) -> tuple[Mesh, NDArray[np.float64], NDArray[np.int64]]:
     nodes, edges, radii = graph.nodes, graph.edges, graph.radii
     n_nodes, m = graph.num_nodes, graph.num_edges
     offsets, inc_edge, inc_side = graph.incidence
@@ -262,8 +278,7 @@ def _stitch(graph: LatticeGraph, P: int, shrink: bool, seed: int, progress: _Pro
     faces = np.empty((2 * m * P + int(counts.sum()), 3), dtype=np.int64)
     _kernels.cylinder_faces(sign, P, faces)
     _kernels.node_faces(offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, faces)
-    progress("done", n_rep, n_rep)
-    return Mesh(vertices=vertices, faces=faces)
+    return Mesh(vertices=vertices, faces=faces), end_offset, face_start
 
 
 def _edges_at(graph: LatticeGraph, n: int) -> list[int]:
@@ -351,4 +366,68 @@ def _check_fit(
     raise StitchError(
         f"strut {e} (nodes {n}, {other}, length {length[e]:.4g}) is too short for its radius: its "
         f"end profiles need {needs} and would cross; {fits}"
+    )
+
+
+def _check_clearance(
+    graph: LatticeGraph,
+    mesh: Mesh,
+    end_offset: NDArray[np.float64],
+    face_start: NDArray[np.int64],
+    P: int,
+) -> None:
+    """Raise StitchError if elements that share no node overlap (exact triangle test)."""
+    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    m, n_nodes = graph.num_edges, graph.num_nodes
+    offsets, inc_edge, inc_side = graph.incidence
+    degree = graph.degree
+    unit = graph.edge_vectors / graph.edge_lengths[:, None]
+    seg_a = np.empty((m + n_nodes, 3))
+    seg_b = np.empty((m + n_nodes, 3))
+    rad = np.full(m + n_nodes, -1.0)
+    seg_a[:m] = nodes[edges[:, 0]] + end_offset[:, :1] * unit
+    seg_b[:m] = nodes[edges[:, 1]] - end_offset[:, 1:] * unit
+    rad[:m] = radii.max(axis=1)
+    seg_a[m:] = nodes
+    seg_b[m:] = nodes
+    reach = np.sqrt(end_offset**2 + radii**2)  # profile vertex distance from its node
+    hub_r = np.full(n_nodes, -1.0)
+    per_entry = reach[inc_edge, inc_side]  # CSR order: grouped by node
+    used = np.flatnonzero(degree >= 1)  # their CSR segments are non-empty and tile per_entry
+    hub_r[used] = np.maximum.reduceat(per_entry, offsets[used])
+    hub_r[degree < 2] = -1.0
+    rad[m:] = hub_r
+    active = rad >= 0
+    lo = np.minimum(seg_a, seg_b) - rad[:, None]
+    hi = np.maximum(seg_a, seg_b) + rad[:, None]
+    extent = (hi - lo)[active].max(axis=1)
+    origin = lo[active].min(axis=0)
+    span = hi[active].max(axis=0) - origin
+    cell = max(float(np.median(extent)), 1e-300)
+    n_el = int(active.sum())
+    while True:
+        dims = np.maximum(1, np.ceil(span / cell).astype(np.int64))
+        if int(np.prod(dims)) <= 4 * n_el + 64:
+            break
+        cell *= 1.5
+    max_rows = max(4 * P, int((degree * P + 2 * degree).max()))
+    found = np.empty((int(np.prod(dims)), 2), dtype=np.int64)
+    _kernels.clearance(
+        mesh.vertices, mesh.faces, edges, degree, offsets, inc_edge, face_start, P,
+        seg_a, seg_b, rad, lo, hi, cell, origin, dims, max_rows, found,
+    )  # fmt: skip
+    hits = np.flatnonzero(found[:, 0] >= 0)
+    if not len(hits):
+        return
+    a, b = (int(v) for v in found[hits[0]])
+
+    def name(el: int) -> str:
+        if el < m:
+            return f"strut {el} (nodes {int(edges[el, 0])}, {int(edges[el, 1])})"
+        return f"the joint at node {el - m}"
+
+    raise StitchError(
+        f"{name(a)} and {name(b)} overlap although they share no node "
+        f"({len(hits)} overlapping pair(s) found); struts must not cross or touch away from "
+        "their nodes: move them apart or make them thinner"
     )

@@ -224,6 +224,29 @@ def test_short_strut_between_two_hubs_is_reported():
         fast_stitch.stitch(g)
 
 
+@pytest.mark.parametrize(
+    ("nodes", "edges", "message"),
+    [
+        ([[-1, 0, 0], [1, 0, 0], [0, -1, 0.05], [0, 1, 0.05]], [[0, 1], [2, 3]],
+         r"strut 0 \(nodes 0, 1\) and strut 1 \(nodes 2, 3\) overlap"),
+        ([[-1, 0, 0], [1, 0, 0], [0, 0.02, 0.0], [0, 1, 1], [0, 1, -1]], [[0, 1], [2, 3], [2, 4]],
+         r"strut 0 \(nodes 0, 1\) and the joint at node 2 overlap"),
+    ],
+)  # fmt: skip
+def test_struts_crossing_away_from_nodes_are_reported(nodes, edges, message):
+    g = LatticeGraph(nodes, edges, 0.05)
+    with pytest.raises(StitchError, match=message):
+        fast_stitch.stitch(g)
+    # without the check the mesh self-intersects, as an independent checker confirms
+    mesh = fast_stitch.stitch(g, check_clearance=False)
+    assert independent_check(mesh)["self_intersecting_faces"] > 0
+
+
+def test_clearance_passes_struts_just_apart():
+    g = LatticeGraph([[-1, 0, 0], [1, 0, 0], [0, -1, 0.101], [0, 1, 0.101]], [[0, 1], [2, 3]], 0.05)
+    assert_valid(fast_stitch.stitch(g))
+
+
 def test_parallel_struts_are_reported():
     # distinct nodes on the same ray from node 0 (quantised to one direction)
     g = LatticeGraph([[0, 0, 0], [1, 0, 0], [2, 1e-12, 0]], [[0, 1], [0, 2]], 0.01)
