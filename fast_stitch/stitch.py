@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from fast_stitch import _kernels
 from fast_stitch.mesh import Mesh, stl_size
-from lattice_cad.errors import InvalidGraphError, StitchError
+from lattice_cad.errors import StitchError
 from lattice_cad.graph import LatticeGraph
 
 __all__ = ["stitch", "estimate", "Estimate", "ProgressCallback"]
@@ -173,7 +173,7 @@ def stitch(
     if workers is not None:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
-        numba.set_num_threads(min(int(workers), numba.config.NUMBA_NUM_THREADS))
+        numba.set_num_threads(min(int(workers), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
     bar = _Progress(progress, graph.num_nodes)
     try:
         mesh, end_offset, face_start = _stitch(
@@ -210,7 +210,9 @@ def _stitch(
     slot_r = np.empty(2 * m, dtype=np.int64)
     keys = np.empty(n_nodes, dtype=np.uint64)
     rmax = float(radii.max())
-    _kernels.node_slots(offsets, inc_edge, inc_side, qdir, sign, radii, rmax, slots, slot_q, slot_r, keys)
+    _kernels.node_slots(
+        offsets, inc_edge, inc_side, qdir, sign, radii, rmax, slots, slot_q, slot_r, keys
+    )
     _check_parallel(offsets, slots, slot_q, degree)
 
     # distinct hub shapes: group nodes by key, verify the key really matches
@@ -277,7 +279,9 @@ def _stitch(
         face_start[1:] += 2 * m * P
     faces = np.empty((2 * m * P + int(counts.sum()), 3), dtype=np.int64)
     _kernels.cylinder_faces(sign, P, faces)
-    _kernels.node_faces(offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, faces)
+    _kernels.node_faces(
+        offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, faces
+    )
     return Mesh(vertices=vertices, faces=faces), end_offset, face_start
 
 
@@ -310,7 +314,10 @@ def _smallest_angle(graph: LatticeGraph, n: int) -> tuple[int, int, float]:
 
 
 def _check_parallel(
-    offsets: NDArray[np.int64], slots: NDArray[np.int64], slot_q: NDArray[np.int64], degree: NDArray[np.int64]
+    offsets: NDArray[np.int64],
+    slots: NDArray[np.int64],
+    slot_q: NDArray[np.int64],
+    degree: NDArray[np.int64],
 ) -> None:
     """Two struts of one node with the same (quantised) direction cannot be stitched."""
     idx = np.flatnonzero(degree >= 2)
@@ -347,16 +354,19 @@ def _check_fit(
     t = int(np.flatnonzero(slots[lo : offsets[n + 1]] == 2 * e + side)[0])
     det = int(rep_det[rep_slot_start[node_rep[n]] + t])
     other = int(graph.edges[e, 1 - side])
-    needs = (
-        f"{end_offset[e, side]:.4g} at node {n} + {end_offset[e, 1 - side]:.4g} at node {other}"
-    )
+    needs = f"{end_offset[e, side]:.4g} at node {n} + {end_offset[e, 1 - side]:.4g} at node {other}"
     fits = f"it would need to be longer than {need[e]:.4g}"
     if det >= 0:
         f = int(slots[lo + det] // 2)
         ang = _angle_deg(graph, n, e, f)
         a, b, amin = _smallest_angle(graph, n)
-        cause = "" if {a, b} == {e, f} else (
-            f"; the hub is that large because struts {a} and {b} meet at only {amin:.3g} degrees"
+        cause = (
+            ""
+            if {a, b} == {e, f}
+            else (
+                f"; the hub is that large because struts {a} and {b} meet at only "
+                f"{amin:.3g} degrees"
+            )
         )
         raise StitchError(
             f"node {n}: struts {e} and {f} meet at {ang:.3g} degrees, too small an angle for "

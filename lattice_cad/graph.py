@@ -207,7 +207,9 @@ class LatticeGraph:
         if not isinstance(data, dict) or data.get("format") != _FORMAT:
             raise InvalidGraphError(f"not a lattice-cad graph (expected format {_FORMAT!r})")
         if int(data.get("version", 0)) > _VERSION:
-            raise InvalidGraphError(f"graph format version {data['version']} is newer than supported")
+            raise InvalidGraphError(
+                f"graph format version {data['version']} is newer than supported"
+            )
         try:
             nodes = np.asarray(data["nodes"], dtype=np.float64).reshape(-1, 3)
             edges = np.asarray(data["edges"]).reshape(-1, 2)
@@ -236,7 +238,9 @@ class LatticeGraph:
                     radii=self.radii,
                 )
         else:
-            raise ValueError(f"cannot save a graph as {suffix or 'a file without suffix'}: use .npz or .json")
+            raise ValueError(
+                f"cannot save a graph as {suffix or 'a file without suffix'}: use .npz or .json"
+            )
         return p
 
     @classmethod
@@ -260,7 +264,9 @@ class LatticeGraph:
             raise InvalidGraphError(f"{p}: {exc}") from None
         except (OSError, ValueError, KeyError) as exc:
             raise InvalidGraphError(f"{p}: cannot read graph: {exc}") from None
-        raise ValueError(f"cannot load a graph from {suffix or 'a file without suffix'}: use .npz or .json")
+        raise ValueError(
+            f"cannot load a graph from {suffix or 'a file without suffix'}: use .npz or .json"
+        )
 
 
 # ---------------------------------------------------------------- coercion
@@ -321,7 +327,9 @@ def _as_radii(radii: ArrayLike, n_edges: int) -> NDArray[np.float64]:
     return np.ascontiguousarray(out, dtype=np.float64)
 
 
-def _validate(nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]) -> None:
+def _validate(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]
+) -> None:
     bad = ~np.isfinite(nodes).all(axis=1)
     if bad.any():
         n = int(np.flatnonzero(bad)[0])
@@ -352,7 +360,8 @@ def _validate(nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArr
     if nonpos.any():
         e, side = (int(v) for v in np.argwhere(nonpos)[0])
         raise InvalidGraphError(
-            f"edge {e} has radius {radii[e, side]:g} at node {int(edges[e, side])}; radii must be > 0"
+            f"edge {e} has radius {radii[e, side]:g} at node {int(edges[e, side])}; "
+            "radii must be > 0"
         )
     vec = nodes[edges[:, 1]] - nodes[edges[:, 0]]
     length = np.sqrt(np.einsum("ij,ij->i", vec, vec))
@@ -361,7 +370,8 @@ def _validate(nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArr
         e = int(np.flatnonzero(zero)[0])
         a, b = (int(v) for v in edges[e])
         raise InvalidGraphError(
-            f"edge {e} ({a}, {b}) has zero length: nodes {a} and {b} coincide at {_fmt_point(nodes[a])}"
+            f"edge {e} ({a}, {b}) has zero length: nodes {a} and {b} coincide at "
+            f"{_fmt_point(nodes[a])}"
         )
     fat = radii.max(axis=1) >= 0.5 * length
     if fat.any():

@@ -114,10 +114,12 @@ def reference_stitch(graph: LatticeGraph, P: int, *, seed: int = 0, shrink: bool
     end_offset = np.zeros((m, 2))
     faces = []
     ang = 2 * math.pi * np.arange(P) / P
-    for n, inc in incident.items():
+    for inc in incident.values():
         if len(inc) < 2:
             continue
-        outward = np.array([frames[e][0] * frames[e][1] * (1 if side == 0 else -1) for e, side in inc])
+        outward = np.array(
+            [frames[e][0] * frames[e][1] * (1 if side == 0 else -1) for e, side in inc]
+        )
         rad = np.array([radii[e, side] for e, side in inc])
         off = offsets(outward, rad, shrink=shrink)
         pts = []
@@ -126,7 +128,9 @@ def reference_stitch(graph: LatticeGraph, P: int, *, seed: int = 0, shrink: bool
             end_offset[e, side] = off[t]
             _, _, u, v = frames[e]
             for k in range(P):
-                pts.append(off[t] * outward[t] + rad[t] * (math.cos(ang[k]) * u + math.sin(ang[k]) * v))
+                pts.append(
+                    off[t] * outward[t] + rad[t] * (math.cos(ang[k]) * u + math.sin(ang[k]) * v)
+                )
                 ids.append((2 * e + side) * P + k)
         pts = np.array(pts)
         ids = np.array(ids)
@@ -155,7 +159,7 @@ def reference_stitch(graph: LatticeGraph, P: int, *, seed: int = 0, shrink: bool
             k1 = (k + 1) % P
             quad = [(a0 + k, a0 + k1, a1 + k1), (a0 + k, a1 + k1, a1 + k)]
             faces += quad if s == 1 else [(t[0], t[2], t[1]) for t in quad]
-    for n, inc in incident.items():
+    for inc in incident.values():
         if len(inc) != 1:
             continue
         e, side = inc[0]

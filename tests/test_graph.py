@@ -63,7 +63,12 @@ def test_error_hierarchy():
         ([[0, 0, 0], [0, 0, 0], [1, 0, 0]], [[0, 2], [0, 1]], 0.1, "edge 1 (0, 1) has zero length"),
         (TRI, [[0, 1], [0, 2]], [0.1, 0.5], "edge 1 (0, 2): radius 0.5 is not strictly below"),
         (TRI, [[0, 1], [1, 2]], [0.1, 0.8], "edge 1 (1, 2): radius 0.8"),
-        ([[0, 0, 0], [1, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1], [2, 3]], 0.1, "nodes 1 and 2 coincide"),
+        (
+            [[0, 0, 0], [1, 0, 0], [1, 0, 0], [2, 0, 0]],
+            [[0, 1], [2, 3]],
+            0.1,
+            "nodes 1 and 2 coincide",
+        ),
         (TRI, [[0.5, 1]], 0.1, "edge 0 has a non-integer node index"),
         (TRI, [[0, 1, 2]], 0.1, "edges must have shape (M, 2)"),
         ([[0, 0], [1, 1]], [[0, 1]], 0.1, "nodes must have shape (N, 3)"),

@@ -18,9 +18,10 @@ from lattice_cad import LatticeGraph, LatticeWarning
 
 def counts_ok(mesh, graph, P):
     est = fast_stitch.estimate(graph, P)
-    return len(mesh.vertices) == est.vertices == 2 * graph.num_edges * P and len(
-        mesh.faces
-    ) == est.triangles
+    return (
+        len(mesh.vertices) == est.vertices == 2 * graph.num_edges * P
+        and len(mesh.faces) == est.triangles
+    )
 
 
 def axis_dirs():
