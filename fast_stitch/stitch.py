@@ -119,6 +119,7 @@ def stitch(
     workers: int | None = None,
     progress: bool | ProgressCallback | None = None,
     check_clearance: bool = True,
+    volume_preserving: bool = False,
 ) -> Mesh:
     """Build the watertight triangle mesh of a lattice graph.
 
@@ -144,6 +145,10 @@ def stitch(
         crossing away from a node, a strut through another node's joint). The
         construction guarantees everything else; this makes the no
         self-intersection guarantee hold for every graph that stitches.
+    volume_preserving : bool
+        Enlarge every profile polygon so that its area equals the circle's
+        (circumradius ``r * sqrt(2 pi / (P sin(2 pi / P)))``): struts then keep
+        the exact cylinder's cross-section area and volume.
 
     Returns
     -------
@@ -176,12 +181,13 @@ def stitch(
         numba.set_num_threads(min(int(workers), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
     bar = _Progress(progress, graph.num_nodes)
     try:
+        radii = graph.radii * area_factor(P) if volume_preserving else graph.radii
         mesh, end_offset, face_start = _stitch(
-            graph, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar
+            graph, radii, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar
         )
         if check_clearance:
             bar("clearance", 0, 1)
-            _check_clearance(graph, mesh, end_offset, face_start, P)
+            _check_clearance(graph, radii, mesh, end_offset, face_start, P)
         bar("done", 1, 1)
         return mesh
     finally:
@@ -189,10 +195,20 @@ def stitch(
         numba.set_num_threads(prev_threads)
 
 
+def area_factor(P: int) -> float:
+    """Circumradius / radius of the regular P-gon whose area is the circle's."""
+    return math.sqrt(2.0 * math.pi / (P * math.sin(2.0 * math.pi / P)))
+
+
 def _stitch(
-    graph: LatticeGraph, P: int, shrink: bool, seed: int, progress: _Progress
+    graph: LatticeGraph,
+    radii: NDArray[np.float64],
+    P: int,
+    shrink: bool,
+    seed: int,
+    progress: _Progress,
 ) -> tuple[Mesh, NDArray[np.float64], NDArray[np.int64]]:
-    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    nodes, edges = graph.nodes, graph.edges
     n_nodes, m = graph.num_nodes, graph.num_edges
     offsets, inc_edge, inc_side = graph.incidence
     degree = graph.degree
@@ -381,13 +397,14 @@ def _check_fit(
 
 def _check_clearance(
     graph: LatticeGraph,
+    radii: NDArray[np.float64],
     mesh: Mesh,
     end_offset: NDArray[np.float64],
     face_start: NDArray[np.int64],
     P: int,
 ) -> None:
     """Raise StitchError if elements that share no node overlap (exact triangle test)."""
-    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    nodes, edges = graph.nodes, graph.edges
     m, n_nodes = graph.num_edges, graph.num_nodes
     offsets, inc_edge, inc_side = graph.incidence
     degree = graph.degree

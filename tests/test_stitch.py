@@ -84,6 +84,19 @@ def test_single_strut_is_an_exact_prism(P):
     assert_valid(mesh)
 
 
+@pytest.mark.parametrize("P", [3, 6, 12])
+def test_volume_preserving_strut_keeps_the_cylinder_volume(P):
+    r, L = 0.3, 2.5
+    g = LatticeGraph([[0, 0, 0], [1.5, 2.0, 0]], [[0, 1]], r)
+    mesh = fast_stitch.stitch(g, P, volume_preserving=True)
+    assert mesh.volume == pytest.approx(math.pi * r * r * L, rel=1e-12)
+    assert_valid(mesh)
+    block_mesh = fast_stitch.stitch(
+        block("bcc", 2, cell_size=5.0, radius=0.3), P, volume_preserving=True
+    )
+    assert_valid(block_mesh)
+
+
 def test_tapered_strut_is_an_exact_frustum():
     P, r0, r1, L = 8, 0.4, 0.1, 3.0
     g = LatticeGraph([[0, 0, 0], [0, 0, L]], [[0, 1]], [[r0, r1]])
