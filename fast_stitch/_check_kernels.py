@@ -211,11 +211,8 @@ def _orient3d_exact(vertices, a, b, c, d):
 
 
 @numba.njit(cache=True)
-def _orient3d(vertices, a, b, c, d):
-    """Exact sign of ``det[a - d; b - d; c - d]`` for vertex indices ``a, b, c, d``.
-
-    Zero iff the four points are coplanar; swapping two arguments flips the sign.
-    """
+def _orient3d_filter(vertices, a, b, c, d):
+    """Sign of ``det[a - d; b - d; c - d]`` if the float evaluation is certain, else 2."""
     adx = vertices[a, 0] - vertices[d, 0]
     ady = vertices[a, 1] - vertices[d, 1]
     adz = vertices[a, 2] - vertices[d, 2]
@@ -244,6 +241,18 @@ def _orient3d(vertices, a, b, c, d):
         return -1
     if perm == 0.0:
         return 0
+    return 2
+
+
+@numba.njit(cache=True)
+def _orient3d(vertices, a, b, c, d):
+    """Exact sign of ``det[a - d; b - d; c - d]`` for vertex indices ``a, b, c, d``.
+
+    Zero iff the four points are coplanar; swapping two arguments flips the sign.
+    """
+    s = _orient3d_filter(vertices, a, b, c, d)
+    if s != 2:
+        return s
     return _orient3d_exact(vertices, a, b, c, d)
 
 
@@ -261,8 +270,8 @@ def _orient2d_exact(vertices, a, b, c, i, j):
 
 
 @numba.njit(cache=True)
-def _orient2d(vertices, a, b, c, i, j):
-    """Exact sign of the 2D orientation of vertices ``a, b, c`` projected on axes ``(i, j)``."""
+def _orient2d_filter(vertices, a, b, c, i, j):
+    """Sign of the 2D orientation on axes ``(i, j)`` if the float evaluation is certain, else 2."""
     acx = vertices[a, i] - vertices[c, i]
     bcy = vertices[b, j] - vertices[c, j]
     acy = vertices[a, j] - vertices[c, j]
@@ -277,6 +286,15 @@ def _orient2d(vertices, a, b, c, i, j):
         return -1
     if left == 0.0 and right == 0.0:
         return 0
+    return 2
+
+
+@numba.njit(cache=True)
+def _orient2d(vertices, a, b, c, i, j):
+    """Exact sign of the 2D orientation of vertices ``a, b, c`` projected on axes ``(i, j)``."""
+    s = _orient2d_filter(vertices, a, b, c, i, j)
+    if s != 2:
+        return s
     return _orient2d_exact(vertices, a, b, c, i, j)
 
 
@@ -404,8 +422,90 @@ def _tri_tri_coplanar(vertices, a, b, c, d, e, f):
 
 
 @numba.njit(cache=True)
+def _same_side_certain(s1, s2, s3):
+    """Filtered signs (2 = uncertain) all certainly of the same strict sign."""
+    return (s1 == 1 and s2 == 1 and s3 == 1) or (s1 == -1 and s2 == -1 and s3 == -1)
+
+
+@numba.njit(cache=True)
+def _edge_separates_2d(vertices, u, v, w, x, y, z, i, j):
+    """Line ``uv`` certainly has ``w`` strictly on one side and ``x, y, z`` strictly on the other.
+
+    Float filter only (an uncertain sign means "no"). ``z`` may repeat ``y``.
+    """
+    sw = _orient2d_filter(vertices, u, v, w, i, j)
+    if sw != 1 and sw != -1:
+        return False
+    return (
+        _orient2d_filter(vertices, u, v, x, i, j) == -sw
+        and _orient2d_filter(vertices, u, v, y, i, j) == -sw
+        and _orient2d_filter(vertices, u, v, z, i, j) == -sw
+    )
+
+
+@numba.njit(cache=True)
+def _separated_2d(vertices, a, b, c, d, e, f):
+    """Quick sufficient test: the projections of ``abc`` and ``def`` (dropping the dominant
+    normal axis of ``abc``) are strictly separated by the line of one of their edges.
+    If so the triangles are disjoint (a common point would project to a common point)."""
+    k = _drop_axis(vertices, a, b, c)
+    i = (k + 1) % 3
+    j = (k + 2) % 3
+    return (
+        _edge_separates_2d(vertices, a, b, c, d, e, f, i, j)
+        or _edge_separates_2d(vertices, b, c, a, d, e, f, i, j)
+        or _edge_separates_2d(vertices, c, a, b, d, e, f, i, j)
+        or _edge_separates_2d(vertices, d, e, f, a, b, c, i, j)
+        or _edge_separates_2d(vertices, e, f, d, a, b, c, i, j)
+        or _edge_separates_2d(vertices, f, d, e, a, b, c, i, j)
+    )
+
+
+@numba.njit(cache=True)
+def _fan_separated_2d(vertices, p, a, b, c, d):
+    """Quick sufficient test that triangles ``pab`` and ``pcd`` meet only at ``p``.
+
+    In the projection dropping one axis, the line through ``p`` and another vertex of one
+    triangle strictly separates the third vertex of that triangle from the other
+    triangle's two free vertices. The projections then meet only at ``p``'s image, and
+    so do the triangles: the separating triangle projects with a certainly non-zero area,
+    so its plane contains no direction along the dropped axis and no point of it other
+    than ``p`` projects onto ``p``'s image.
+    """
+    k = _drop_axis(vertices, p, a, b)
+    i = (k + 1) % 3
+    j = (k + 2) % 3
+    return (
+        _edge_separates_2d(vertices, p, a, b, c, d, d, i, j)
+        or _edge_separates_2d(vertices, p, b, a, c, d, d, i, j)
+        or _edge_separates_2d(vertices, p, c, d, a, b, b, i, j)
+        or _edge_separates_2d(vertices, p, d, c, a, b, b, i, j)
+    )
+
+
+@numba.njit(cache=True)
 def _tri_tri(vertices, a, b, c, d, e, f):
-    """Exact closed triangle/triangle intersection for triangles without common vertices."""
+    """Exact closed triangle/triangle intersection for triangles without common vertices.
+
+    Also used by the stitcher's clearance check (:mod:`fast_stitch._kernels`): keep the
+    signature ``(vertices, a, b, c, d, e, f)`` with vertex indices.
+    """
+    # quick rejections with certain float signs only
+    if _same_side_certain(
+        _orient3d_filter(vertices, a, b, c, d),
+        _orient3d_filter(vertices, a, b, c, e),
+        _orient3d_filter(vertices, a, b, c, f),
+    ):
+        return False
+    if _same_side_certain(
+        _orient3d_filter(vertices, d, e, f, a),
+        _orient3d_filter(vertices, d, e, f, b),
+        _orient3d_filter(vertices, d, e, f, c),
+    ):
+        return False
+    if _separated_2d(vertices, a, b, c, d, e, f):
+        return False
+    # exact decision
     od = _orient3d(vertices, a, b, c, d)
     oe = _orient3d(vertices, a, b, c, e)
     of = _orient3d(vertices, a, b, c, f)
@@ -437,6 +537,12 @@ def _shared_vertex_intersect(vertices, p, a, b, c, d):
     They do iff edge ``ab`` meets triangle ``pcd`` or edge ``cd`` meets triangle ``pab``
     (both in the coplanar and in the general case).
     """
+    fc = _orient3d_filter(vertices, p, a, b, c)
+    fd = _orient3d_filter(vertices, p, a, b, d)
+    if (fc == 1 and fd == 1) or (fc == -1 and fd == -1):
+        return False
+    if _fan_separated_2d(vertices, p, a, b, c, d):
+        return False
     oc = _orient3d(vertices, p, a, b, c)
     od = _orient3d(vertices, p, a, b, d)
     if oc * od > 0:
@@ -512,7 +618,13 @@ def _faces_intersect(vertices, faces, fi, fj, tol):
     ns = (s0 >= 0) + (s1 >= 0) + (s2 >= 0)
     if ns == 0:
         return _tri_tri(
-            vertices, faces[fi, 0], faces[fi, 1], faces[fi, 2], faces[fj, 0], faces[fj, 1], faces[fj, 2]
+            vertices,
+            faces[fi, 0],
+            faces[fi, 1],
+            faces[fi, 2],
+            faces[fj, 0],
+            faces[fj, 1],
+            faces[fj, 2],
         )
     if ns == 3:
         return True
@@ -602,7 +714,9 @@ def face_geometry(vertices, faces, center):
         cx = vertices[i2, 0] - center[0]
         cy = vertices[i2, 1] - center[1]
         cz = vertices[i2, 2] - center[2]
-        volume[f] = (ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)) / 6.0
+        volume[f] = (
+            ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+        ) / 6.0
         for k in range(3):
             lo = min(vertices[i0, k], vertices[i1, k], vertices[i2, k])
             hi = max(vertices[i0, k], vertices[i1, k], vertices[i2, k])
@@ -673,6 +787,8 @@ def edge_topology(faces, n_vertices, max_report):
         order of their lowest face.
     used : (V,) bool
         Vertices used by some face.
+    open_components : (C,) bool
+        Components with a boundary edge.
     """
     nf = faces.shape[0]
     nh = 3 * nf
@@ -734,6 +850,7 @@ def edge_topology(faces, n_vertices, max_report):
     n_boundary = 0
     n_nonmanifold = 0
     n_inconsistent = 0
+    on_boundary = np.zeros(nf, np.bool_)
     lo_vertex = 0
     g0 = 0
     while g0 < n_valid:
@@ -771,6 +888,7 @@ def edge_topology(faces, n_vertices, max_report):
                 _union(corner_parent, c_lo0, c_lo)
                 _union(corner_parent, c_hi0, c_hi)
         if count == 1:
+            on_boundary[f0] = True
             if n_boundary < max_report:
                 boundary[n_boundary, 0] = lo_vertex
                 boundary[n_boundary, 1] = hi_vertex
@@ -827,6 +945,10 @@ def edge_topology(faces, n_vertices, max_report):
             n_components += 1
         else:
             labels[f] = labels[r]  # r < f: already labelled
+    open_components = np.zeros(n_components, np.bool_)
+    for f in range(nf):
+        if on_boundary[f]:
+            open_components[labels[f]] = True
     counts = np.array(
         [n_edges, n_boundary, n_nonmanifold, n_inconsistent, n_nm_vertices, n_unused, n_components],
         dtype=np.int64,
@@ -840,6 +962,7 @@ def edge_topology(faces, n_vertices, max_report):
         unused[: min(n_unused, max_report)].copy(),
         labels,
         used,
+        open_components,
     )
 
 
@@ -941,15 +1064,19 @@ def winding_numbers(vertices, faces, labels, queries, query_labels):
 
 @numba.njit(cache=True)
 def _cell_hash(ix, iy, iz, mask):
+    """Bucket of grid cell ``(ix, iy, iz)``: blocks of 4x4x4 cells are hashed (splitmix64
+    finalizer) to runs of 64 consecutive buckets, which keeps neighbouring cells close in
+    memory. ``mask + 1`` is a power of two >= 64."""
     k = (
-        np.uint64(ix) * np.uint64(0x9E3779B97F4A7C15)
-        ^ np.uint64(iy) * np.uint64(0xC2B2AE3D27D4EB4F)
-        ^ np.uint64(iz) * np.uint64(0x165667B19E3779F9)
+        np.uint64(ix >> 2) * np.uint64(0x9E3779B97F4A7C15)
+        ^ np.uint64(iy >> 2) * np.uint64(0xC2B2AE3D27D4EB4F)
+        ^ np.uint64(iz >> 2) * np.uint64(0x165667B19E3779F9)
     )
     k ^= k >> np.uint64(31)
     k *= np.uint64(0xBF58476D1CE4E5B9)
     k ^= k >> np.uint64(29)
-    return np.int64(k & np.uint64(mask))
+    low = ((ix & 3) << 4) | ((iy & 3) << 2) | (iz & 3)
+    return (np.int64(k << np.uint64(6)) | low) & mask
 
 
 @numba.njit(cache=True)
@@ -958,42 +1085,49 @@ def _cell(x, o, h):
 
 
 @numba.njit(parallel=True, cache=True)
-def grid_entry_count(boxes, active, origin, h):
-    """Number of (cell, face) entries of the grid of cell size ``h``.
+def cell_ranges(boxes, origin, h):
+    """Grid cells overlapped by each box.
 
     Parameters
     ----------
     boxes : (F, 6) float64
-    active : (F,) bool
     origin : (3,) float64
+        Lower corner of cell ``(0, 0, 0)``; every box lies above it.
     h : float
+        Cell size.
 
     Returns
     -------
+    ranges : (F, 6) int64
+        ``(x0, y0, z0, x1, y1, z1)``, inclusive.
     total : int
+        Number of (face, cell) pairs.
     """
+    n = boxes.shape[0]
+    ranges = np.empty((n, 6), np.int64)
     total = 0
-    for f in numba.prange(boxes.shape[0]):
-        if active[f]:
-            nx = _cell(boxes[f, 3], origin[0], h) - _cell(boxes[f, 0], origin[0], h) + 1
-            ny = _cell(boxes[f, 4], origin[1], h) - _cell(boxes[f, 1], origin[1], h) + 1
-            nz = _cell(boxes[f, 5], origin[2], h) - _cell(boxes[f, 2], origin[2], h) + 1
-            total += nx * ny * nz
-    return total
+    for f in numba.prange(n):
+        for k in range(3):
+            ranges[f, k] = _cell(boxes[f, k], origin[k], h)
+            ranges[f, 3 + k] = _cell(boxes[f, 3 + k], origin[k], h)
+        total += (
+            (ranges[f, 3] - ranges[f, 0] + 1)
+            * (ranges[f, 4] - ranges[f, 1] + 1)
+            * (ranges[f, 5] - ranges[f, 2] + 1)
+        )
+    return ranges, total
 
 
 @numba.njit(cache=True)
-def grid_fill(boxes, active, origin, h, n_buckets):
-    """Bucket the active faces by the hashed grid cells their boxes overlap.
+def grid_fill(ranges, n_buckets):
+    """Bucket the faces by the hashed grid cells their boxes overlap.
 
     Parameters
     ----------
-    boxes : (F, 6) float64
-    active : (F,) bool
-    origin : (3,) float64
-    h : float
+    ranges : (F, 6) int64
+        From :func:`cell_ranges`.
     n_buckets : int
-        A power of two.
+        A power of two >= 64.
 
     Returns
     -------
@@ -1003,36 +1137,20 @@ def grid_fill(boxes, active, origin, h, n_buckets):
     """
     mask = n_buckets - 1
     bucket_start = np.zeros(n_buckets + 1, np.int64)
-    nf = boxes.shape[0]
+    nf = ranges.shape[0]
     for f in range(nf):
-        if not active[f]:
-            continue
-        x0 = _cell(boxes[f, 0], origin[0], h)
-        y0 = _cell(boxes[f, 1], origin[1], h)
-        z0 = _cell(boxes[f, 2], origin[2], h)
-        x1 = _cell(boxes[f, 3], origin[0], h)
-        y1 = _cell(boxes[f, 4], origin[1], h)
-        z1 = _cell(boxes[f, 5], origin[2], h)
-        for ix in range(x0, x1 + 1):
-            for iy in range(y0, y1 + 1):
-                for iz in range(z0, z1 + 1):
+        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
+            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
+                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
                     bucket_start[_cell_hash(ix, iy, iz, mask) + 1] += 1
     for b in range(n_buckets):
         bucket_start[b + 1] += bucket_start[b]
     entries = np.empty(bucket_start[n_buckets], np.int32)
     pos = bucket_start[:n_buckets].copy()
     for f in range(nf):
-        if not active[f]:
-            continue
-        x0 = _cell(boxes[f, 0], origin[0], h)
-        y0 = _cell(boxes[f, 1], origin[1], h)
-        z0 = _cell(boxes[f, 2], origin[2], h)
-        x1 = _cell(boxes[f, 3], origin[0], h)
-        y1 = _cell(boxes[f, 4], origin[1], h)
-        z1 = _cell(boxes[f, 5], origin[2], h)
-        for ix in range(x0, x1 + 1):
-            for iy in range(y0, y1 + 1):
-                for iz in range(z0, z1 + 1):
+        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
+            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
+                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
                     b = _cell_hash(ix, iy, iz, mask)
                     entries[pos[b]] = f
                     pos[b] += 1
@@ -1041,102 +1159,261 @@ def grid_fill(boxes, active, origin, h, n_buckets):
 
 @numba.njit(parallel=True, cache=True)
 def grid_pairs(
-    vertices,
-    faces,
-    boxes,
-    origin,
-    h,
-    bucket_start,
-    entries,
-    tol,
-    mode,
-    max_first,
-    prev_counts,
-    offsets,
-    face_hit,
-    pairs,
-):
-    """Count (or collect) the intersecting face pairs of the grid.
+    vertices, faces, boxes, ranges, bucket_start, entries, tol,
+    mode, orig, max_first, prev_counts, offsets, face_hit, pairs,
+):  # fmt: skip
+    """Count (or collect) the intersecting face pairs found through the grid.
 
-    Each candidate pair is examined in exactly one bucket: the one of the grid cell that
-    holds the lower corner of the intersection of the two boxes.
+    Face-major: each face ``f`` scans the buckets of the cells its box overlaps for faces
+    ``g > f``. A pair is examined only at the grid cell holding the lower corner of the
+    intersection of the two boxes, hence exactly once. Every face given must be
+    non-degenerate; for speed they should be in a spatially coherent order.
 
     Parameters
     ----------
     vertices : (V, 3) float64
     faces : (F, 3) int64
     boxes : (F, 6) float64
-    origin : (3,) float64
-    h : float
+    ranges : (F, 6) int64
+        From :func:`cell_ranges`.
     bucket_start : (B + 1,) int64
     entries : (N,) int32
+        From :func:`grid_fill`.
     tol : float
         Absolute fold tolerance for faces that share an edge.
     mode : int
-        0: count all pairs per bucket and flag the faces involved in ``face_hit``;
-        1: count pairs whose first face is ``<= max_first`` (buckets with
-        ``prev_counts > 0`` only); 2: like 1 but write them into ``pairs`` from
-        ``offsets[bucket]`` on.
+        0: count the pairs ``(f, g > f)`` of every face ``f`` and set ``face_hit`` to 1
+        for the faces involved; 1: count only the pairs with
+        ``min(orig[f], orig[g]) <= max_first``, scanning only the faces with
+        ``prev_counts[f] > 0``; 2: like 1, and write them into
+        ``pairs[offsets[f]:offsets[f + 1]]``.
+    orig : (F,) int64
+        Original index of each face (for ``max_first``).
     max_first : int
-    prev_counts : (B,) int64
-        Counts of the previous pass (ignored in mode 0).
-    offsets : (B,) int64
-        Write position per bucket (mode 2).
+    prev_counts : (F,) int64
+        Counts of mode 0 (modes 1 and 2).
+    offsets : (F + 1,) int64
+        Write positions (mode 2).
     face_hit : (F,) uint8
-        Set to 1 for faces involved in some intersection (mode 0).
+        Output of mode 0.
     pairs : (P, 2) int64
-        Output of mode 2, ``pairs[:, 0] < pairs[:, 1]``.
+        Output of mode 2: ``(f, g)``, ``f < g``, in the numbering of ``faces``.
 
     Returns
     -------
-    counts : (B,) int64
-        Pairs found per bucket.
+    counts : (F,) int64
+        Pairs counted per face ``f``.
     """
-    nb = bucket_start.shape[0] - 1
-    mask = nb - 1
-    counts = np.zeros(nb, np.int64)
-    for bkt in numba.prange(nb):
-        s = bucket_start[bkt]
-        e = bucket_start[bkt + 1]
-        if e - s < 2:
+    nf = faces.shape[0]
+    mask = bucket_start.shape[0] - 2
+    counts = np.zeros(nf, np.int64)
+    for f in numba.prange(nf):
+        if mode != 0 and prev_counts[f] == 0:
             continue
-        if mode != 0 and prev_counts[bkt] == 0:
-            continue
+        x0 = ranges[f, 0]
+        y0 = ranges[f, 1]
+        z0 = ranges[f, 2]
         cnt = 0
-        for k1 in range(s, e - 1):
-            fi = entries[k1]
-            if k1 > s and entries[k1 - 1] == fi:
-                continue
-            if mode != 0 and fi > max_first:
-                break
-            for k2 in range(k1 + 1, e):
-                fj = entries[k2]
-                if fj == entries[k2 - 1]:
-                    continue
-                lx = max(boxes[fi, 0], boxes[fj, 0])
-                if lx > min(boxes[fi, 3], boxes[fj, 3]):
-                    continue
-                ly = max(boxes[fi, 1], boxes[fj, 1])
-                if ly > min(boxes[fi, 4], boxes[fj, 4]):
-                    continue
-                lz = max(boxes[fi, 2], boxes[fj, 2])
-                if lz > min(boxes[fi, 5], boxes[fj, 5]):
-                    continue
-                ref = _cell_hash(
-                    _cell(lx, origin[0], h), _cell(ly, origin[1], h), _cell(lz, origin[2], h), mask
-                )
-                if ref != bkt:
-                    continue
-                if _faces_intersect(vertices, faces, fi, fj, tol):
-                    if mode == 2:
-                        pairs[offsets[bkt] + cnt, 0] = fi
-                        pairs[offsets[bkt] + cnt, 1] = fj
-                    elif mode == 0:
-                        face_hit[fi] = 1
-                        face_hit[fj] = 1
-                    cnt += 1
-        counts[bkt] = cnt
+        for ix in range(x0, ranges[f, 3] + 1):
+            for iy in range(y0, ranges[f, 4] + 1):
+                for iz in range(z0, ranges[f, 5] + 1):
+                    b = _cell_hash(ix, iy, iz, mask)
+                    s = bucket_start[b]
+                    e = bucket_start[b + 1]
+                    for kk in range(s, e):
+                        g = entries[kk]
+                        if g <= f or (kk > s and entries[kk - 1] == g):
+                            continue
+                        # examine the pair only in the cell of the lower corner of the
+                        # intersection of the boxes (max of the lower cells, by monotony)
+                        if (
+                            max(x0, ranges[g, 0]) != ix
+                            or max(y0, ranges[g, 1]) != iy
+                            or max(z0, ranges[g, 2]) != iz
+                        ):
+                            continue
+                        if mode != 0 and min(orig[f], orig[g]) > max_first:
+                            continue
+                        if (
+                            boxes[f, 0] > boxes[g, 3]
+                            or boxes[g, 0] > boxes[f, 3]
+                            or boxes[f, 1] > boxes[g, 4]
+                            or boxes[g, 1] > boxes[f, 4]
+                            or boxes[f, 2] > boxes[g, 5]
+                            or boxes[g, 2] > boxes[f, 5]
+                        ):
+                            continue
+                        if _faces_intersect(vertices, faces, f, g, tol):
+                            if mode == 2:
+                                pairs[offsets[f] + cnt, 0] = f
+                                pairs[offsets[f] + cnt, 1] = g
+                            elif mode == 0:
+                                face_hit[f] = 1
+                                face_hit[g] = 1
+                            cnt += 1
+        counts[f] = cnt
     return counts
+
+
+@numba.njit(cache=True)
+def vertex_stats(vertices, used):
+    """Bounding box and largest absolute coordinate of the used vertices.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    used : (V,) bool
+
+    Returns
+    -------
+    lo, hi : (3,) float64
+        Bounding box (``+inf`` / ``-inf`` when no vertex is used).
+    max_abs : float
+    """
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    max_abs = 0.0
+    for v in range(vertices.shape[0]):
+        if used[v]:
+            for k in range(3):
+                x = vertices[v, k]
+                lo[k] = min(lo[k], x)
+                hi[k] = max(hi[k], x)
+                max_abs = max(max_abs, abs(x))
+    return lo, hi, max_abs
+
+
+@numba.njit(cache=True)
+def box_stats(boxes, active):
+    """Bounding box and mean largest extent of the active boxes.
+
+    Parameters
+    ----------
+    boxes : (F, 6) float64
+    active : (F,) bool
+
+    Returns
+    -------
+    lo, hi : (3,) float64
+    mean_extent : float
+    """
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    total = 0.0
+    n = 0
+    for f in range(boxes.shape[0]):
+        if active[f]:
+            ext = 0.0
+            for k in range(3):
+                lo[k] = min(lo[k], boxes[f, k])
+                hi[k] = max(hi[k], boxes[f, 3 + k])
+                ext = max(ext, boxes[f, 3 + k] - boxes[f, k])
+            total += ext
+            n += 1
+    return lo, hi, total / max(n, 1)
+
+
+@numba.njit(parallel=True, cache=True)
+def morton_keys(boxes, active, lo, scale):
+    """Morton (Z-order) code of each box centre, 21 bits per axis.
+
+    Parameters
+    ----------
+    boxes : (F, 6) float64
+    active : (F,) bool
+        Inactive faces get the largest key (they sort last).
+    lo : (3,) float64
+        Lower corner of the domain.
+    scale : float
+        ``(2**21 - 1) / extent`` of the domain.
+
+    Returns
+    -------
+    keys : (F,) int64
+    """
+    n = boxes.shape[0]
+    keys = np.empty(n, np.int64)
+    for f in numba.prange(n):
+        if not active[f]:
+            keys[f] = np.iinfo(np.int64).max
+            continue
+        key = 0
+        for k in range(3):
+            c = 0.5 * (boxes[f, k] + boxes[f, 3 + k])
+            q = np.int64((c - lo[k]) * scale)
+            q = min(max(q, 0), 2097151)
+            for bit in range(21):
+                key |= ((q >> bit) & 1) << (3 * bit + k)
+        keys[f] = key
+    return keys
+
+
+@numba.njit(parallel=True, cache=True)
+def gather_faces(faces, boxes, perm):
+    """``faces[perm]`` and ``boxes[perm]``.
+
+    Parameters
+    ----------
+    faces : (F, 3) int64
+    boxes : (F, 6) float64
+    perm : (n,) int64
+
+    Returns
+    -------
+    sub_faces : (n, 3) int64
+    sub_boxes : (n, 6) float64
+    """
+    n = perm.shape[0]
+    sub_faces = np.empty((n, 3), np.int64)
+    sub_boxes = np.empty((n, 6))
+    for i in numba.prange(n):
+        f = perm[i]
+        for k in range(3):
+            sub_faces[i, k] = faces[f, k]
+        for k in range(6):
+            sub_boxes[i, k] = boxes[f, k]
+    return sub_faces, sub_boxes
+
+
+@numba.njit(parallel=True, cache=True)
+def gather_vertices(vertices, index):
+    """``vertices[index]``: (V, 3) float64, (n,) int64 -> (n, 3) float64."""
+    n = index.shape[0]
+    out = np.empty((n, 3))
+    for i in numba.prange(n):
+        for k in range(3):
+            out[i, k] = vertices[index[i], k]
+    return out
+
+
+@numba.njit(cache=True)
+def renumber_vertices(faces, n_vertices):
+    """Renumber the vertices in order of first use by ``faces``.
+
+    Parameters
+    ----------
+    faces : (F, 3) int64
+    n_vertices : int
+
+    Returns
+    -------
+    new_faces : (F, 3) int64
+    old_index : (U,) int64
+        Original index of each used vertex, in the new order.
+    """
+    new_id = np.full(n_vertices, -1, np.int64)
+    old_index = np.empty(n_vertices, np.int64)
+    new_faces = np.empty_like(faces)
+    n = 0
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            v = faces[f, k]
+            if new_id[v] < 0:
+                new_id[v] = n
+                old_index[n] = v
+                n += 1
+            new_faces[f, k] = new_id[v]
+    return new_faces, old_index[:n].copy()
 
 
 @numba.njit(cache=True)
