@@ -1,0 +1,233 @@
+"""Numba kernels of :mod:`conformal.steady` (arrays and scalars only, no I/O).
+
+Element quantities (all exact up to rounding):
+
+* ball of radius ``r``: volume ``4/3 pi r^3``, area ``4 pi r^2``, second moment
+  about its centre ``3/5 r^2 v``;
+* beam *connector* between balls ``(c1, r1)`` and ``(c2, r2)`` with
+  ``|c2 - c1| = L > r1 + r2``: the convex hull of the two balls minus both balls.
+  Its profile is the common tangent line of the two circles; the solid is the
+  frustum between the two tangent circles minus the two spherical caps of the
+  balls inside it. Volume and moments are integrals of polynomials of degree
+  <= 4 along the axis (3-point Gauss-Legendre is exact); area is the frustum's
+  lateral area minus the two cap areas ``2 pi r h``.
+
+Moments are accumulated per *family* (index 0: balls, 1 + p: rack p) as six
+numbers: volume, area, first moment about a reference point ``ref`` (3), and
+second (spherical) moment ``integral |x - ref|^2 dV``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import prange
+
+_GX = math.sqrt(3.0 / 5.0)
+_GW0 = 5.0 / 9.0
+_GW1 = 8.0 / 9.0
+_PI = math.pi
+
+
+@numba.njit(cache=True, inline="always")
+def _gl_frustum(za, zb, pa, pb):  # pragma: no cover - numba
+    """Volume, axial first moment, second moment about z=0 of a frustum (z, rho linear)."""
+    h = 0.5 * (zb - za)
+    zm = 0.5 * (za + zb)
+    pm = 0.5 * (pa + pb)
+    dp = 0.5 * (pb - pa)
+    v = 0.0
+    m = 0.0
+    j = 0.0
+    for k in range(3):
+        if k == 0:
+            u, w = -_GX, _GW0
+        elif k == 1:
+            u, w = 0.0, _GW1
+        else:
+            u, w = _GX, _GW0
+        z = zm + u * h
+        p2 = (pm + u * dp) ** 2
+        v += w * p2
+        m += w * p2 * z
+        j += w * (p2 * z * z + 0.5 * p2 * p2)
+    f = _PI * h
+    return f * v, f * m, f * j
+
+
+@numba.njit(cache=True, inline="always")
+def _gl_cap(c, r, za, zb):  # pragma: no cover - numba
+    """Same for the slab za <= z <= zb of the ball of centre z=c and radius r."""
+    h = 0.5 * (zb - za)
+    zm = 0.5 * (za + zb)
+    v = 0.0
+    m = 0.0
+    j = 0.0
+    for k in range(3):
+        if k == 0:
+            u, w = -_GX, _GW0
+        elif k == 1:
+            u, w = 0.0, _GW1
+        else:
+            u, w = _GX, _GW0
+        z = zm + u * h
+        p2 = r * r - (z - c) * (z - c)
+        v += w * p2
+        m += w * p2 * z
+        j += w * (p2 * z * z + 0.5 * p2 * p2)
+    f = _PI * h
+    return f * v, f * m, f * j
+
+
+@numba.njit(cache=True, inline="always")
+def connector_local(L, r1, r2):  # pragma: no cover - numba
+    """(volume, area, axial first moment, second moment) about the centre of ball 1."""
+    sb = (r1 - r2) / L
+    cb = math.sqrt(max(0.0, 1.0 - sb * sb))
+    z1 = r1 * sb
+    p1 = r1 * cb
+    z2 = L + r2 * sb
+    p2 = r2 * cb
+    vf, mf, jf = _gl_frustum(z1, z2, p1, p2)
+    v1, m1, j1 = _gl_cap(0.0, r1, z1, r1)
+    v2, m2, j2 = _gl_cap(L, r2, L - r2, z2)
+    h1 = r1 * (1.0 - sb)
+    h2 = r2 * (1.0 + sb)
+    slant = math.sqrt((z2 - z1) ** 2 + (p2 - p1) ** 2)
+    area = _PI * (p1 + p2) * slant - 2.0 * _PI * (r1 * h1 + r2 * h2)
+    return vf - v1 - v2, area, mf - m1 - m2, jf - j1 - j2
+
+
+@numba.njit(cache=True, inline="always")
+def _xform(s, R, t, x0, x1, x2):  # pragma: no cover - numba
+    y0 = s * (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2) + t[0]
+    y1 = s * (R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2) + t[1]
+    y2 = s * (R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2) + t[2]
+    return y0, y1, y2
+
+
+@numba.njit(cache=True, parallel=True)
+def family_moments(
+    pts,
+    usc,
+    radii,
+    vsc,
+    vrot,
+    vtr,
+    wsc,
+    wrot,
+    wtr,
+    koff,
+    racks,
+    lo,
+    hi,
+    ref,
+    k0,
+    k1,
+    out,
+    err,
+):  # pragma: no cover - numba
+    """Moments of all balls and beams with start cluster k in [k0, k1), per (k, j) row.
+
+    Parameters
+    ----------
+    pts : (ni, n, 3) float64
+        ``U^i c_b`` for every i and base ball b.
+    usc : (ni,) float64
+        ``m_u^i``.
+    radii : (n,) float64
+        Base ball radii.
+    vsc, vrot, vtr : (nj,), (nj, 3, 3), (nj, 3) float64
+        ``V^j``.
+    wsc, wrot, wtr : (K,), (K, 3, 3), (K, 3) float64
+        ``W^(k + z)`` is entry ``k + z + koff``.
+    racks : (P, 5) int64
+        ``(start, end, di, dj, dk)``.
+    lo, hi : (1 + P, 3) int64
+        Family f counts the element started at cluster ``(i, j, k)`` when
+        ``lo[f] <= (i, j, k) < hi[f]`` (and ``k0 <= k < k1``).
+    ref : (3,) float64
+        Reference point of the first and second moments.
+    out : (rows, 1 + P, 6) float64, rows = (k1 - k0) * nj
+        Zeroed on entry; row ``(k - k0) * nj + j`` gets the sums of that row.
+    err : (rows, 4) int64
+        Zeroed to -1 on entry; gets ``(rack, i, j, k)`` of the first beam whose
+        balls overlap (``L <= r1 + r2``) in the row.
+    """
+    nb = pts.shape[1]
+    nj = vsc.shape[0]
+    npk = racks.shape[0]
+    rows = (k1 - k0) * nj
+    for row in prange(rows):
+        k = k0 + row // nj
+        j = row - (row // nj) * nj
+        kw = k + koff
+        o = out[row]
+        if lo[0, 1] <= j < hi[0, 1] and lo[0, 2] <= k < hi[0, 2]:
+            for i in range(lo[0, 0], hi[0, 0]):
+                for b in range(nb):
+                    p = pts[i, b]
+                    y0, y1, y2 = _xform(vsc[j], vrot[j], vtr[j], p[0], p[1], p[2])
+                    x0, x1, x2 = _xform(wsc[kw], wrot[kw], wtr[kw], y0, y1, y2)
+                    r = wsc[kw] * vsc[j] * usc[i] * radii[b]
+                    v = 4.0 / 3.0 * _PI * r * r * r
+                    d0, d1, d2 = x0 - ref[0], x1 - ref[1], x2 - ref[2]
+                    o[0, 0] += v
+                    o[0, 1] += 4.0 * _PI * r * r
+                    o[0, 2] += v * d0
+                    o[0, 3] += v * d1
+                    o[0, 4] += v * d2
+                    o[0, 5] += v * (0.6 * r * r + d0 * d0 + d1 * d1 + d2 * d2)
+        for q in range(npk):
+            f = q + 1
+            if not (lo[f, 1] <= j < hi[f, 1] and lo[f, 2] <= k < hi[f, 2]):
+                continue
+            bs = racks[q, 0]
+            be = racks[q, 1]
+            di = racks[q, 2]
+            dj = racks[q, 3]
+            ke = kw + racks[q, 4]
+            jj = j + dj
+            acc = o[f]
+            for i in range(lo[f, 0], hi[f, 0]):
+                p = pts[i, bs]
+                y0, y1, y2 = _xform(vsc[j], vrot[j], vtr[j], p[0], p[1], p[2])
+                a0, a1, a2 = _xform(wsc[kw], wrot[kw], wtr[kw], y0, y1, y2)
+                p = pts[i + di, be]
+                y0, y1, y2 = _xform(vsc[jj], vrot[jj], vtr[jj], p[0], p[1], p[2])
+                b0, b1, b2 = _xform(wsc[ke], wrot[ke], wtr[ke], y0, y1, y2)
+                r1 = wsc[kw] * vsc[j] * usc[i] * radii[bs]
+                r2 = wsc[ke] * vsc[jj] * usc[i + di] * radii[be]
+                e0, e1, e2 = b0 - a0, b1 - a1, b2 - a2
+                L = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+                if not L > r1 + r2:
+                    if err[row, 0] < 0:
+                        err[row, 0] = q
+                        err[row, 1] = i
+                        err[row, 2] = j
+                        err[row, 3] = k
+                    continue
+                v, a, mz, jl = connector_local(L, r1, r2)
+                inv = 1.0 / L
+                e0 *= inv
+                e1 *= inv
+                e2 *= inv
+                d0, d1, d2 = a0 - ref[0], a1 - ref[1], a2 - ref[2]
+                acc[0] += v
+                acc[1] += a
+                acc[2] += mz * e0 + v * d0
+                acc[3] += mz * e1 + v * d1
+                acc[4] += mz * e2 + v * d2
+                acc[5] += (
+                    jl
+                    + 2.0 * mz * (e0 * d0 + e1 * d1 + e2 * d2)
+                    + v * (d0 * d0 + d1 * d1 + d2 * d2)
+                )
+    return 0
+
+
+def empty_outputs(rows: int, families: int) -> tuple[np.ndarray, np.ndarray]:
+    """Zeroed ``out`` and ``err`` arrays for :func:`family_moments`."""
+    return np.zeros((rows, families, 6)), np.full((rows, 4), -1, dtype=np.int64)
