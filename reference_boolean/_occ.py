@@ -1,0 +1,526 @@
+"""All OCCT (OCP) calls of :mod:`reference_boolean` live in this module.
+
+One function, :func:`build_hub`, turns the plain-numpy description of one unit
+truss (:class:`HubSpec`) into a :class:`HubResult`: the exact volume from
+``GProp``, a tessellation without the planar midpoint faces, the vertices of
+each midpoint circle in canonical order, and the solid as a BREP string.
+Nothing OCCT-typed crosses this module's boundary, so hubs can be built in
+worker processes (OCP shapes cannot be pickled).
+
+Every OCCT step is checked: ``IsDone()`` of each builder, ``HasErrors()``
+where the binding exposes it (OCP 7.9 does not expose it on
+``BRepAlgoAPI_Fuse``), ``BRepCheck_Analyzer(shape).IsValid()`` of every
+primitive and of the fused hub, a single solid with a positive volume, intact
+midpoint discs. A failure is never an exception leaking out of
+:func:`build_hub`: it becomes ``HubResult.status`` (the message of the last
+attempt) after the retries (fuzzy value, then fusing one stump at a time).
+
+Midpoint circles (how both hubs of a strut get identical vertices)
+------------------------------------------------------------------
+Each stump is built with ``gp_Ax2(node, axis, xdir)`` where ``xdir`` is the
+strut's canonical frame vector (a function of the strut's line only, the same
+for both of its hubs). ``BRepMesh_IncrementalMesh`` with an *absolute* linear
+and angular deflection discretises a full circle edge uniformly in its
+parameter, starting at the seam, i.e. at ``xdir``. Both hubs of a strut
+therefore put the same number ``K`` of points at the angles ``2 pi k / K`` of
+the shared frame. :func:`build_hub` verifies this (count, uniform angles,
+radius) for every circle and returns the vertex of each angle; the caller
+then replaces those vertices by one exact canonical polygon per strut and
+checks that both ends agree on ``K``. A hub whose circle is not intact (the
+disc was split by another stump, or the discretisation is not uniform) fails
+with a status instead of producing a mesh with a crack.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from OCP.BRep import BRep_Tool
+from OCP.BRepAdaptor import BRepAdaptor_Surface
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.BRepGProp import BRepGProp
+from OCP.BRepMesh import BRepMesh_IncrementalMesh
+from OCP.BRepPrimAPI import (
+    BRepPrimAPI_MakeCone,
+    BRepPrimAPI_MakeCylinder,
+    BRepPrimAPI_MakeSphere,
+)
+from OCP.BinTools import BinTools
+from OCP.GeomAbs import GeomAbs_Plane
+from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
+from OCP.GProp import GProp_GProps
+from OCP.IFSelect import IFSelect_RetDone
+from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
+from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED, TopAbs_SOLID
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopLoc import TopLoc_Location
+from OCP.TopoDS import TopoDS, TopoDS_Builder, TopoDS_Compound, TopoDS_Shape
+from OCP.TopTools import TopTools_ListOfShape
+
+__all__ = [
+    "HubSpec",
+    "HubResult",
+    "OCCTFailure",
+    "build_hub",
+    "make_hub_shape",
+    "write_step",
+    "read_step_solids",
+]
+
+#: Relative tolerance (of the hub size) for "this point is on that circle / plane".
+GEOM_RTOL = 1e-7
+#: Relative tolerance for merging the copies of edge nodes of adjacent faces.
+MERGE_RTOL = 1e-11
+#: Angular tolerance (radians) of the uniform circle discretisation check.
+ANGLE_TOL = 1e-6
+
+
+class OCCTFailure(Exception):
+    """An OCCT step failed (internal: turned into a ``HubResult.status``)."""
+
+
+@dataclass(frozen=True)
+class HubSpec:
+    """One unit truss in local coordinates (its node at the origin).
+
+    Attributes
+    ----------
+    radius : float
+        Sphere radius ``R`` (1.00001 x the largest incident radius).
+    vecs : (d, 3) float64
+        Node -> strut midpoint vector of each stump.
+    r_node, r_mid : (d,) float64
+        Stump radius at the node and at the midpoint (cone frustum if different).
+    xdirs, ydirs : (d, 3) float64
+        Canonical orthonormal frame of each strut's midpoint circle; the same
+        vectors are used by both hubs of the strut.
+    """
+
+    radius: float
+    vecs: NDArray[np.float64]
+    r_node: NDArray[np.float64]
+    r_mid: NDArray[np.float64]
+    xdirs: NDArray[np.float64]
+    ydirs: NDArray[np.float64]
+
+
+@dataclass
+class HubResult:
+    """What :func:`build_hub` returns (plain, picklable data).
+
+    Attributes
+    ----------
+    status : str
+        ``"ok"`` or the reason of the failure (then the arrays are empty).
+    attempts : list of str
+        One line per construction tried (``"fuse: ok"``, ``"fuse: <error>"``, ...).
+    volume : float
+        Exact volume of the hub solid (GProp).
+    vertices : (V, 3) float64
+        Tessellation vertices, local coordinates; circle vertices come first.
+    faces : (F, 3) int64
+        Outward triangles without the midpoint discs.
+    circles : list of (K_j,) int64
+        For stump ``j``, the vertex at angle ``2 pi k / K_j`` of its frame.
+    brep : bytes
+        The hub solid as binary BREP (``BinTools``) (empty if ``keep_brep`` was false).
+    seconds : float
+        Build time (construction, checks, tessellation).
+    """
+
+    status: str
+    attempts: list[str] = field(default_factory=list)
+    volume: float = float("nan")
+    vertices: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    faces: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 3), np.int64))
+    circles: list[NDArray[np.int64]] = field(default_factory=list)
+    brep: bytes = b""
+    seconds: float = 0.0
+
+
+# ------------------------------------------------------------------ checks
+def _check_valid(shape: TopoDS_Shape, what: str) -> None:
+    if shape is None or shape.IsNull():
+        raise OCCTFailure(f"{what}: null shape")
+    if not BRepCheck_Analyzer(shape).IsValid():
+        raise OCCTFailure(f"{what}: BRepCheck_Analyzer reports an invalid shape")
+
+
+def _done(builder: object, what: str) -> None:
+    if not builder.IsDone():  # type: ignore[attr-defined]
+        raise OCCTFailure(f"{what}: IsDone() is false")
+    has_errors = getattr(builder, "HasErrors", None)
+    if has_errors is not None and has_errors():
+        raise OCCTFailure(f"{what}: HasErrors() is true")
+
+
+#: Relative accuracy requested from GProp's adaptive volume integration.
+VOLUME_EPS = 1e-10
+
+
+def _volume(shape: TopoDS_Shape) -> float:
+    """Volume by GProp's adaptive integration (the default Gauss rule is off by ~1e-5
+    on the near-tangent sphere/strut patches)."""
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(shape, props, VOLUME_EPS, False)
+    return float(props.Mass())
+
+
+def _count(shape: TopoDS_Shape, kind: object) -> int:
+    ex = TopExp_Explorer(shape, kind)
+    n = 0
+    while ex.More():
+        n += 1
+        ex.Next()
+    return n
+
+
+# ------------------------------------------------------------ construction
+def _pnt(v: NDArray[np.float64]) -> gp_Pnt:
+    return gp_Pnt(float(v[0]), float(v[1]), float(v[2]))
+
+
+def _dir(v: NDArray[np.float64]) -> gp_Dir:
+    return gp_Dir(float(v[0]), float(v[1]), float(v[2]))
+
+
+def make_primitives(spec: HubSpec) -> list[TopoDS_Shape]:
+    """The sphere and the stumps (cylinders or cone frustums), each checked."""
+    origin = gp_Pnt(0.0, 0.0, 0.0)
+    sphere_mk = BRepPrimAPI_MakeSphere(gp_Ax2(origin, gp_Dir(0, 0, 1), gp_Dir(1, 0, 0)), spec.radius)
+    sphere_mk.Build()
+    _done(sphere_mk, "sphere")
+    shapes = [sphere_mk.Shape()]
+    _check_valid(shapes[0], "sphere")
+    for j, v in enumerate(spec.vecs):
+        h = float(np.linalg.norm(v))
+        ax = gp_Ax2(origin, _dir(v / h), _dir(spec.xdirs[j]))
+        r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
+        mk = (
+            BRepPrimAPI_MakeCylinder(ax, r0, h)
+            if r0 == r1
+            else BRepPrimAPI_MakeCone(ax, r0, r1, h)
+        )
+        mk.Build()
+        _done(mk, f"stump {j}")
+        s = mk.Shape()
+        _check_valid(s, f"stump {j}")
+        shapes.append(s)
+    return shapes
+
+
+def _fuse(objects: list[TopoDS_Shape], tools: list[TopoDS_Shape], fuzzy: float) -> TopoDS_Shape:
+    args, tls = TopTools_ListOfShape(), TopTools_ListOfShape()
+    for s in objects:
+        args.Append(s)
+    for s in tools:
+        tls.Append(s)
+    op = BRepAlgoAPI_Fuse()
+    op.SetArguments(args)
+    op.SetTools(tls)
+    op.SetRunParallel(False)
+    op.SetNonDestructive(True)
+    if fuzzy > 0.0:
+        op.SetFuzzyValue(fuzzy)
+    op.Build()
+    _done(op, "fuse")
+    return op.Shape()
+
+
+def make_hub_shape(
+    spec: HubSpec, *, construction: str = "fuse", fuzzy: float = 0.0
+) -> TopoDS_Shape:
+    """The hub solid: sphere union stumps (one general fuse, or one stump at a time).
+
+    Raises
+    ------
+    OCCTFailure
+        A builder is not done, or a shape is invalid.
+    """
+    prims = make_primitives(spec)
+    if construction == "fuse":
+        shape = _fuse(prims[:1], prims[1:], fuzzy)
+    elif construction == "sequential":
+        shape = prims[0]
+        for j, s in enumerate(prims[1:]):
+            shape = _fuse([shape], [s], fuzzy)
+            _check_valid(shape, f"sequential fuse after stump {j}")
+    else:  # pragma: no cover - guarded by the caller
+        raise ValueError(f"unknown construction {construction!r}")
+    _check_valid(shape, "hub")
+    n_solids = _count(shape, TopAbs_SOLID)
+    if n_solids != 1:
+        raise OCCTFailure(f"hub: the fuse gave {n_solids} solids instead of 1")
+    return shape
+
+
+# ------------------------------------------------------------- tessellation
+def _tessellate(
+    shape: TopoDS_Shape, spec: HubSpec, deflection: float, angular: float
+) -> tuple[NDArray[np.float64], NDArray[np.int64], list[NDArray[np.int64]]]:
+    mesher = BRepMesh_IncrementalMesh(shape, deflection, False, angular, False)
+    if not mesher.IsDone():
+        raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
+    scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
+    tol = GEOM_RTOL * scale
+    axes = spec.vecs / np.linalg.norm(spec.vecs, axis=1)[:, None]
+    plane_off = np.einsum("ij,ij->i", spec.vecs, axes)
+    verts: list[NDArray[np.float64]] = []
+    tris: list[NDArray[np.int64]] = []
+    cap_found = np.zeros(len(spec.vecs), dtype=bool)
+    base = 0
+    ex = TopExp_Explorer(shape, TopAbs_FACE)
+    while ex.More():
+        face = TopoDS.Face_s(ex.Current())
+        ex.Next()
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None or tri.NbTriangles() == 0:
+            raise OCCTFailure("BRepMesh left a face without triangulation")
+        trsf = loc.Transformation()
+        nn = tri.NbNodes()
+        pts = np.empty((nn, 3))
+        for i in range(nn):
+            p = tri.Node(i + 1).Transformed(trsf)
+            pts[i] = (p.X(), p.Y(), p.Z())
+        nt = tri.NbTriangles()
+        t = np.empty((nt, 3), dtype=np.int64)
+        for i in range(nt):
+            t[i] = tri.Triangle(i + 1).Get()
+        t -= 1
+        if face.Orientation() == TopAbs_REVERSED:
+            t = t[:, ::-1]
+        # a planar face lying in a midpoint plane is a midpoint disc: dropped
+        if BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
+            proj = pts @ axes.T - plane_off  # (nn, d)
+            on = np.all(np.abs(proj) < tol, axis=0)
+            if on.any():
+                j = int(np.flatnonzero(on)[0])
+                if cap_found[j]:
+                    raise OCCTFailure(f"the midpoint disc of stump {j} is split into pieces")
+                area = _face_area(face)
+                expect = math.pi * float(spec.r_mid[j]) ** 2
+                if abs(area - expect) > 1e-6 * expect:
+                    raise OCCTFailure(
+                        f"the midpoint disc of stump {j} is not intact (area {area:.9g}, "
+                        f"expected {expect:.9g}): another stump reaches the cut"
+                    )
+                cap_found[j] = True
+                continue
+        verts.append(pts)
+        tris.append(t + base)
+        base += nn
+    if not cap_found.all():
+        missing = ", ".join(str(int(j)) for j in np.flatnonzero(~cap_found))
+        raise OCCTFailure(f"no midpoint disc found for stump(s) {missing}")
+    v = np.concatenate(verts)
+    f = np.concatenate(tris)
+    v, f = _merge(v, f, MERGE_RTOL * scale)
+    circles = _circles(v, f, spec, tol)
+    # circle vertices first (stable), the rest after
+    on_circle = np.concatenate(circles)
+    order = np.concatenate([on_circle, np.setdiff1d(np.arange(len(v)), on_circle)])
+    inv = np.empty(len(v), dtype=np.int64)
+    inv[order] = np.arange(len(v))
+    starts = np.cumsum([0] + [len(c) for c in circles])
+    circles = [np.arange(starts[j], starts[j + 1], dtype=np.int64) for j in range(len(circles))]
+    return v[order], inv[f], circles
+
+
+def _face_area(face: TopoDS_Shape) -> float:
+    props = GProp_GProps()
+    BRepGProp.SurfaceProperties_s(face, props)
+    return float(props.Mass())
+
+
+def _merge(
+    v: NDArray[np.float64], f: NDArray[np.int64], tol: float
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Merge the copies of edge nodes that each face triangulation carries."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(v).query_pairs(tol, output_type="ndarray")
+    n = len(v)
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(g, directed=False)
+    # representative: first vertex of each component
+    first = np.full(label.max() + 1, n, dtype=np.int64)
+    np.minimum.at(first, label, np.arange(n))
+    keep = np.sort(first)
+    new_id = np.empty(label.max() + 1, dtype=np.int64)
+    new_id[label[keep]] = np.arange(len(keep))
+    f2 = new_id[label[f]]
+    # triangles collapsed by the merge (BRepMesh's fans at the sphere's poles) are dropped;
+    # the edge-use check of _circles then proves the rest is still closed
+    good = (f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])
+    return v[keep], f2[good]
+
+
+def _circles(
+    v: NDArray[np.float64], f: NDArray[np.int64], spec: HubSpec, tol: float
+) -> list[NDArray[np.int64]]:
+    """Boundary loops of the open hub mesh, one per stump, in canonical angle order."""
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    uniq, counts = np.unique(key, axis=0, return_counts=True)
+    if (counts > 2).any():
+        raise OCCTFailure(f"{int((counts > 2).sum())} non-manifold edge(s) in the hub mesh")
+    bnd = uniq[counts == 1]
+    bverts = np.unique(bnd)
+    out = []
+    used = np.zeros(len(v), dtype=bool)
+    for j in range(len(spec.vecs)):
+        c = spec.vecs[j]
+        axis = c / np.linalg.norm(c)
+        rel = v[bverts] - c
+        h = rel @ axis
+        rad = np.linalg.norm(rel - h[:, None] * axis, axis=1)
+        on = (np.abs(h) < tol) & (np.abs(rad - spec.r_mid[j]) < tol * 10)
+        idx = bverts[on]
+        k = len(idx)
+        if k < 3:
+            raise OCCTFailure(f"midpoint circle of stump {j} has {k} boundary vertices")
+        ang = np.arctan2(rel[on] @ spec.ydirs[j], rel[on] @ spec.xdirs[j]) % (2 * math.pi)
+        step = 2 * math.pi / k
+        slot = np.rint(ang / step).astype(np.int64) % k
+        dev = np.abs((ang - slot * step + math.pi) % (2 * math.pi) - math.pi)
+        if dev.max() > ANGLE_TOL or len(np.unique(slot)) != k:
+            raise OCCTFailure(
+                f"midpoint circle of stump {j}: {k} vertices not uniformly spaced from the "
+                f"frame's x axis (max angle error {dev.max():.3g} rad)"
+            )
+        ordered = np.empty(k, dtype=np.int64)
+        ordered[slot] = idx
+        used[idx] = True
+        out.append(ordered)
+    if not used[bverts].all():
+        raise OCCTFailure(
+            f"{int((~used[bverts]).sum())} boundary vertices of the hub mesh are not on a "
+            "midpoint circle (the tessellation is not closed)"
+        )
+    return out
+
+
+# ------------------------------------------------------------------- driver
+#: Retry plan: (construction, fuzzy value relative to the hub size).
+ATTEMPTS: tuple[tuple[str, float], ...] = (("fuse", 0.0), ("fuse", 1e-7), ("sequential", 1e-7))
+
+
+def build_hub(
+    spec: HubSpec, *, deflection: float, angular: float, keep_brep: bool = True
+) -> HubResult:
+    """Build, check, measure and tessellate one hub; never raises for OCCT failures.
+
+    Parameters
+    ----------
+    spec : HubSpec
+    deflection : float
+        Absolute linear deflection of ``BRepMesh_IncrementalMesh``.
+    angular : float
+        Angular deflection (radians).
+    keep_brep : bool
+        Return the solid as a BREP string (for STEP export).
+    """
+    import time
+
+    t0 = time.perf_counter()
+    scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
+    attempts: list[str] = []
+    for construction, fuzzy_rel in ATTEMPTS:
+        name = f"{construction}" + (f" (fuzzy {fuzzy_rel:g})" if fuzzy_rel else "")
+        try:
+            shape = make_hub_shape(spec, construction=construction, fuzzy=fuzzy_rel * scale)
+            vol = _volume(shape)
+            if not (vol > 0.0 and math.isfinite(vol)):
+                raise OCCTFailure(f"hub volume {vol!r} is not positive")
+            v, f, circles = _tessellate(shape, spec, deflection, angular)
+        except OCCTFailure as exc:
+            attempts.append(f"{name}: {exc}")
+            continue
+        except Exception as exc:  # OCCT raises Standard_Failure subclasses, as RuntimeError etc.
+            attempts.append(f"{name}: {type(exc).__name__}: {exc}")
+            continue
+        attempts.append(f"{name}: ok")
+        brep = _to_bytes(shape) if keep_brep else b""
+        return HubResult(
+            status="ok",
+            attempts=attempts,
+            volume=vol,
+            vertices=v,
+            faces=f,
+            circles=circles,
+            brep=brep,
+            seconds=time.perf_counter() - t0,
+        )
+    return HubResult(
+        status=attempts[-1] if attempts else "not attempted",
+        attempts=attempts,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+# --------------------------------------------------------------------- STEP
+def _to_bytes(shape: TopoDS_Shape) -> bytes:
+    buf = io.BytesIO()
+    BinTools.Write_s(shape, buf)
+    return buf.getvalue()
+
+
+def _from_bytes(data: bytes) -> TopoDS_Shape:
+    shape = TopoDS_Shape()
+    BinTools.Read_s(shape, io.BytesIO(data))
+    if shape.IsNull():
+        raise OCCTFailure("cannot read a hub solid back from binary BREP")
+    return shape
+
+
+def write_step(path: str, breps: list[bytes], translations: list[NDArray[np.float64]]) -> int:
+    """Write one solid per (BREP string, translation) pair into a STEP file.
+
+    Returns the number of solids written. Raises :class:`OCCTFailure` on error.
+    """
+    builder = TopoDS_Builder()
+    comp = TopoDS_Compound()
+    builder.MakeCompound(comp)
+    cache: dict[int, TopoDS_Shape] = {}
+    n = 0
+    for brep, t in zip(breps, translations, strict=True):
+        key = id(brep)
+        if key not in cache:
+            cache[key] = _from_bytes(brep)
+        trsf = gp_Trsf()
+        trsf.SetTranslation(gp_Vec(float(t[0]), float(t[1]), float(t[2])))
+        mk = BRepBuilderAPI_Transform(cache[key], trsf, True)
+        _done(mk, "translate hub")
+        builder.Add(comp, mk.Shape())
+        n += 1
+    writer = STEPControl_Writer()
+    if writer.Transfer(comp, STEPControl_AsIs) != IFSelect_RetDone:
+        raise OCCTFailure("STEP transfer failed")
+    if writer.Write(str(path)) != IFSelect_RetDone:
+        raise OCCTFailure(f"STEP write to {path} failed")
+    return n
+
+
+def read_step_solids(path: str) -> list[tuple[bool, float]]:
+    """(BRepCheck valid, volume) of every solid in a STEP file."""
+    reader = STEPControl_Reader()
+    if reader.ReadFile(str(path)) != IFSelect_RetDone:
+        raise OCCTFailure(f"cannot read STEP file {path}")
+    reader.TransferRoots()
+    shape = reader.OneShape()
+    out = []
+    ex = TopExp_Explorer(shape, TopAbs_SOLID)
+    while ex.More():
+        s = ex.Current()
+        out.append((bool(BRepCheck_Analyzer(s).IsValid()), _volume(s)))
+        ex.Next()
+    return out

@@ -1,0 +1,592 @@
+"""The exact per-hub B-rep reference of a lattice (Wang, Chen & Rosen's unit trusses).
+
+For every node with struts, its *hub* (unit truss) is built as an OCCT solid:
+a sphere of radius ``R_n = 1.00001 * max incident radius`` fused with the
+half-struts ("stumps") from the node to each strut's midpoint (cylinders, or
+cone frustums from ``r_node`` to ``r_mid = (r_a + r_b) / 2`` for tapered
+struts). In a *clean* lattice the hubs only touch on the shared midpoint
+discs, so the lattice volume is the sum of the hub volumes (exact, from
+OCCT's GProp) and the lattice surface is the union of the hub surfaces
+without the discs: the tessellations are stacked without any boolean between
+hubs.
+
+Shared midpoint circles: both hubs of a strut build its stump with the same
+canonical frame (a function of the strut's line only) and are tessellated
+with the same absolute deflections, so BRepMesh puts the same ``K`` points at
+the angles ``2 pi k / K`` on both sides. This is verified for every circle
+(:mod:`reference_boolean._occ`), then every circle vertex is replaced by one
+exact canonical point per ``(strut, k)`` shared by both hubs, which makes the
+stacked mesh watertight by construction (index-based). Any hub for which this
+cannot be verified is reported in :attr:`Reference.failed`.
+
+Hubs that are translates of each other (periodic lattices) are built once
+(``cache=True``); distinct hubs are built in worker processes with a time
+bound per hub.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+import os
+import sys
+import time
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fast_stitch.mesh import Mesh
+from lattice_cad.errors import LatticeError
+from lattice_cad.graph import LatticeGraph
+
+__all__ = [
+    "Reference",
+    "ReferenceBuildError",
+    "DirtyLatticeError",
+    "build_reference",
+    "find_overlaps",
+    "SPHERE_FACTOR",
+    "strut_frames",
+]
+
+#: Hub sphere radius over the largest incident strut radius (Wang et al.: 0.001 % larger).
+SPHERE_FACTOR = 1.00001
+#: Default linear deflection, relative to the smallest strut radius.
+DEFAULT_TOLERANCE_REL = 0.01
+#: Default angular deflection (radians) of the tessellation.
+DEFAULT_ANGULAR = 0.25
+#: Default time bound (seconds) of one hub build (construction, checks, tessellation).
+DEFAULT_HUB_TIMEOUT = 300.0
+#: Quantum (relative to the longest strut) of the hub cache keys.
+CACHE_QUANTUM = 1e-9
+#: Largest allowed move (relative to the hub size) when snapping circle vertices.
+SNAP_RTOL = 1e-7
+
+_G1 = np.array([0.5773502691896258, 0.2113248654051871, 0.7886751345948129])
+_G2 = np.array([0.3119, 0.8211, -0.4781]) / np.linalg.norm([0.3119, 0.8211, -0.4781])
+_G3 = np.array([-0.6124, 0.3536, 0.7071]) / np.linalg.norm([-0.6124, 0.3536, 0.7071])
+
+
+class ReferenceBuildError(LatticeError, RuntimeError):
+    """The reference cannot be built (bad input, or a failure that is not per hub)."""
+
+
+class DirtyLatticeError(ReferenceBuildError, ValueError):
+    """Hubs of the lattice would overlap, so the stacked reference would not be exact."""
+
+
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """The exact reference of a lattice.
+
+    Attributes
+    ----------
+    graph : LatticeGraph
+    volume : float
+        Sum of the hub solids' volumes (OCCT GProp). Exact for a clean lattice
+        when :attr:`complete`; otherwise the sum over the hubs that were built.
+    mesh : fast_stitch.Mesh
+        The stacked tessellation: ``vertices`` (V, 3) float64, ``faces`` (F, 3)
+        int64, outward. Watertight when :attr:`complete`.
+    face_node : (F,) int64
+        Node whose hub each triangle belongs to.
+    hub_volume : (N,) float64
+        Volume of each node's hub (NaN for isolated or failed nodes).
+    failed : dict[int, str]
+        Node index -> reason, for every hub that could not be built or stacked.
+    attempts : dict[int, list[str]]
+        Node index -> constructions tried, for hubs that needed a retry or failed.
+    tolerance, angular : float
+        Linear (absolute) and angular deflection of the tessellation.
+    unique_hubs : int
+        Hubs actually built (distinct up to translation when cached).
+    cache_hits : int
+        Hubs reused from another node's build.
+    timings : dict[str, float]
+        Seconds spent in ``"check"``, ``"build"``, ``"stack"`` and ``"total"``.
+    """
+
+    graph: LatticeGraph
+    volume: float
+    mesh: Mesh
+    face_node: NDArray[np.int64]
+    hub_volume: NDArray[np.float64]
+    failed: dict[int, str]
+    attempts: dict[int, list[str]]
+    tolerance: float
+    angular: float
+    unique_hubs: int
+    cache_hits: int
+    timings: dict[str, float]
+    node_template: NDArray[np.int64] = field(repr=False)
+    breps: list[bytes] = field(repr=False)
+
+    @property
+    def complete(self) -> bool:
+        """True when every hub was built and stacked (the volume is exact)."""
+        return not self.failed
+
+    def __repr__(self) -> str:
+        state = "complete" if self.complete else f"INCOMPLETE, {len(self.failed)} failed hub(s)"
+        return (
+            f"Reference(volume={self.volume:.9g}, {len(self.mesh.faces)} triangles, "
+            f"{self.unique_hubs} distinct hubs, {state})"
+        )
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the stacked mesh (``.stl``) or the hub solids (``.step`` / ``.stp``).
+
+        The STEP file holds one solid per built hub, in place; it re-imports as
+        valid solids whose volumes add up to :attr:`volume`.
+        """
+        p = Path(path)
+        suffix = p.suffix.lower()
+        if suffix == ".stl":
+            return self.mesh.save(p)
+        if suffix in (".step", ".stp"):
+            from lattice_cad._atomic import atomic_write
+            from reference_boolean import _occ
+
+            nodes = [
+                n
+                for n in range(self.graph.num_nodes)
+                if self.node_template[n] >= 0 and n not in self.failed
+            ]
+            breps = [self.breps[self.node_template[n]] for n in nodes]
+            trans = [self.graph.nodes[n] for n in nodes]
+            # OCCT writes to a path; write beside the target and move it atomically
+            with atomic_write(p, "wb") as fh:
+                tmp = Path(fh.name + ".step")
+                try:
+                    _occ.write_step(str(tmp), breps, trans)
+                    fh.write(tmp.read_bytes())
+                finally:
+                    tmp.unlink(missing_ok=True)
+            return p
+        raise ValueError(
+            f"cannot save a reference as {suffix or 'a file without suffix'}: "
+            "use .stl, .step or .stp"
+        )
+
+
+# ---------------------------------------------------------------- geometry
+def _canonical_dir(d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(M, 3) unit directions with a sign that depends on the line only."""
+    u = d / np.linalg.norm(d, axis=1)[:, None]
+    s = np.sign(u @ _G1)
+    s[s == 0] = 1.0
+    return u * s[:, None]
+
+
+def strut_frames(
+    graph: LatticeGraph,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Canonical frame of each strut's midpoint circle.
+
+    Returns
+    -------
+    axis, xdir, ydir : (M, 3) float64
+        ``axis`` is the strut direction with a sign fixed by the line alone;
+        ``xdir`` is perpendicular to it (from fixed generic vectors, so it is
+        the same for translated copies), ``ydir = axis x xdir``.
+    """
+    D = _canonical_dir(np.asarray(graph.edge_vectors))
+    x = np.cross(D, _G2)
+    bad = np.linalg.norm(x, axis=1) < 0.3
+    x[bad] = np.cross(D[bad], _G3)
+    x /= np.linalg.norm(x, axis=1)[:, None]
+    y = np.cross(D, x)
+    return D, x, y
+
+
+def _node_radius(graph: LatticeGraph) -> NDArray[np.float64]:
+    """(N,) float64: hub sphere radius R_n (0 for isolated nodes)."""
+    rmax = np.zeros(graph.num_nodes)
+    np.maximum.at(rmax, graph.edges[:, 0], graph.radii[:, 0])
+    np.maximum.at(rmax, graph.edges[:, 1], graph.radii[:, 1])
+    return SPHERE_FACTOR * rmax
+
+
+def find_overlaps(graph: LatticeGraph) -> list[str]:
+    """Why hubs of the lattice would overlap (empty list for a clean lattice).
+
+    Two cases are detected, each named by node and strut:
+
+    * a hub sphere reaches the cut plane of one of its struts (``R_n >= L / 2``);
+    * a stump reaches the cut plane of another strut of the same node (struts
+      at a small angle), so it may enter the neighbouring hub.
+
+    Struts that cross each other away from the nodes are not detected.
+    """
+    R = _node_radius(graph)
+    L = np.asarray(graph.edge_lengths)
+    offsets, inc_edge, inc_side = graph.incidence
+    out: list[str] = []
+    for side in (0, 1):
+        n = graph.edges[:, side]
+        bad = np.flatnonzero(R[n] >= 0.5 * L)
+        for e in bad[:50]:
+            out.append(
+                f"node {int(n[e])}: sphere radius {R[n[e]]:.6g} reaches past the midpoint of "
+                f"strut {int(e)} (half length {0.5 * L[e]:.6g})"
+            )
+    rmid = graph.radii.mean(axis=1)
+    u = np.asarray(graph.edge_vectors) / L[:, None]
+    for node in np.flatnonzero(graph.degree >= 2):
+        es = inc_edge[offsets[node] : offsets[node + 1]]
+        sd = inc_side[offsets[node] : offsets[node + 1]]
+        d = u[es] * np.where(sd == 0, 1.0, -1.0)[:, None]
+        cos = np.clip(d @ d.T, -1.0, 1.0)
+        sin = np.sqrt(1.0 - cos**2)
+        h = 0.5 * L[es]
+        # farthest point of stump j along strut i's axis (its end disc, or its node disc)
+        rn = graph.radii[es, sd]
+        reach = np.maximum(h[None, :] * cos + rmid[es][None, :] * sin, rn[None, :] * sin)
+        np.fill_diagonal(reach, -np.inf)
+        ii, jj = np.nonzero(reach >= h[:, None])
+        for i, j in zip(ii[:5], jj[:5], strict=True):
+            out.append(
+                f"node {int(node)}: the stump of strut {int(es[j])} reaches the cut plane of "
+                f"strut {int(es[i])} (angle {math.degrees(math.acos(cos[i, j])):.3g} deg)"
+            )
+        if len(out) > 200:
+            break
+    return out
+
+
+# ------------------------------------------------------------------ specs
+def _hub_specs(
+    graph: LatticeGraph, cache: bool
+) -> tuple[list[Any], NDArray[np.int64], list[NDArray[np.int64]], list[NDArray[np.int64]]]:
+    """Distinct hub specs, the template of each node, and slot -> strut of each node."""
+    from reference_boolean._occ import HubSpec
+
+    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    offsets, inc_edge, inc_side = graph.incidence
+    R = _node_radius(graph)
+    _, X, Y = strut_frames(graph)
+    rmid = radii.mean(axis=1)
+    q = CACHE_QUANTUM * float(np.max(graph.edge_lengths))
+    specs: list[Any] = []
+    keys: dict[bytes, int] = {}
+    template = np.full(graph.num_nodes, -1, dtype=np.int64)
+    slot_edges: list[NDArray[np.int64]] = [np.zeros(0, np.int64)] * graph.num_nodes
+    members: list[list[int]] = []
+    for n in np.flatnonzero(graph.degree > 0):
+        es = inc_edge[offsets[n] : offsets[n + 1]]
+        sd = inc_side[offsets[n] : offsets[n + 1]]
+        other = edges[es, 1 - sd]
+        vec = 0.5 * (nodes[other] - nodes[n])
+        rn = radii[es, sd]
+        rm = rmid[es]
+        rows = np.column_stack([vec, rn, rm])
+        qrows = np.rint(rows / q).astype(np.int64)
+        order = np.lexsort(qrows.T[::-1])
+        es, vec, rn, rm, qrows = es[order], vec[order], rn[order], rm[order], qrows[order]
+        slot_edges[n] = es
+        key = qrows.tobytes() + np.int64(np.rint(R[n] / q)).tobytes()
+        t = keys.get(key, -1) if cache else -1
+        if t < 0:
+            t = len(specs)
+            if cache:
+                keys[key] = t
+            specs.append(
+                HubSpec(
+                    radius=float(R[n]),
+                    vecs=vec,
+                    r_node=rn,
+                    r_mid=rm,
+                    xdirs=X[es],
+                    ydirs=Y[es],
+                )
+            )
+            members.append([])
+        template[n] = t
+        members[t].append(int(n))
+    return specs, template, slot_edges, [np.asarray(m, dtype=np.int64) for m in members]
+
+
+# ---------------------------------------------------------------- workers
+def _build_one(args: tuple[Any, float, float, bool]) -> Any:
+    from reference_boolean import _occ
+
+    spec, deflection, angular, keep = args
+    return _occ.build_hub(spec, deflection=deflection, angular=angular, keep_brep=keep)
+
+
+def _kill(pool: ProcessPoolExecutor) -> None:
+    # concurrent.futures offers no way to stop one running task: end the pool's own workers
+    procs = list(getattr(pool, "_processes", {}).values())
+    for p in procs:
+        if p.is_alive():
+            p.kill()
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _run(
+    specs: list[Any],
+    deflection: float,
+    angular: float,
+    keep: bool,
+    workers: int,
+    timeout: float,
+    progress: Any,
+) -> list[Any]:
+    from reference_boolean._occ import HubResult
+
+    results: list[Any] = [None] * len(specs)
+    if workers == 0:  # in process, no time bound (debugging)
+        for i, s in enumerate(specs):
+            results[i] = _build_one((s, deflection, angular, keep))
+            if progress:
+                progress("build", i + 1, len(specs))
+        return results
+    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+    todo = list(range(len(specs)))
+    done_count = 0
+    while todo:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+        futs: dict[Future[Any], int] = {
+            pool.submit(_build_one, (specs[i], deflection, angular, keep)): i for i in todo
+        }
+        started: dict[Future[Any], float] = {}
+        pending = set(futs)
+        timed_out: int | None = None
+        while pending and timed_out is None:
+            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+            for f in done:
+                i = futs[f]
+                try:
+                    results[i] = f.result()
+                except Exception as exc:  # a worker died (e.g. an OCCT crash)
+                    results[i] = HubResult(status=f"worker failed: {type(exc).__name__}: {exc}")
+                done_count += 1
+                if progress:
+                    progress("build", done_count, len(specs))
+            now = time.monotonic()
+            for f in pending:
+                if f.running():
+                    started.setdefault(f, now)
+                    if now - started[f] > timeout:
+                        timed_out = futs[f]
+                        break
+        if timed_out is not None:
+            results[timed_out] = HubResult(
+                status=f"timeout: the hub build took more than {timeout:g} s (stopped)"
+            )
+            _kill(pool)
+        else:
+            pool.shutdown(wait=True)
+        todo = [i for i in todo if results[i] is None]
+    return results
+
+
+# ----------------------------------------------------------------- driver
+def build_reference(
+    graph: LatticeGraph,
+    *,
+    tolerance: float | None = None,
+    angular: float = DEFAULT_ANGULAR,
+    workers: int | None = None,
+    cache: bool = True,
+    hub_timeout: float = DEFAULT_HUB_TIMEOUT,
+    keep_solids: bool = True,
+    progress: Any = None,
+) -> Reference:
+    """Build the exact per-hub B-rep reference of a lattice.
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+        Must be clean (see :func:`find_overlaps`).
+    tolerance : float, optional
+        Absolute linear deflection of the tessellation (chordal error bound);
+        default ``0.01 * smallest strut radius``. Does not affect :attr:`Reference.volume`,
+        which is exact.
+    angular : float
+        Angular deflection of the tessellation (radians).
+    workers : int, optional
+        Worker processes (default ``min(2, cpu_count)``); 0 builds in this
+        process, without the time bound.
+    cache : bool
+        Build hubs that are equal up to translation once.
+    hub_timeout : float
+        Seconds after which one hub build is stopped and reported as failed.
+    keep_solids : bool
+        Keep the hub solids (binary BREP) for :meth:`Reference.save` to STEP.
+    progress : callable, optional
+        Called as ``progress(stage, done, total)``.
+
+    Returns
+    -------
+    Reference
+
+    Raises
+    ------
+    DirtyLatticeError
+        Hubs would overlap (the message names the nodes and struts).
+    ReferenceBuildError
+        The graph has no struts, or the options are invalid.
+    """
+    t0 = time.perf_counter()
+    if not isinstance(graph, LatticeGraph):
+        raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
+    if graph.num_edges == 0:
+        raise ReferenceBuildError("the graph has no struts: nothing to build")
+    if workers is None:
+        workers = min(2, os.cpu_count() or 1)
+    if workers < 0:
+        raise ValueError(f"workers must be >= 0, got {workers}")
+    if tolerance is None:
+        tolerance = DEFAULT_TOLERANCE_REL * float(graph.radii.min())
+    if not (tolerance > 0 and math.isfinite(tolerance)):
+        raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
+    if not (0 < angular < math.pi):
+        raise ValueError(f"angular must be in (0, pi), got {angular!r}")
+    problems = find_overlaps(graph)
+    if problems:
+        shown = "\n  ".join(problems[:10])
+        more = f"\n  ... and {len(problems) - 10} more" if len(problems) > 10 else ""
+        raise DirtyLatticeError(
+            f"the lattice is not clean: {len(problems)} place(s) where hubs would overlap, "
+            f"so stacked hubs would not be its exact geometry:\n  {shown}{more}"
+        )
+    t_check = time.perf_counter()
+    specs, template, slot_edges, members = _hub_specs(graph, cache)
+    results = _run(specs, float(tolerance), float(angular), keep_solids, workers,
+                   float(hub_timeout), progress)
+    t_build = time.perf_counter()
+    mesh, face_node, hub_volume, failed = _stack(graph, results, template, slot_edges, members)
+    attempts: dict[int, list[str]] = {}
+    for t, res in enumerate(results):
+        if res.status != "ok" or len(res.attempts) > 1:
+            for n in members[t]:
+                attempts[int(n)] = list(res.attempts)
+    volume = float(np.nansum(hub_volume))
+    t_end = time.perf_counter()
+    return Reference(
+        graph=graph,
+        volume=volume,
+        mesh=mesh,
+        face_node=face_node,
+        hub_volume=hub_volume,
+        failed=dict(sorted(failed.items())),
+        attempts=attempts,
+        tolerance=float(tolerance),
+        angular=float(angular),
+        unique_hubs=len(specs),
+        cache_hits=int((template >= 0).sum()) - len(specs),
+        timings={
+            "check": t_check - t0,
+            "build": t_build - t_check,
+            "stack": t_end - t_build,
+            "total": t_end - t0,
+        },
+        node_template=template,
+        breps=[r.brep for r in results],
+    )
+
+
+def _stack(
+    graph: LatticeGraph,
+    results: list[Any],
+    template: NDArray[np.int64],
+    slot_edges: list[NDArray[np.int64]],
+    members: list[NDArray[np.int64]],
+) -> tuple[Mesh, NDArray[np.int64], NDArray[np.float64], dict[int, str]]:
+    """Stack the hub tessellations; shared circle vertices become one canonical point."""
+    m = graph.num_edges
+    failed: dict[int, str] = {}
+    K = np.zeros(m, dtype=np.int64)
+    K_node = np.full(m, -1, dtype=np.int64)
+    hub_volume = np.full(graph.num_nodes, np.nan)
+    ok_nodes: list[int] = []
+    # 1. circle sizes: both hubs of a strut must agree
+    for t, res in enumerate(results):
+        if res.status != "ok":
+            for n in members[t]:
+                failed[int(n)] = res.status
+            continue
+        ks = np.array([len(c) for c in res.circles], dtype=np.int64)
+        for n in members[t]:
+            es = slot_edges[n]
+            clash = (K[es] != 0) & (K[es] != ks)
+            if clash.any():
+                j = int(np.flatnonzero(clash)[0])
+                failed[int(n)] = (
+                    f"midpoint circle of strut {int(es[j])} has {int(ks[j])} vertices here but "
+                    f"{int(K[es[j]])} at node {int(K_node[es[j]])}"
+                )
+                continue
+            K[es] = ks
+            K_node[es] = n
+            ok_nodes.append(int(n))
+    base = np.zeros(m + 1, dtype=np.int64)
+    np.cumsum(K, out=base[1:])
+    _, X, Y = strut_frames(graph)
+    mid = 0.5 * (graph.nodes[graph.edges[:, 0]] + graph.nodes[graph.edges[:, 1]])
+    rmid = graph.radii.mean(axis=1)
+    circ = np.empty((int(base[-1]), 3))
+    for k_val in np.unique(K[K > 0]):
+        es = np.flatnonzero(K == k_val)
+        ang = 2.0 * np.pi * np.arange(k_val) / k_val
+        pts = mid[es, None, :] + rmid[es, None, None] * (
+            np.cos(ang)[None, :, None] * X[es, None, :] + np.sin(ang)[None, :, None] * Y[es, None, :]
+        )
+        idx = base[es][:, None] + np.arange(k_val)[None, :]
+        circ[idx.ravel()] = pts.reshape(-1, 3)
+    ok = np.zeros(graph.num_nodes, dtype=bool)
+    ok[ok_nodes] = True
+    # 2. per template, all its nodes at once
+    verts = [circ]
+    faces: list[NDArray[np.int64]] = []
+    fnode: list[NDArray[np.int64]] = []
+    offset = len(circ)
+    scale = float(np.max(graph.edge_lengths))
+    for t, res in enumerate(results):
+        if res.status != "ok":
+            continue
+        ns = members[t]
+        ns = ns[ok[ns]]
+        if len(ns) == 0:
+            continue
+        nc = sum(len(c) for c in res.circles)
+        nv = len(res.vertices)
+        ni = nv - nc
+        E = np.stack([slot_edges[n] for n in ns])  # (c, d)
+        vmap = np.empty((len(ns), nv), dtype=np.int64)
+        col = 0
+        for j, c in enumerate(res.circles):
+            vmap[:, col : col + len(c)] = base[E[:, j]][:, None] + np.arange(len(c))[None, :]
+            col += len(c)
+        vmap[:, nc:] = offset + np.arange(len(ns) * ni).reshape(len(ns), ni)
+        offset += len(ns) * ni
+        placed = res.vertices[None, :, :] + graph.nodes[ns][:, None, :]
+        # snapping check: the circle vertices must already be where the canonical points are
+        move = np.abs(placed[:, :nc, :] - circ[vmap[:, :nc]]).max(axis=(1, 2)) if nc else None
+        if move is not None:
+            bad = move > SNAP_RTOL * scale
+            for n, mv in zip(ns[bad], move[bad], strict=True):
+                failed[int(n)] = (
+                    f"a midpoint circle vertex is {mv:.3g} away from its canonical point"
+                )
+        verts.append(placed[:, nc:, :].reshape(-1, 3))
+        if move is not None and bad.any():  # their vertices stay (unused, compacted below)
+            ns, vmap = ns[~bad], vmap[~bad]
+        faces.append(vmap[:, res.faces].reshape(-1, 3))
+        fnode.append(np.repeat(ns, len(res.faces)))
+        hub_volume[ns] = res.volume
+    V = np.concatenate(verts) if verts else np.zeros((0, 3))
+    F = np.concatenate(faces) if faces else np.zeros((0, 3), dtype=np.int64)
+    FN = np.concatenate(fnode) if fnode else np.zeros(0, dtype=np.int64)
+    # compact vertices that no face uses (circles of failed hubs' struts, dropped nodes)
+    used = np.zeros(len(V), dtype=bool)
+    used[F.ravel()] = True
+    if not used.all():
+        new = np.cumsum(used) - 1
+        V, F = V[used], new[F]
+    return Mesh(vertices=np.ascontiguousarray(V), faces=np.ascontiguousarray(F)), FN, hub_volume, failed
