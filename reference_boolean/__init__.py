@@ -1,1 +1,36 @@
-"""reference_boolean: exact per-hub B-rep reference of a lattice (see issue: reference)."""
+"""reference_boolean: exact per-hub B-rep reference of a lattice, and accuracy reports.
+
+The reference follows Wang, Chen & Rosen's unit trusses: one OCCT solid per
+node (a sphere fused with the half-struts up to the strut midpoints),
+tessellated so that neighbouring hubs share their midpoint circles exactly,
+and stacked without any boolean between hubs.
+
+- :func:`build_reference` -> :class:`Reference` (exact volume, watertight mesh,
+  STL / STEP export, failed hubs by node index).
+- :func:`compare` -> :class:`ValidationReport` (manifold3d unions at several
+  resolutions, a mesh's deviation from the reference; JSON / Markdown / HTML).
+
+OCCT (OCP) is only imported when a reference is built.
+"""
+
+from reference_boolean.compare import ValidationReport, compare, union_mesh
+from reference_boolean.reference import (
+    DirtyLatticeError,
+    Reference,
+    ReferenceBuildError,
+    build_reference,
+    find_overlaps,
+    strut_frames,
+)
+
+__all__ = [
+    "build_reference",
+    "Reference",
+    "ReferenceBuildError",
+    "DirtyLatticeError",
+    "find_overlaps",
+    "strut_frames",
+    "compare",
+    "ValidationReport",
+    "union_mesh",
+]

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from OCP.BinTools import BinTools
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
@@ -51,7 +52,6 @@ from OCP.BRepPrimAPI import (
     BRepPrimAPI_MakeCylinder,
     BRepPrimAPI_MakeSphere,
 )
-from OCP.BinTools import BinTools
 from OCP.GeomAbs import GeomAbs_Plane
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
 from OCP.GProp import GProp_GProps
@@ -193,7 +193,9 @@ def _dir(v: NDArray[np.float64]) -> gp_Dir:
 def make_primitives(spec: HubSpec) -> list[TopoDS_Shape]:
     """The sphere and the stumps (cylinders or cone frustums), each checked."""
     origin = gp_Pnt(0.0, 0.0, 0.0)
-    sphere_mk = BRepPrimAPI_MakeSphere(gp_Ax2(origin, gp_Dir(0, 0, 1), gp_Dir(1, 0, 0)), spec.radius)
+    sphere_mk = BRepPrimAPI_MakeSphere(
+        gp_Ax2(origin, gp_Dir(0, 0, 1), gp_Dir(1, 0, 0)), spec.radius
+    )
     sphere_mk.Build()
     _done(sphere_mk, "sphere")
     shapes = [sphere_mk.Shape()]
@@ -203,9 +205,7 @@ def make_primitives(spec: HubSpec) -> list[TopoDS_Shape]:
         ax = gp_Ax2(origin, _dir(v / h), _dir(spec.xdirs[j]))
         r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
         mk = (
-            BRepPrimAPI_MakeCylinder(ax, r0, h)
-            if r0 == r1
-            else BRepPrimAPI_MakeCone(ax, r0, r1, h)
+            BRepPrimAPI_MakeCylinder(ax, r0, h) if r0 == r1 else BRepPrimAPI_MakeCone(ax, r0, r1, h)
         )
         mk.Build()
         _done(mk, f"stump {j}")

@@ -457,8 +457,9 @@ def build_reference(
         )
     t_check = time.perf_counter()
     specs, template, slot_edges, members = _hub_specs(graph, cache)
-    results = _run(specs, float(tolerance), float(angular), keep_solids, workers,
-                   float(hub_timeout), progress)
+    results = _run(
+        specs, float(tolerance), float(angular), keep_solids, workers, float(hub_timeout), progress
+    )
     t_build = time.perf_counter()
     mesh, face_node, hub_volume, failed = _stack(graph, results, template, slot_edges, members)
     attempts: dict[int, list[str]] = {}
@@ -535,7 +536,8 @@ def _stack(
         es = np.flatnonzero(K == k_val)
         ang = 2.0 * np.pi * np.arange(k_val) / k_val
         pts = mid[es, None, :] + rmid[es, None, None] * (
-            np.cos(ang)[None, :, None] * X[es, None, :] + np.sin(ang)[None, :, None] * Y[es, None, :]
+            np.cos(ang)[None, :, None] * X[es, None, :]
+            + np.sin(ang)[None, :, None] * Y[es, None, :]
         )
         idx = base[es][:, None] + np.arange(k_val)[None, :]
         circ[idx.ravel()] = pts.reshape(-1, 3)
@@ -589,4 +591,9 @@ def _stack(
     if not used.all():
         new = np.cumsum(used) - 1
         V, F = V[used], new[F]
-    return Mesh(vertices=np.ascontiguousarray(V), faces=np.ascontiguousarray(F)), FN, hub_volume, failed
+    return (
+        Mesh(vertices=np.ascontiguousarray(V), faces=np.ascontiguousarray(F)),
+        FN,
+        hub_volume,
+        failed,
+    )

@@ -1,0 +1,370 @@
+"""Compare meshes of a lattice with its exact reference.
+
+:func:`compare` builds the reference (:func:`~reference_boolean.build_reference`),
+manifold3d unions of the same spheres and struts at several resolutions, and
+measures a given mesh (e.g. from :func:`fast_stitch.stitch`) against the
+reference: volume, two-sided surface deviation, validity, triangle counts and
+timings, and the nodes where the mesh deviates most.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fast_stitch.mesh import Mesh
+from lattice_cad.graph import LatticeGraph
+from reference_boolean.reference import SPHERE_FACTOR, Reference, build_reference
+
+__all__ = ["ValidationReport", "compare", "union_mesh", "surface_deviation", "mesh_validity"]
+
+#: Default number of surface samples per mesh for the deviation measures.
+DEFAULT_SAMPLES = 50_000
+
+
+# ------------------------------------------------------------------ union
+def union_mesh(graph: LatticeGraph, segments: int) -> Mesh:
+    """manifold3d union of the hub spheres and the full struts, ``segments`` per circle.
+
+    Spheres have the reference's radius ``1.00001 * max incident radius``;
+    struts are cylinders (cones for tapered struts) from node to node, so the
+    union converges to the reference as ``segments`` grows (error ~ 1/n^2).
+
+    Returns
+    -------
+    fast_stitch.Mesh
+        ``vertices`` (V, 3) float64, ``faces`` (F, 3) int64.
+    """
+    import manifold3d as m3
+
+    n = int(segments)
+    if n < 3:
+        raise ValueError(f"segments must be >= 3, got {segments}")
+    rmax = np.zeros(graph.num_nodes)
+    np.maximum.at(rmax, graph.edges[:, 0], graph.radii[:, 0])
+    np.maximum.at(rmax, graph.edges[:, 1], graph.radii[:, 1])
+    parts = []
+    unit = m3.Manifold.sphere(1.0, n)
+    for i in np.flatnonzero(rmax > 0):
+        R = SPHERE_FACTOR * rmax[i]
+        parts.append(unit.scale([R, R, R]).translate(graph.nodes[i].tolist()))
+    z = np.array([0.0, 0.0, 1.0])
+    for e, (a, b) in enumerate(graph.edges):
+        p, q = graph.nodes[a], graph.nodes[b]
+        v = q - p
+        L = float(np.linalg.norm(v))
+        d = v / L
+        cyl = m3.Manifold.cylinder(L, float(graph.radii[e, 0]), float(graph.radii[e, 1]), n)
+        # rotation taking z to d (Rodrigues), as a 3x4 affine matrix
+        c = float(d @ z)
+        if c < -1 + 1e-12:
+            rot = np.diag([1.0, -1.0, -1.0])
+        else:
+            k = np.cross(z, d)
+            K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+            rot = np.eye(3) + K + K @ K / (1.0 + c)
+        mat = np.column_stack([rot, p])
+        parts.append(cyl.transform(mat.tolist()))
+    u = m3.Manifold.batch_boolean(parts, m3.OpType.Add)
+    mesh = u.to_mesh()
+    v = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
+    f = np.asarray(mesh.tri_verts, dtype=np.int64)
+    return Mesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f))
+
+
+# ---------------------------------------------------------------- measures
+def mesh_validity(mesh: Mesh) -> dict[str, bool]:
+    """Watertight / winding-consistent / outward (trimesh) and manifold (manifold3d)."""
+    import manifold3d as m3
+    import trimesh
+
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    tm = trimesh.Trimesh(vertices=v, faces=f, process=False)
+    man = m3.Manifold(m3.Mesh(vert_properties=v.astype(np.float32), tri_verts=f.astype(np.uint32)))
+    out = {
+        "watertight": bool(tm.is_watertight),
+        "winding_consistent": bool(tm.is_winding_consistent),
+        "outward": bool(tm.volume > 0),
+        "manifold3d": bool(man.status() == m3.Error.NoError),
+    }
+    out["valid"] = all(out.values())
+    return out
+
+
+def _sample(mesh: Mesh, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """(n, 3) float64 area-weighted uniform samples, plus all vertices."""
+    v, f = mesh.vertices, mesh.faces
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    tri = rng.choice(len(f), size=n, p=area / area.sum())
+    r1, r2 = rng.random(n), rng.random(n)
+    s = np.sqrt(r1)
+    pts = (1 - s)[:, None] * a[tri] + (s * (1 - r2))[:, None] * b[tri] + (s * r2)[:, None] * c[tri]
+    return np.vstack([pts, v])
+
+
+def surface_deviation(
+    source: Mesh, target: Mesh, *, samples: int = DEFAULT_SAMPLES, seed: int = 0
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Distances from points sampled densely on ``source`` to the surface of ``target``.
+
+    Returns
+    -------
+    points : (S, 3) float64
+        ``samples`` area-weighted random points on ``source`` and all its vertices.
+    distance : (S,) float64
+        Exact point-to-triangle distance to ``target`` (trimesh, R-tree).
+    """
+    import trimesh
+
+    rng = np.random.default_rng(seed)
+    pts = _sample(source, samples, rng)
+    tm = trimesh.Trimesh(vertices=target.vertices, faces=target.faces, process=False)
+    _, dist, _ = trimesh.proximity.closest_point(tm, pts)
+    return pts, np.asarray(dist, dtype=np.float64)
+
+
+def _stats(d: NDArray[np.float64]) -> dict[str, float]:
+    return {
+        "max": float(d.max()),
+        "mean": float(d.mean()),
+        "p95": float(np.percentile(d, 95)),
+        "samples": int(len(d)),
+    }
+
+
+# ------------------------------------------------------------------ report
+@dataclass(frozen=True, eq=False)
+class ValidationReport:
+    """Numbers (and the data for the plots) of :func:`compare`.
+
+    Attributes
+    ----------
+    graph : LatticeGraph
+    reference : Reference
+    volume_union : dict[int, float]
+        manifold3d union volume per circle resolution.
+    union_triangles, union_valid, union_seconds : dict[int, ...]
+    convergence_order : float or None
+        Fitted ``p`` of ``|V_union(n) - V_ref| ~ C n^-p`` (2 expected).
+    mesh : Mesh or None
+        The compared mesh.
+    volume_mesh : float or None
+    mesh_valid : dict or None
+    hausdorff : dict[str, dict[str, float]]
+        ``"mesh_to_reference"`` / ``"reference_to_mesh"`` (max, mean, p95) and
+        ``"symmetric"`` (the larger of each).
+    node_deviation : (N,) float64
+        Largest sampled deviation near each node (NaN without a mesh).
+    distances : dict[str, (S,) float64]
+        The sampled distances (for the histogram).
+    timings : dict[str, float]
+    label : str
+        Name of the compared mesh (e.g. ``"fast_stitch P=6"``).
+    extra : dict
+        Free-form additions (shown in every format).
+    """
+
+    graph: LatticeGraph
+    reference: Reference
+    volume_union: dict[int, float]
+    union_triangles: dict[int, int]
+    union_valid: dict[int, bool]
+    union_seconds: dict[int, float]
+    convergence_order: float | None
+    mesh: Mesh | None
+    volume_mesh: float | None
+    mesh_valid: dict[str, bool] | None
+    hausdorff: dict[str, dict[str, float]]
+    node_deviation: NDArray[np.float64]
+    distances: dict[str, NDArray[np.float64]] = field(repr=False)
+    timings: dict[str, float] = field(default_factory=dict)
+    label: str = "mesh"
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def worst_nodes(self, k: int = 10) -> list[tuple[int, float]]:
+        """The ``k`` nodes with the largest local deviation, as (node, deviation)."""
+        d = self.node_deviation
+        ok = np.flatnonzero(np.isfinite(d))
+        order = ok[np.argsort(-d[ok], kind="stable")][:k]
+        return [(int(i), float(d[i])) for i in order]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (no arrays except the worst nodes)."""
+        ref = self.reference
+        vref = ref.volume
+        rel_union = {int(n): (v - vref) / vref for n, v in self.volume_union.items()}
+        out: dict[str, Any] = {
+            "graph": {
+                "nodes": self.graph.num_nodes,
+                "struts": self.graph.num_edges,
+                "tapered": self.graph.is_tapered,
+            },
+            "label": self.label,
+            "volume_reference": vref,
+            "reference_complete": ref.complete,
+            "reference_failed": {str(k): v for k, v in ref.failed.items()},
+            "volume_reference_mesh": ref.mesh.volume,
+            "volume_union": {int(n): float(v) for n, v in self.volume_union.items()},
+            "volume_mesh": self.volume_mesh,
+            "relative_volume_error": {
+                "mesh": None if self.volume_mesh is None else (self.volume_mesh - vref) / vref,
+                "reference_mesh": (ref.mesh.volume - vref) / vref,
+                "union": rel_union,
+            },
+            "convergence_order": self.convergence_order,
+            "hausdorff": self.hausdorff,
+            "valid": {
+                "reference": mesh_validity(ref.mesh) if len(ref.mesh.faces) else {"valid": False},
+                "mesh": self.mesh_valid,
+                "union": {int(n): bool(v) for n, v in self.union_valid.items()},
+            },
+            "triangles": {
+                "reference": int(len(ref.mesh.faces)),
+                "mesh": None if self.mesh is None else int(len(self.mesh.faces)),
+                "union": {int(n): int(t) for n, t in self.union_triangles.items()},
+            },
+            "timings": {
+                **{k: float(v) for k, v in self.timings.items()},
+                "reference": dict(ref.timings),
+                "union": {int(n): float(t) for n, t in self.union_seconds.items()},
+            },
+            "reference_hubs": {"unique": ref.unique_hubs, "cache_hits": ref.cache_hits},
+            "tessellation": {"tolerance": ref.tolerance, "angular": ref.angular},
+            "worst_nodes": [{"node": n, "deviation": d} for n, d in self.worst_nodes()],
+        }
+        if self.extra:
+            out["extra"] = self.extra
+        return out
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the report as ``.json``, ``.md`` or ``.html`` (self-contained, PNGs inline)."""
+        from reference_boolean import report
+
+        return report.save(self, path)
+
+
+def _fit_order(volumes: dict[int, float], vref: float) -> float | None:
+    ns = np.array(sorted(volumes), dtype=np.float64)
+    err = np.array([abs(volumes[int(n)] - vref) for n in ns])
+    ok = err > 0
+    if ok.sum() < 2:
+        return None
+    slope = np.polyfit(np.log(ns[ok]), np.log(err[ok]), 1)[0]
+    return float(-slope)
+
+
+def compare(
+    graph: LatticeGraph,
+    *,
+    mesh: Mesh | Any | None = None,
+    union_segments: tuple[int, ...] = (16, 32, 64, 128),
+    reference: Reference | None = None,
+    samples: int = DEFAULT_SAMPLES,
+    label: str = "mesh",
+    seed: int = 0,
+    **reference_options: Any,
+) -> ValidationReport:
+    """Measure manifold3d unions and a mesh against the exact reference.
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+    mesh : Mesh or object with ``vertices`` (V, 3) and ``faces`` (F, 3), optional
+        The mesh to validate (e.g. ``fast_stitch.stitch(graph)``).
+    union_segments : tuple of int
+        Circle resolutions of the manifold3d unions (empty: no unions).
+    reference : Reference, optional
+        A reference already built for ``graph`` (else it is built here).
+    samples : int
+        Random surface samples per direction of the deviation measure (all
+        vertices are added).
+    label : str
+        Name of the mesh in the report.
+    seed : int
+        Seed of the surface sampling.
+    **reference_options
+        Passed to :func:`build_reference` (``tolerance``, ``workers``, ...).
+
+    Returns
+    -------
+    ValidationReport
+    """
+    t0 = time.perf_counter()
+    if reference is None:
+        reference = build_reference(graph, **reference_options)
+    elif reference.graph != graph:
+        raise ValueError("the reference was built for another graph")
+    timings: dict[str, float] = {"reference": time.perf_counter() - t0}
+    vols, tris, valid, secs = {}, {}, {}, {}
+    for n in union_segments:
+        t = time.perf_counter()
+        um = union_mesh(graph, int(n))
+        secs[int(n)] = time.perf_counter() - t
+        vols[int(n)] = um.volume
+        tris[int(n)] = int(len(um.faces))
+        valid[int(n)] = mesh_validity(um)["valid"]
+    timings["unions"] = float(sum(secs.values()))
+    order = _fit_order(vols, reference.volume) if reference.complete else None
+    hausdorff: dict[str, dict[str, float]] = {}
+    distances: dict[str, NDArray[np.float64]] = {}
+    node_dev = np.full(graph.num_nodes, np.nan)
+    vmesh = mvalid = None
+    m: Mesh | None = None
+    if mesh is not None:
+        m = Mesh(
+            vertices=np.asarray(mesh.vertices, dtype=np.float64),
+            faces=np.asarray(mesh.faces, dtype=np.int64),
+        )
+        t = time.perf_counter()
+        vmesh = m.volume
+        mvalid = mesh_validity(m)
+        timings["mesh_checks"] = time.perf_counter() - t
+        t = time.perf_counter()
+        p1, d1 = surface_deviation(m, reference.mesh, samples=samples, seed=seed)
+        p2, d2 = surface_deviation(reference.mesh, m, samples=samples, seed=seed + 1)
+        timings["deviation"] = time.perf_counter() - t
+        hausdorff["mesh_to_reference"] = _stats(d1)
+        hausdorff["reference_to_mesh"] = _stats(d2)
+        hausdorff["symmetric"] = {
+            k: max(hausdorff["mesh_to_reference"][k], hausdorff["reference_to_mesh"][k])
+            for k in ("max", "mean", "p95")
+        }
+        distances = {"mesh_to_reference": d1, "reference_to_mesh": d2}
+        from scipy.spatial import cKDTree
+
+        used = np.flatnonzero(graph.degree > 0)
+        tree = cKDTree(graph.nodes[used])
+        for p, d in ((p1, d1), (p2, d2)):
+            _, idx = tree.query(p)
+            dev = np.full(graph.num_nodes, -np.inf)
+            np.maximum.at(dev, used[idx], d)
+            node_dev = np.fmax(node_dev, np.where(np.isfinite(dev), dev, np.nan))
+    timings["total"] = time.perf_counter() - t0
+    if not math.isfinite(timings["total"]):  # pragma: no cover
+        timings["total"] = 0.0
+    return ValidationReport(
+        graph=graph,
+        reference=reference,
+        volume_union=vols,
+        union_triangles=tris,
+        union_valid=valid,
+        union_seconds=secs,
+        convergence_order=order,
+        mesh=m,
+        volume_mesh=vmesh,
+        mesh_valid=mvalid,
+        hausdorff=hausdorff,
+        node_deviation=node_dev,
+        distances=distances,
+        timings=timings,
+        label=label,
+    )

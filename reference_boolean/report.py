@@ -1,0 +1,268 @@
+"""Writers of :class:`~reference_boolean.compare.ValidationReport`: JSON, Markdown, HTML.
+
+The HTML file is self-contained: its plots (volume convergence, deviation
+histogram, the lattice coloured by local deviation) are matplotlib PNGs
+rendered offscreen with the Agg backend and embedded as base64.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from lattice_cad._atomic import atomic_write
+
+if TYPE_CHECKING:
+    from reference_boolean.compare import ValidationReport
+
+__all__ = ["save", "to_markdown", "to_html", "plots"]
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def save(rep: ValidationReport, path: str | os.PathLike[str]) -> Path:
+    """Write ``rep`` by suffix: ``.json``, ``.md`` or ``.html`` (atomically)."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".json":
+        text = json.dumps(rep.to_dict(), indent=2, default=_json_default)
+    elif suffix == ".md":
+        text = to_markdown(rep)
+    elif suffix in (".html", ".htm"):
+        text = to_html(rep)
+    else:
+        raise ValueError(
+            f"cannot save a report as {suffix or 'a file without suffix'}: use .json, .md or .html"
+        )
+    with atomic_write(p, "w") as fh:
+        fh.write(text)
+    return p
+
+
+def _g(x: float | None, fmt: str = ".6g") -> str:
+    return "-" if x is None else format(x, fmt)
+
+
+def _pct(x: float | None) -> str:
+    return "-" if x is None else f"{x:+.4%}"
+
+
+def _tables(rep: ValidationReport) -> list[tuple[str, list[str], list[list[str]]]]:
+    d = rep.to_dict()
+    vref = d["volume_reference"]
+    t: list[tuple[str, list[str], list[list[str]]]] = []
+    status = (
+        "complete"
+        if d["reference_complete"]
+        else (f"INCOMPLETE: {len(d['reference_failed'])} hub(s) failed, the volume is partial")
+    )
+    rows = [
+        [
+            "graph",
+            f"{d['graph']['nodes']} nodes, {d['graph']['struts']} struts"
+            + (", tapered" if d["graph"]["tapered"] else ""),
+        ],
+        ["reference volume (exact, OCCT GProp)", _g(vref, ".10g")],
+        ["reference status", status],
+        [
+            "reference hubs built / reused",
+            f"{d['reference_hubs']['unique']} / {d['reference_hubs']['cache_hits']}",
+        ],
+        [
+            "reference tessellation volume",
+            f"{_g(d['volume_reference_mesh'], '.10g')} "
+            f"({_pct(d['relative_volume_error']['reference_mesh'])})",
+        ],
+        ["reference triangles", str(d["triangles"]["reference"])],
+        ["reference build time (s)", _g(d["timings"]["reference"]["total"], ".3g")],
+    ]
+    t.append(("Reference", ["quantity", "value"], rows))
+    urows = [
+        [
+            str(n),
+            _g(v, ".10g"),
+            _pct(d["relative_volume_error"]["union"][n]),
+            str(d["triangles"]["union"][n]),
+            str(d["valid"]["union"][n]),
+            _g(d["timings"]["union"][n], ".3g"),
+        ]
+        for n, v in d["volume_union"].items()
+    ]
+    if urows:
+        t.append(
+            (
+                "manifold3d union of the same spheres and struts "
+                f"(fitted convergence order {_g(d['convergence_order'], '.3g')}, 2 expected)",
+                ["segments", "volume", "rel. error", "triangles", "valid", "time (s)"],
+                urows,
+            )
+        )
+    if d["volume_mesh"] is not None:
+        h = d["hausdorff"]
+        mrows = [
+            ["volume", _g(d["volume_mesh"], ".10g")],
+            ["relative volume error", _pct(d["relative_volume_error"]["mesh"])],
+            ["triangles", str(d["triangles"]["mesh"])],
+            ["valid", ", ".join(f"{k}={v}" for k, v in d["valid"]["mesh"].items())],
+        ]
+        for k in ("mesh_to_reference", "reference_to_mesh", "symmetric"):
+            s = h[k]
+            mrows.append(
+                [
+                    f"deviation {k.replace('_', ' ')} (max / mean / p95)",
+                    f"{_g(s['max'])} / {_g(s['mean'])} / {_g(s['p95'])}",
+                ]
+            )
+        t.append((f"Mesh under test: {rep.label}", ["quantity", "value"], mrows))
+        t.append(
+            (
+                "Worst nodes by local deviation",
+                ["node", "deviation"],
+                [[str(w["node"]), _g(w["deviation"])] for w in d["worst_nodes"]],
+            )
+        )
+    if d["reference_failed"]:
+        t.append(
+            (
+                "Failed hubs",
+                ["node", "reason"],
+                [[k, v] for k, v in list(d["reference_failed"].items())[:50]],
+            )
+        )
+    for key, val in (d.get("extra") or {}).items():
+        if isinstance(val, list) and val and isinstance(val[0], dict):
+            cols = list(val[0])
+            t.append(
+                (
+                    key,
+                    cols,
+                    [
+                        [_g(r[c]) if isinstance(r[c], float) else str(r[c]) for c in cols]
+                        for r in val
+                    ],
+                )
+            )
+    return t
+
+
+def to_markdown(rep: ValidationReport) -> str:
+    """The report as Markdown tables."""
+    out = ["# Lattice accuracy report", ""]
+    for title, cols, rows in _tables(rep):
+        out += [f"## {title}", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+        out += ["| " + " | ".join(r) + " |" for r in rows]
+        out.append("")
+    return "\n".join(out)
+
+
+def plots(rep: ValidationReport) -> dict[str, bytes]:
+    """PNG bytes of the plots: ``convergence``, ``histogram``, ``lattice``."""
+    # Figure + FigureCanvasAgg directly: no pyplot, no global backend switch, no window
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    def png(fig: Figure) -> bytes:
+        FigureCanvasAgg(fig)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+        return buf.getvalue()
+
+    out: dict[str, bytes] = {}
+    vref = rep.reference.volume
+    if rep.volume_union:
+        fig = Figure(figsize=(5.5, 4))
+        ax = fig.add_subplot()
+        ns = np.array(sorted(rep.volume_union))
+        err = np.array([abs(rep.volume_union[int(n)] - vref) / vref for n in ns])
+        ax.loglog(ns, np.maximum(err, 1e-17), "o-", label="manifold3d union")
+        ax.loglog(ns, err[0] * (ns[0] / ns) ** 2, "k--", lw=0.8, label="1/n^2")
+        if rep.volume_mesh is not None:
+            ax.axhline(abs(rep.volume_mesh - vref) / vref, color="C3", label=rep.label)
+        ax.set_xlabel("segments per circle")
+        ax.set_ylabel("|V - V_ref| / V_ref")
+        ax.set_title("volume convergence to the exact reference")
+        ax.legend()
+        out["convergence"] = png(fig)
+    if rep.distances:
+        fig = Figure(figsize=(5.5, 4))
+        ax = fig.add_subplot()
+        for k, d in rep.distances.items():
+            ax.hist(d, bins=60, histtype="step", label=k.replace("_", " "))
+        ax.set_yscale("log")
+        ax.set_xlabel("distance")
+        ax.set_ylabel("samples")
+        ax.set_title(f"surface deviation: {rep.label}")
+        ax.legend()
+        out["histogram"] = png(fig)
+    g = rep.graph
+    fig = Figure(figsize=(6, 5))
+    ax = fig.add_subplot(projection="3d")
+    from matplotlib import colormaps
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    segs = g.nodes[g.edges]
+    dev = rep.node_deviation
+    if np.isfinite(dev).any():
+        ed = np.fmax(dev[g.edges[:, 0]], dev[g.edges[:, 1]])
+        lo, hi = float(np.nanmin(ed)), float(np.nanmax(ed))
+        norm = (ed - lo) / (hi - lo) if hi > lo else np.zeros_like(ed)
+        colors = colormaps["viridis"](np.nan_to_num(norm))
+        title = f"local deviation {lo:.3g} .. {hi:.3g}"
+    else:
+        colors = "0.4"
+        title = "lattice"
+    ax.add_collection3d(Line3DCollection(segs, colors=colors, linewidths=1.5))
+    lo3, hi3 = g.bounds
+    ax.set_xlim(lo3[0], hi3[0] if hi3[0] > lo3[0] else lo3[0] + 1)
+    ax.set_ylim(lo3[1], hi3[1] if hi3[1] > lo3[1] else lo3[1] + 1)
+    ax.set_zlim(lo3[2], hi3[2] if hi3[2] > lo3[2] else lo3[2] + 1)
+    failed = list(rep.reference.failed)
+    if failed:
+        p = g.nodes[failed]
+        ax.scatter(p[:, 0], p[:, 1], p[:, 2], color="red", s=20, label="failed hubs")
+        ax.legend()
+    ax.set_title(title)
+    out["lattice"] = png(fig)
+    return out
+
+
+def to_html(rep: ValidationReport) -> str:
+    """One self-contained HTML page (tables and base64 PNG plots)."""
+    parts = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>Lattice accuracy report</title>",
+        "<style>body{font-family:sans-serif;max-width:1000px;margin:auto}"
+        "table{border-collapse:collapse;margin-bottom:1em}td,th{border:1px solid #999;"
+        "padding:2px 8px;text-align:left}</style></head><body>",
+        "<h1>Lattice accuracy report</h1>",
+    ]
+    for title, cols, rows in _tables(rep):
+        parts.append(f"<h2>{html.escape(title)}</h2><table><tr>")
+        parts += [f"<th>{html.escape(c)}</th>" for c in cols]
+        parts.append("</tr>")
+        for r in rows:
+            parts.append("<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in r) + "</tr>")
+        parts.append("</table>")
+    parts.append("<h2>Plots</h2>")
+    for name, data in plots(rep).items():
+        b64 = base64.b64encode(data).decode("ascii")
+        parts.append(
+            f"<figure><img alt='{name}' src='data:image/png;base64,{b64}'>"
+            f"<figcaption>{name}</figcaption></figure>"
+        )
+    parts.append("</body></html>")
+    return "\n".join(parts)
