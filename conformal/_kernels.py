@@ -1,0 +1,554 @@
+"""Numba kernels of ``conformal``: winding numbers, triangle grids, distances, clipping.
+
+Inside/outside is decided by the *winding number* of a closed triangle mesh,
+counted along a vertical ray (+z): every triangle whose xy-projection contains
+the query point and that lies above it adds the sign of its projected area.
+The containment test uses simulation of simplicity (the query point is
+perturbed by ``(e, e^2)``) with each edge evaluated in a canonical vertex
+order, so a ray through a shared edge or vertex is counted exactly once: the
+result is exact for watertight meshes up to floating-point rounding of the
+orientation predicates (points within ~1e-15 relative of an edge).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+# ------------------------------------------------------------- predicates
+
+
+@njit(cache=True, inline="always")
+def _edge_sign(ax, ay, bx, by, px, py):
+    """Sign of the orientation of (a, b, p + (e, e^2)); 0 only for a == b."""
+    flip = 1.0
+    if ax > bx or (ax == bx and ay > by):
+        ax, ay, bx, by = bx, by, ax, ay
+        flip = -1.0
+    w = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+    if w == 0.0:
+        w = -(by - ay)
+        if w == 0.0:
+            w = bx - ax
+    if w > 0.0:
+        return flip
+    if w < 0.0:
+        return -flip
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def _tri_cover(tri, t, px, py):
+    """+1 / -1 (sign of projected area) if the xy-projection of t covers p, else 0."""
+    s0 = _edge_sign(tri[t, 0, 0], tri[t, 0, 1], tri[t, 1, 0], tri[t, 1, 1], px, py)
+    s1 = _edge_sign(tri[t, 1, 0], tri[t, 1, 1], tri[t, 2, 0], tri[t, 2, 1], px, py)
+    if s0 != s1 or s0 == 0.0:
+        return 0
+    s2 = _edge_sign(tri[t, 2, 0], tri[t, 2, 1], tri[t, 0, 0], tri[t, 0, 1], px, py)
+    if s2 != s0:
+        return 0
+    return 1 if s0 > 0.0 else -1
+
+
+@njit(cache=True, inline="always")
+def _tri_z(tri, t, px, py):
+    ux = tri[t, 1, 0] - tri[t, 0, 0]
+    uy = tri[t, 1, 1] - tri[t, 0, 1]
+    uz = tri[t, 1, 2] - tri[t, 0, 2]
+    vx = tri[t, 2, 0] - tri[t, 0, 0]
+    vy = tri[t, 2, 1] - tri[t, 0, 1]
+    vz = tri[t, 2, 2] - tri[t, 0, 2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    if nz == 0.0:
+        return tri[t, 0, 2]
+    return tri[t, 0, 2] - (nx * (px - tri[t, 0, 0]) + ny * (py - tri[t, 0, 1])) / nz
+
+
+# ------------------------------------------------------- column winding
+
+
+@njit(cache=True)
+def _col_range(lo, hi, o, h, n):
+    a = int(np.ceil((lo - o) / h))
+    b = int(np.floor((hi - o) / h))
+    if a < 0:
+        a = 0
+    if b > n - 1:
+        b = n - 1
+    return a, b
+
+
+@njit(cache=True, parallel=True)
+def grid_winding(tri, origin, step, dims):
+    """Winding numbers at the points of a regular grid.
+
+    Parameters
+    ----------
+    tri : (F, 3, 3) float64
+        Triangle corners of a closed, outward-oriented mesh.
+    origin, step : (3,) float64
+        Grid point ``(i, j, k)`` is ``origin + (i, j, k) * step``.
+    dims : (3,) int64
+
+    Returns
+    -------
+    (nx, ny, nz) int32
+        Winding number of each grid point (1 inside, 0 outside).
+    """
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    nf = tri.shape[0]
+    count = np.zeros(nx * ny + 1, dtype=np.int64)
+    # pass 1: crossings per column (serial: histogram)
+    for t in range(nf):
+        x0 = min(tri[t, 0, 0], min(tri[t, 1, 0], tri[t, 2, 0]))
+        x1 = max(tri[t, 0, 0], max(tri[t, 1, 0], tri[t, 2, 0]))
+        y0 = min(tri[t, 0, 1], min(tri[t, 1, 1], tri[t, 2, 1]))
+        y1 = max(tri[t, 0, 1], max(tri[t, 1, 1], tri[t, 2, 1]))
+        ia, ib = _col_range(x0, x1, origin[0], step[0], nx)
+        ja, jb = _col_range(y0, y1, origin[1], step[1], ny)
+        for i in range(ia, ib + 1):
+            px = origin[0] + i * step[0]
+            for j in range(ja, jb + 1):
+                py = origin[1] + j * step[1]
+                if _tri_cover(tri, t, px, py) != 0:
+                    count[i * ny + j + 1] += 1
+    start = np.cumsum(count)
+    total = start[-1]
+    zs = np.empty(total)
+    ss = np.empty(total, dtype=np.int32)
+    fill = start[:-1].copy()
+    for t in range(nf):
+        x0 = min(tri[t, 0, 0], min(tri[t, 1, 0], tri[t, 2, 0]))
+        x1 = max(tri[t, 0, 0], max(tri[t, 1, 0], tri[t, 2, 0]))
+        y0 = min(tri[t, 0, 1], min(tri[t, 1, 1], tri[t, 2, 1]))
+        y1 = max(tri[t, 0, 1], max(tri[t, 1, 1], tri[t, 2, 1]))
+        ia, ib = _col_range(x0, x1, origin[0], step[0], nx)
+        ja, jb = _col_range(y0, y1, origin[1], step[1], ny)
+        for i in range(ia, ib + 1):
+            px = origin[0] + i * step[0]
+            for j in range(ja, jb + 1):
+                py = origin[1] + j * step[1]
+                s = _tri_cover(tri, t, px, py)
+                if s != 0:
+                    c = i * ny + j
+                    zs[fill[c]] = _tri_z(tri, t, px, py)
+                    ss[fill[c]] = s
+                    fill[c] += 1
+    out = np.zeros((nx, ny, nz), dtype=np.int32)
+    for c in prange(nx * ny):
+        a = start[c]
+        b = start[c + 1]
+        if a == b:
+            continue
+        i = c // ny
+        j = c % ny
+        order = np.argsort(zs[a:b])
+        # sweep from the top: winding = sum of signs of crossings above
+        w = 0
+        q = b - a - 1
+        for k in range(nz - 1, -1, -1):
+            z = origin[2] + k * step[2]
+            while q >= 0 and zs[a + order[q]] > z:
+                w += ss[a + order[q]]
+                q -= 1
+            out[i, j, k] = w
+    return out
+
+
+# ------------------------------------------------------------- 2-D bins
+
+
+@njit(cache=True)
+def bin_triangles_2d(tri, origin, h, dims):
+    """CSR lists of the triangles whose xy bounding box overlaps each xy bin."""
+    nx, ny = dims[0], dims[1]
+    nf = tri.shape[0]
+    count = np.zeros(nx * ny + 1, dtype=np.int64)
+    for pass_ in range(2):
+        if pass_ == 1:
+            start = np.cumsum(count)
+            items = np.empty(start[-1], dtype=np.int64)
+            fill = start[:-1].copy()
+        for t in range(nf):
+            x0 = min(tri[t, 0, 0], min(tri[t, 1, 0], tri[t, 2, 0]))
+            x1 = max(tri[t, 0, 0], max(tri[t, 1, 0], tri[t, 2, 0]))
+            y0 = min(tri[t, 0, 1], min(tri[t, 1, 1], tri[t, 2, 1]))
+            y1 = max(tri[t, 0, 1], max(tri[t, 1, 1], tri[t, 2, 1]))
+            ia = max(0, min(nx - 1, int(np.floor((x0 - origin[0]) / h))))
+            ib = max(0, min(nx - 1, int(np.floor((x1 - origin[0]) / h))))
+            ja = max(0, min(ny - 1, int(np.floor((y0 - origin[1]) / h))))
+            jb = max(0, min(ny - 1, int(np.floor((y1 - origin[1]) / h))))
+            for i in range(ia, ib + 1):
+                for j in range(ja, jb + 1):
+                    if pass_ == 0:
+                        count[i * ny + j + 1] += 1
+                    else:
+                        items[fill[i * ny + j]] = t
+                        fill[i * ny + j] += 1
+    return start, items
+
+
+@njit(cache=True, parallel=True)
+def points_winding(tri, start, items, origin, h, dims, pts):
+    """(P,) int32 winding numbers of arbitrary points (see :func:`bin_triangles_2d`)."""
+    nx, ny = dims[0], dims[1]
+    out = np.zeros(pts.shape[0], dtype=np.int32)
+    for p in prange(pts.shape[0]):
+        px = pts[p, 0]
+        py = pts[p, 1]
+        pz = pts[p, 2]
+        fi = np.floor((px - origin[0]) / h)
+        fj = np.floor((py - origin[1]) / h)
+        if fi < 0 or fj < 0 or fi >= nx or fj >= ny:
+            continue
+        c = int(fi) * ny + int(fj)
+        w = 0
+        for q in range(start[c], start[c + 1]):
+            t = items[q]
+            s = _tri_cover(tri, t, px, py)
+            if s != 0 and _tri_z(tri, t, px, py) > pz:
+                w += s
+        out[p] = w
+    return out
+
+
+# ------------------------------------------------------------- 3-D bins
+
+
+@njit(cache=True)
+def bin_triangles_3d(tri, origin, h, dims):
+    """CSR lists of the triangles whose bounding box overlaps each 3-D cell."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    nf = tri.shape[0]
+    count = np.zeros(nx * ny * nz + 1, dtype=np.int64)
+    for pass_ in range(2):
+        if pass_ == 1:
+            start = np.cumsum(count)
+            items = np.empty(start[-1], dtype=np.int64)
+            fill = start[:-1].copy()
+        for t in range(nf):
+            lo = np.empty(3, dtype=np.int64)
+            hi = np.empty(3, dtype=np.int64)
+            for a in range(3):
+                mn = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
+                mx = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
+                lo[a] = max(0, min(dims[a] - 1, int(np.floor((mn - origin[a]) / h))))
+                hi[a] = max(0, min(dims[a] - 1, int(np.floor((mx - origin[a]) / h))))
+            for i in range(lo[0], hi[0] + 1):
+                for j in range(lo[1], hi[1] + 1):
+                    for k in range(lo[2], hi[2] + 1):
+                        c = (i * ny + j) * nz + k
+                        if pass_ == 0:
+                            count[c + 1] += 1
+                        else:
+                            items[fill[c]] = t
+                            fill[c] += 1
+    return start, items
+
+
+@njit(cache=True, inline="always")
+def _closest_on_tri(tri, t, px, py, pz):
+    """Squared distance from p to triangle t and the closest point (Ericson 5.1.5)."""
+    ax, ay, az = tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2]
+    bx, by, bz = tri[t, 1, 0], tri[t, 1, 1], tri[t, 1, 2]
+    cx, cy, cz = tri[t, 2, 0], tri[t, 2, 1], tri[t, 2, 2]
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        qx, qy, qz = ax, ay, az
+    else:
+        bpx, bpy, bpz = px - bx, py - by, pz - bz
+        d3 = abx * bpx + aby * bpy + abz * bpz
+        d4 = acx * bpx + acy * bpy + acz * bpz
+        if d3 >= 0.0 and d4 <= d3:
+            qx, qy, qz = bx, by, bz
+        else:
+            vc = d1 * d4 - d3 * d2
+            if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+                v = d1 / (d1 - d3)
+                qx, qy, qz = ax + v * abx, ay + v * aby, az + v * abz
+            else:
+                cpx, cpy, cpz = px - cx, py - cy, pz - cz
+                d5 = abx * cpx + aby * cpy + abz * cpz
+                d6 = acx * cpx + acy * cpy + acz * cpz
+                if d6 >= 0.0 and d5 <= d6:
+                    qx, qy, qz = cx, cy, cz
+                else:
+                    vb = d5 * d2 - d1 * d6
+                    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+                        w = d2 / (d2 - d6)
+                        qx, qy, qz = ax + w * acx, ay + w * acy, az + w * acz
+                    else:
+                        va = d3 * d6 - d5 * d4
+                        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+                            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+                            qx = bx + w * (cx - bx)
+                            qy = by + w * (cy - by)
+                            qz = bz + w * (cz - bz)
+                        else:
+                            den = va + vb + vc
+                            if den == 0.0:
+                                qx, qy, qz = ax, ay, az
+                            else:
+                                v = vb / den
+                                w = vc / den
+                                qx = ax + abx * v + acx * w
+                                qy = ay + aby * v + acy * w
+                                qz = az + abz * v + acz * w
+    dx, dy, dz = px - qx, py - qy, pz - qz
+    return dx * dx + dy * dy + dz * dz, qx, qy, qz
+
+
+@njit(cache=True, parallel=True)
+def closest_points(tri, start, items, origin, h, dims, pts, max_dist):
+    """Closest surface point of each query point (exact, grid ring search).
+
+    Returns
+    -------
+    dist : (P,) float64
+        Distance to the surface (``inf`` when farther than ``max_dist``).
+    closest : (P, 3) float64
+    face : (P,) int64
+        Triangle of the closest point (-1 when not found).
+    """
+    n = pts.shape[0]
+    dist = np.full(n, np.inf)
+    closest = np.full((n, 3), np.nan)
+    face = np.full(n, -1, dtype=np.int64)
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    rmax = max(nx, max(ny, nz))
+    for p in prange(n):
+        px, py, pz = pts[p, 0], pts[p, 1], pts[p, 2]
+        # distance from p to the grid box (rings are measured from the clamped cell)
+        gap = 0.0
+        ci = np.empty(3, dtype=np.int64)
+        for a in range(3):
+            f = (pts[p, a] - origin[a]) / h
+            if f < 0:
+                gap = max(gap, -f * h)
+                ci[a] = 0
+            elif f >= dims[a]:
+                gap = max(gap, (f - dims[a]) * h)
+                ci[a] = dims[a] - 1
+            else:
+                ci[a] = int(f)
+        best = np.inf
+        bx = by = bz = np.nan
+        bt = -1
+        for r in range(rmax + 1):
+            if gap + (r - 1) * h > max_dist:
+                break
+            for i in range(ci[0] - r, ci[0] + r + 1):
+                if i < 0 or i >= nx:
+                    continue
+                for j in range(ci[1] - r, ci[1] + r + 1):
+                    if j < 0 or j >= ny:
+                        continue
+                    for k in range(ci[2] - r, ci[2] + r + 1):
+                        if k < 0 or k >= nz:
+                            continue
+                        if abs(i - ci[0]) != r and abs(j - ci[1]) != r and abs(k - ci[2]) != r:
+                            continue
+                        c = (i * ny + j) * nz + k
+                        for q in range(start[c], start[c + 1]):
+                            t = items[q]
+                            d2, qx, qy, qz = _closest_on_tri(tri, t, px, py, pz)
+                            if d2 < best:
+                                best = d2
+                                bx, by, bz = qx, qy, qz
+                                bt = t
+            if bt >= 0 and np.sqrt(best) <= gap + r * h:
+                break
+        d = np.sqrt(best)
+        if bt >= 0 and d <= max_dist:
+            dist[p] = d
+            closest[p, 0] = bx
+            closest[p, 1] = by
+            closest[p, 2] = bz
+            face[p] = bt
+    return dist, closest, face
+
+
+@njit(cache=True, inline="always")
+def _seg_tri(tri, t, ax, ay, az, dx, dy, dz):
+    """Parameter in [0, 1] where segment a + s d meets triangle t (Moller-Trumbore), or -1."""
+    e1x = tri[t, 1, 0] - tri[t, 0, 0]
+    e1y = tri[t, 1, 1] - tri[t, 0, 1]
+    e1z = tri[t, 1, 2] - tri[t, 0, 2]
+    e2x = tri[t, 2, 0] - tri[t, 0, 0]
+    e2y = tri[t, 2, 1] - tri[t, 0, 1]
+    e2z = tri[t, 2, 2] - tri[t, 0, 2]
+    px = dy * e2z - dz * e2y
+    py = dz * e2x - dx * e2z
+    pz = dx * e2y - dy * e2x
+    det = e1x * px + e1y * py + e1z * pz
+    if det == 0.0:
+        return -1.0
+    inv = 1.0 / det
+    tx = ax - tri[t, 0, 0]
+    ty = ay - tri[t, 0, 1]
+    tz = az - tri[t, 0, 2]
+    u = (tx * px + ty * py + tz * pz) * inv
+    if u < -1e-12 or u > 1.0 + 1e-12:
+        return -1.0
+    qx = ty * e1z - tz * e1y
+    qy = tz * e1x - tx * e1z
+    qz = tx * e1y - ty * e1x
+    v = (dx * qx + dy * qy + dz * qz) * inv
+    if v < -1e-12 or u + v > 1.0 + 1e-12:
+        return -1.0
+    s = (e2x * qx + e2y * qy + e2z * qz) * inv
+    if s < 0.0 or s > 1.0:
+        return -1.0
+    return s
+
+
+@njit(cache=True)
+def _segment_params(tri, start, items, origin, h, dims, a, b, buf):
+    """Crossing parameters of segment a-b with the surface (unsorted, may repeat)."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    dx, dy, dz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    for ax_ in range(3):
+        mn = min(a[ax_], b[ax_])
+        mx = max(a[ax_], b[ax_])
+        lo[ax_] = max(0, int(np.floor((mn - origin[ax_]) / h)))
+        hi[ax_] = min(dims[ax_] - 1, int(np.floor((mx - origin[ax_]) / h)))
+    n = 0
+    for i in range(lo[0], hi[0] + 1):
+        for j in range(lo[1], hi[1] + 1):
+            for k in range(lo[2], hi[2] + 1):
+                c = (i * ny + j) * nz + k
+                for q in range(start[c], start[c + 1]):
+                    s = _seg_tri(tri, items[q], a[0], a[1], a[2], dx, dy, dz)
+                    if s < 0.0:
+                        continue
+                    # report each hit once: in the cell that contains the hit point
+                    hx = int(np.floor((a[0] + s * dx - origin[0]) / h))
+                    hy = int(np.floor((a[1] + s * dy - origin[1]) / h))
+                    hz = int(np.floor((a[2] + s * dz - origin[2]) / h))
+                    hx = max(lo[0], min(hi[0], hx))
+                    hy = max(lo[1], min(hi[1], hy))
+                    hz = max(lo[2], min(hi[2], hz))
+                    if hx != i or hy != j or hz != k:
+                        continue
+                    if n < buf.shape[0]:
+                        buf[n] = s
+                    n += 1
+    return n
+
+
+@njit(cache=True, parallel=True)
+def segment_crossings(tri, start, items, origin, h, dims, seg_a, seg_b, cap):
+    """Sorted crossing parameters in (0, 1) of each segment with the surface.
+
+    Returns
+    -------
+    count : (S,) int64
+        Number of crossings of each segment (duplicates within 1e-9 removed).
+    params : (S, cap) float64
+        The first ``min(count, cap)`` sorted parameters of each segment.
+    """
+    ns = seg_a.shape[0]
+    count = np.zeros(ns, dtype=np.int64)
+    params = np.full((ns, cap), np.nan)
+    for e in prange(ns):
+        buf = np.empty(64)
+        n = _segment_params(tri, start, items, origin, h, dims, seg_a[e], seg_b[e], buf)
+        n = min(n, 64)
+        vals = np.sort(buf[:n])
+        m = 0
+        last = -1.0
+        for q in range(n):
+            if vals[q] - last > 1e-9:
+                if m < cap:
+                    params[e, m] = vals[q]
+                m += 1
+                last = vals[q]
+        count[e] = m
+    return count, params
+
+
+# ------------------------------------------------------- triangle / box
+
+
+@njit(cache=True, inline="always")
+def _axis_test(p0, p1, p2, ax, ay, az, ex, ey, ez):
+    # projections of the three (box-centred) vertices on the axis
+    a = p0[0] * ax + p0[1] * ay + p0[2] * az
+    b = p1[0] * ax + p1[1] * ay + p1[2] * az
+    c = p2[0] * ax + p2[1] * ay + p2[2] * az
+    r = ex * abs(ax) + ey * abs(ay) + ez * abs(az)
+    return not (min(a, min(b, c)) > r or max(a, max(b, c)) < -r)
+
+
+@njit(cache=True)
+def _tri_box(tri, t, cx, cy, cz, ex, ey, ez):
+    """True when triangle t overlaps the box centre c, half sizes e (separating axes)."""
+    v0 = np.empty(3)
+    v1 = np.empty(3)
+    v2 = np.empty(3)
+    c = (cx, cy, cz)
+    for a in range(3):
+        v0[a] = tri[t, 0, a] - c[a]
+        v1[a] = tri[t, 1, a] - c[a]
+        v2[a] = tri[t, 2, a] - c[a]
+    e = (ex, ey, ez)
+    for a in range(3):
+        if min(v0[a], min(v1[a], v2[a])) > e[a] or max(v0[a], max(v1[a], v2[a])) < -e[a]:
+            return False
+    f0 = v1 - v0
+    f1 = v2 - v1
+    f2 = v0 - v2
+    nx = f0[1] * f1[2] - f0[2] * f1[1]
+    ny = f0[2] * f1[0] - f0[0] * f1[2]
+    nz = f0[0] * f1[1] - f0[1] * f1[0]
+    if not _axis_test(v0, v1, v2, nx, ny, nz, ex, ey, ez):
+        return False
+    for f in (f0, f1, f2):
+        # cross products of the edge with the three box axes
+        if not _axis_test(v0, v1, v2, 0.0, -f[2], f[1], ex, ey, ez):
+            return False
+        if not _axis_test(v0, v1, v2, f[2], 0.0, -f[0], ex, ey, ez):
+            return False
+        if not _axis_test(v0, v1, v2, -f[1], f[0], 0.0, ex, ey, ez):
+            return False
+    return True
+
+
+@njit(cache=True, parallel=True)
+def mark_cut_cells(tri, origin, h, dims, pad):
+    """(nx, ny, nz) bool: cells ``origin + [i, i+1] * h`` that a triangle touches.
+
+    Each box is grown by ``pad`` (relative) so that the test is conservative.
+    """
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    cut = np.zeros((nx, ny, nz), dtype=np.bool_)
+    ex = 0.5 * h[0] * (1.0 + pad)
+    ey = 0.5 * h[1] * (1.0 + pad)
+    ez = 0.5 * h[2] * (1.0 + pad)
+    for t in prange(tri.shape[0]):
+        lo = np.empty(3, dtype=np.int64)
+        hi = np.empty(3, dtype=np.int64)
+        for a in range(3):
+            mn = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
+            mx = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
+            lo[a] = max(0, int(np.floor((mn - origin[a]) / h[a] - pad)))
+            hi[a] = min(dims[a] - 1, int(np.floor((mx - origin[a]) / h[a] + pad)))
+        for i in range(lo[0], hi[0] + 1):
+            cx = origin[0] + (i + 0.5) * h[0]
+            for j in range(lo[1], hi[1] + 1):
+                cy = origin[1] + (j + 0.5) * h[1]
+                for k in range(lo[2], hi[2] + 1):
+                    if cut[i, j, k]:
+                        continue
+                    cz = origin[2] + (k + 0.5) * h[2]
+                    if _tri_box(tri, t, cx, cy, cz, ex, ey, ez):
+                        cut[i, j, k] = True
+    return cut

@@ -1,0 +1,596 @@
+"""Parts to fill with lattices: loading STEP files, meshes and CAD shapes.
+
+A :class:`Part` is a closed, outward-oriented triangle mesh of one solid (a
+STEP solid is tessellated once with OCCT's BRepMesh), with fast queries:
+
+* :meth:`Part.contains` / :meth:`Part.winding`: winding number along a
+  vertical ray with simulation of simplicity (see :mod:`conformal._kernels`):
+  exact for points off the surface, whatever their position relative to mesh
+  edges and vertices;
+* :meth:`Part.distance` / :meth:`Part.closest`: exact distance to the
+  triangle mesh (grid ring search). For a STEP part the mesh deviates from the
+  true surface by at most the tessellation ``deflection`` (default 1e-3 of the
+  bounding-box diagonal), which bounds the error of every query.
+
+Lengths are millimetres. STEP files are converted from the unit they declare
+(OCCT does this on reading); meshes (STL, OBJ, PLY, 3MF, OFF) carry no unit
+and are taken as millimetres unless ``units=`` says otherwise.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from conformal import _kernels
+from lattice_cad.errors import LatticeError, LatticeWarning
+
+__all__ = ["Part", "PartError", "load_part", "UNITS"]
+
+#: Millimetres per unit, for ``load_part(..., units=...)``.
+UNITS: dict[str, float] = {
+    "mm": 1.0,
+    "cm": 10.0,
+    "m": 1000.0,
+    "um": 1e-3,
+    "in": 25.4,
+    "inch": 25.4,
+    "ft": 304.8,
+}
+
+_STEP_SUFFIXES = {".step", ".stp"}
+_MESH_SUFFIXES = {".stl", ".obj", ".ply", ".3mf", ".off"}
+
+
+class PartError(LatticeError, ValueError):
+    """A part cannot be used: unreadable, empty, not a closed solid (the message says which)."""
+
+
+class Part:
+    """A closed solid as an outward-oriented triangle mesh, with inside and distance queries.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+        Mesh vertices in millimetres.
+    faces : (F, 3) int64
+        Triangles, outward oriented, forming a closed 2-manifold surface.
+    name : str
+        Where the part came from (used in messages).
+    shape : OCP TopoDS_Shape, optional
+        The exact B-rep, when the part came from CAD (used by the tet mesher).
+    deflection : float
+        Largest distance between the mesh and the exact surface (0 for meshes).
+
+    Use :func:`load_part` rather than this constructor: it checks the input.
+    """
+
+    def __init__(
+        self,
+        vertices: ArrayLike,
+        faces: ArrayLike,
+        *,
+        name: str = "part",
+        shape: Any = None,
+        deflection: float = 0.0,
+    ) -> None:
+        v = np.ascontiguousarray(vertices, dtype=np.float64).reshape(-1, 3)
+        f = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
+        v.flags.writeable = False
+        f.flags.writeable = False
+        self.vertices: NDArray[np.float64] = v
+        self.faces: NDArray[np.int64] = f
+        self.name = name
+        self.shape = shape
+        self.deflection = float(deflection)
+
+    def __repr__(self) -> str:
+        size = " x ".join(f"{s:.4g}" for s in self.size)
+        return f"Part({self.name!r}, {len(self.faces)} triangles, {size} mm)"
+
+    # ----------------------------------------------------------- geometry
+    @cached_property
+    def triangles(self) -> NDArray[np.float64]:
+        """(F, 3, 3) float64: triangle corners."""
+        t = np.ascontiguousarray(self.vertices[self.faces])
+        t.flags.writeable = False
+        return t
+
+    @property
+    def bounds(self) -> NDArray[np.float64]:
+        """(2, 3) float64: min and max corner of the bounding box."""
+        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    @property
+    def size(self) -> NDArray[np.float64]:
+        """(3,) float64: bounding-box extents."""
+        b = self.bounds
+        return b[1] - b[0]
+
+    @property
+    def diagonal(self) -> float:
+        """Length of the bounding-box diagonal."""
+        return float(np.linalg.norm(self.size))
+
+    @cached_property
+    def volume(self) -> float:
+        """Enclosed volume (mm^3) of the mesh."""
+        t = self.triangles
+        return float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() / 6.0)
+
+    @cached_property
+    def area(self) -> float:
+        """Surface area (mm^2) of the mesh."""
+        t = self.triangles
+        return float(
+            0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+        )
+
+    def transformed(self, matrix: ArrayLike) -> Part:
+        """The part moved by a 4x4 rigid transform (the B-rep is dropped)."""
+        m = np.asarray(matrix, dtype=np.float64)
+        v = self.vertices @ m[:3, :3].T + m[:3, 3]
+        faces = self.faces if np.linalg.det(m[:3, :3]) > 0 else self.faces[:, ::-1]
+        return Part(v, faces, name=self.name, deflection=self.deflection)
+
+    # ------------------------------------------------------------ indexes
+    @cached_property
+    def _bins2d(self) -> tuple[Any, ...]:
+        b = self.bounds
+        ext = np.maximum(b[1, :2] - b[0, :2], 1e-12)
+        h = float(np.sqrt(ext[0] * ext[1] / max(len(self.faces), 1)) * 2.0)
+        h = max(h, float(ext.max()) / 2048)
+        dims = np.maximum(1, np.ceil(ext / h).astype(np.int64) + 1)
+        origin = b[0, :2] - 0.5 * h
+        start, items = _kernels.bin_triangles_2d(self.triangles, origin, h, dims)
+        return origin, h, dims, start, items
+
+    @cached_property
+    def _bins3d(self) -> tuple[Any, ...]:
+        b = self.bounds
+        ext = np.maximum(b[1] - b[0], 1e-12)
+        # about 2 triangles per surface cell
+        h = float(np.sqrt(self.area / max(len(self.faces), 1)) * 2.0)
+        h = max(h, float(ext.max()) / 512)
+        dims = np.maximum(1, np.ceil(ext / h).astype(np.int64) + 1)
+        origin = b[0] - 0.5 * h
+        start, items = _kernels.bin_triangles_3d(self.triangles, origin, h, dims)
+        return origin, h, dims, start, items
+
+    # ------------------------------------------------------------ queries
+    def winding(self, points: ArrayLike) -> NDArray[np.int32]:
+        """(P,) int32 winding numbers of (P, 3) points: 1 inside, 0 outside."""
+        p = _as_points(points)
+        origin, h, dims, start, items = self._bins2d
+        return _kernels.points_winding(self.triangles, start, items, origin, h, dims, p)
+
+    def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
+        """(P,) bool: which of the (P, 3) points are inside the part.
+
+        Points exactly on the surface may go either way.
+        """
+        return self.winding(points) != 0
+
+    def grid_contains(
+        self, origin: ArrayLike, step: ArrayLike, dims: ArrayLike
+    ) -> NDArray[np.bool_]:
+        """(nx, ny, nz) bool: inside test of the grid points ``origin + (i, j, k) * step``.
+
+        One vertical ray per (i, j) column: O(columns + crossings + points).
+        """
+        o = np.asarray(origin, dtype=np.float64).reshape(3)
+        s = np.asarray(step, dtype=np.float64).reshape(3)
+        d = np.asarray(dims, dtype=np.int64).reshape(3)
+        return _kernels.grid_winding(self.triangles, o, s, d) != 0
+
+    def closest(
+        self, points: ArrayLike, *, max_distance: float = np.inf
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Distance to the surface and closest surface point of each point.
+
+        Parameters
+        ----------
+        points : (P, 3) float
+        max_distance : float
+            Points farther than this get ``inf`` and NaN (faster).
+
+        Returns
+        -------
+        distance : (P,) float64
+        closest : (P, 3) float64
+        """
+        p = _as_points(points)
+        origin, h, dims, start, items = self._bins3d
+        dist, cp, _ = _kernels.closest_points(
+            self.triangles, start, items, origin, h, dims, p, float(max_distance)
+        )
+        return dist, cp
+
+    def distance(self, points: ArrayLike, *, max_distance: float = np.inf) -> NDArray[np.float64]:
+        """(P,) float64 unsigned distance of (P, 3) points to the surface."""
+        return self.closest(points, max_distance=max_distance)[0]
+
+    def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """(P,) float64 signed distance: negative inside, positive outside."""
+        p = _as_points(points)
+        d = self.distance(p)
+        return np.where(self.contains(p), -d, d)
+
+    def segment_crossings(
+        self, a: ArrayLike, b: ArrayLike, *, cap: int = 8
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """Where segments ``a[i] -> b[i]`` cross the surface.
+
+        Returns
+        -------
+        count : (S,) int64
+            Number of crossings (within 1e-9 of each other counted once).
+        params : (S, cap) float64
+            Sorted crossing parameters in ``[0, 1]`` (NaN beyond ``count``).
+        """
+        pa = _as_points(a)
+        pb = _as_points(b)
+        origin, h, dims, start, items = self._bins3d
+        return _kernels.segment_crossings(
+            self.triangles, start, items, origin, h, dims, pa, pb, int(cap)
+        )
+
+
+def _as_points(points: ArrayLike) -> NDArray[np.float64]:
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    if p.size == 0:
+        return np.zeros((0, 3))
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"points must have shape (P, 3), got {p.shape}")
+    return p
+
+
+# ======================================================================= load
+def load_part(
+    source: str | os.PathLike[str] | Any,
+    *,
+    units: str | float | None = None,
+    deflection: float | None = None,
+    angular_deflection: float = 0.3,
+) -> Part:
+    """Load a part to fill with a lattice.
+
+    Parameters
+    ----------
+    source : path, cadquery.Workplane, cadquery.Shape, build123d shape or TopoDS_Shape
+        A STEP file (``.step``/``.stp``, read by OCCT), a mesh file (``.stl``,
+        ``.obj``, ``.ply``, ``.3mf``, ``.off``, read by trimesh), or an
+        in-memory CAD shape (taken to be in millimetres).
+    units : str or float, optional
+        Unit of a *mesh* file (``"mm"``, ``"cm"``, ``"m"``, ``"in"``, ...) or
+        millimetres per file unit. Meshes default to millimetres. STEP files
+        declare their unit and are always converted to millimetres; passing
+        ``units`` for a STEP file or shape is an error.
+    deflection : float, optional
+        Largest distance between the exact CAD surface and its triangle mesh
+        (default ``1e-3`` of the bounding-box diagonal).
+    angular_deflection : float
+        Largest angle (radians) between neighbouring mesh normals on curved
+        CAD faces.
+
+    Returns
+    -------
+    Part
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    PartError
+        The file is empty or unreadable, has no closed solid (surfaces or open
+        shells only), or the mesh is not closed, not 2-manifold or not
+        consistently oriented. The message names the file and the problem.
+
+    Warns
+    -----
+    LatticeWarning
+        Several solids or bodies were united into one part; a mesh body with
+        inward-facing triangles was turned outward.
+    """
+    if isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        if not path.exists():
+            raise FileNotFoundError(f"part file not found: {path}")
+        if path.is_dir():
+            raise PartError(f"{path}: is a directory, not a part file")
+        suffix = path.suffix.lower()
+        if suffix in _STEP_SUFFIXES:
+            if units is not None:
+                raise ValueError(
+                    f"{path.name}: STEP files declare their own unit (converted to mm); "
+                    "do not pass units="
+                )
+            if path.stat().st_size == 0:
+                raise PartError(f"{path}: the file is empty")
+            from conformal import _occ
+
+            shape = _occ.read_step(path)
+            if shape is None:
+                raise PartError(f"{path}: not a readable STEP file (OCCT could not read it)")
+            return _from_shape(shape, str(path), deflection, angular_deflection)
+        if suffix in _MESH_SUFFIXES:
+            return _from_mesh_file(path, _unit_scale(units))
+        raise PartError(
+            f"{path}: unsupported file type {suffix or '(no suffix)'!r}; use STEP "
+            f"({', '.join(sorted(_STEP_SUFFIXES))}) or a mesh ({', '.join(sorted(_MESH_SUFFIXES))})"
+        )
+    if units is not None:
+        raise ValueError("units= applies to mesh files only; CAD shapes are in millimetres")
+    from conformal import _occ
+
+    shape = _occ.as_topods(source)
+    if shape is None:
+        raise TypeError(
+            "source must be a file path, a cadquery Workplane or Shape, a build123d shape or a "
+            f"TopoDS_Shape; got {type(source).__name__}"
+        )
+    return _from_shape(shape, f"<{type(source).__name__}>", deflection, angular_deflection)
+
+
+def _unit_scale(units: str | float | None) -> float:
+    if units is None:
+        return 1.0
+    if isinstance(units, str):
+        try:
+            return UNITS[units.lower()]
+        except KeyError:
+            raise ValueError(f"unknown unit {units!r}; known: {', '.join(UNITS)}") from None
+    scale = float(units)
+    if not np.isfinite(scale) or scale <= 0:
+        raise ValueError(f"units must be a unit name or a positive number, got {units!r}")
+    return scale
+
+
+def _from_shape(shape: Any, name: str, deflection: float | None, angular: float) -> Part:
+    from conformal import _occ
+
+    solids = _occ.solids(shape)
+    if not solids:
+        shells = _occ.open_shells(shape)
+        faces = _occ.faces_outside_solids(shape)
+        what = (
+            f"{shells} open shell(s)"
+            if shells
+            else (f"{faces} face(s)" if faces else "no geometry at all")
+        )
+        raise PartError(
+            f"{name}: no closed solid, only {what}; a lattice needs a closed volume "
+            "(sew the surfaces into a solid in your CAD tool)"
+        )
+    box = _occ.bounds(_occ.compound(solids) if len(solids) > 1 else solids[0])
+    diag = float(np.linalg.norm(box[1] - box[0]))
+    defl = 1e-3 * diag if deflection is None else float(deflection)
+    if not defl > 0:
+        raise ValueError(f"deflection must be > 0, got {deflection!r}")
+    pieces = []
+    for k, solid in enumerate(solids):
+        v, f = _occ.tessellate(solid, defl, angular)
+        if len(f) == 0:
+            raise PartError(f"{name}: solid {k} has no faces to triangulate")
+        v, f = _weld(v, f, diag)
+        problem = _closed_problem(f)
+        if problem:
+            raise PartError(f"{name}: solid {k} is not closed after triangulation ({problem})")
+        t = v[f]
+        if np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() < 0:
+            f = f[:, ::-1]  # a solid with reversed orientation
+        pieces.append((v, f))
+    if len(pieces) == 1:
+        v, f = pieces[0]
+    else:
+        vols = sum(_mesh_volume(v[f]) for v, f in pieces)
+        v, f = _union_meshes(pieces, name)
+        overlap = vols - _mesh_volume(v[f])
+        note = f", overlapping by {overlap:.4g} mm^3" if overlap > 1e-6 * vols else ""
+        warnings.warn(
+            f"{name}: {len(solids)} solids were united into one part{note}",
+            LatticeWarning,
+            stacklevel=3,
+        )
+    return Part(v, f, name=name, shape=solids, deflection=defl)
+
+
+def _mesh_volume(t: NDArray[np.float64]) -> float:
+    return float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() / 6.0)
+
+
+def _weld(
+    v: NDArray[np.float64], f: NDArray[np.int64], diag: float
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Merge vertices of the per-face triangulations (exactly, else within 1e-9 diag)."""
+    for tol in (0.0, 1e-9 * diag, 1e-7 * diag, 1e-5 * diag):
+        key = v if tol == 0 else np.round(v / tol)
+        uniq, inv = np.unique(key, axis=0, return_inverse=True)
+        inv = inv.reshape(-1)
+        ff = inv[f]
+        ok = (ff[:, 0] != ff[:, 1]) & (ff[:, 1] != ff[:, 2]) & (ff[:, 0] != ff[:, 2])
+        ff = ff[ok]
+        vv = np.zeros((len(uniq), 3))
+        vv[inv] = v
+        if not _closed_problem(ff):
+            return vv, ff
+    return vv, ff
+
+
+def _closed_problem(f: NDArray[np.int64]) -> str:
+    """'' for a closed, 2-manifold, consistently oriented triangle mesh, else what is wrong."""
+    if len(f) == 0:
+        return "no triangles"
+    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    und = np.sort(he, axis=1)
+    _, inv, cnt = np.unique(und, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    open_edges = int((cnt == 1).sum())
+    nonman = int((cnt > 2).sum())
+    if open_edges:
+        return f"{open_edges} open (boundary) edge(s): it has holes"
+    if nonman:
+        return f"{nonman} non-manifold edge(s) shared by more than two triangles"
+    fwd = he[:, 0] < he[:, 1]
+    sfwd = np.bincount(inv, weights=fwd, minlength=len(cnt))
+    bad = int((sfwd != 1).sum())
+    if bad:
+        return f"{bad} edge(s) where neighbouring triangles have opposite orientation"
+    return ""
+
+
+def _from_mesh_file(path: Path, scale: float) -> Part:
+    import trimesh
+
+    if path.stat().st_size == 0:
+        raise PartError(f"{path}: the file is empty")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loaded = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds
+        raise PartError(f"{path}: cannot read the mesh: {exc}") from None
+    v = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        raise PartError(f"{path}: the mesh has no triangles (empty file)")
+    if not np.isfinite(v).all():
+        raise PartError(f"{path}: the mesh has non-finite vertex coordinates")
+    v = v * scale
+    diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    # merge duplicated vertices (STL stores each triangle separately): exact positions
+    uniq, inv = np.unique(v, axis=0, return_inverse=True)
+    f = inv.reshape(-1)[f]
+    v = uniq
+    degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    f = f[~degenerate]
+    problem = _closed_problem(f)
+    if problem and "opposite orientation" not in problem:
+        raise PartError(f"{path}: the mesh is not a closed solid: {problem}")
+    bodies = _components(f, len(v))
+    pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
+    repaired = 0
+    for body in bodies:
+        fb = f[body]
+        fixed = False
+        if _closed_problem(fb):
+            fixed = True
+            fb = _orient(fb)
+            if _closed_problem(fb):
+                raise PartError(
+                    f"{path}: body {len(pieces)} cannot be oriented consistently "
+                    f"({_closed_problem(fb)}); repair the mesh"
+                )
+            repaired += 1
+        vol = _mesh_volume(v[fb])
+        if vol == 0.0:
+            raise PartError(f"{path}: body {len(pieces)} encloses no volume")
+        if vol < 0:
+            fb = fb[:, ::-1]
+            fixed = True
+        repaired += fixed
+        pieces.append((v, fb))
+    if repaired:
+        warnings.warn(
+            f"{path}: {repaired} of {len(bodies)} bodies had flipped (inward-facing) "
+            "triangles; they were re-oriented outward",
+            LatticeWarning,
+            stacklevel=3,
+        )
+    if len(bodies) > 1:
+        v, f = _union_meshes(pieces, str(path))
+        warnings.warn(
+            f"{path}: {len(bodies)} bodies were united into one part",
+            LatticeWarning,
+            stacklevel=3,
+        )
+    else:
+        f = pieces[0][1]
+    if diag == 0:
+        raise PartError(f"{path}: the mesh has zero size")
+    return Part(v, f, name=str(path))
+
+
+def _components(f: NDArray[np.int64], n_vertices: int) -> list[NDArray[np.int64]]:
+    """Face indices of each edge-connected body."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    g = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
+    _, lab = connected_components(g, directed=False)
+    face_lab = lab[f[:, 0]]
+    order = np.argsort(face_lab, kind="stable")
+    splits = np.flatnonzero(np.diff(face_lab[order])) + 1
+    return list(np.split(order, splits))
+
+
+def _orient(f: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Consistently orient a closed 2-manifold triangle mesh (breadth-first over edges)."""
+    import trimesh
+
+    tm = trimesh.Trimesh(vertices=np.zeros((int(f.max()) + 1, 3)), faces=f, process=False)
+    adj = tm.face_adjacency
+    edges = tm.face_adjacency_edges
+    out = f.copy()
+    nbrs: list[list[tuple[int, int, int]]] = [[] for _ in range(len(f))]
+    for (a, b), (u, w) in zip(adj.tolist(), edges.tolist(), strict=True):
+        nbrs[a].append((b, u, w))
+        nbrs[b].append((a, u, w))
+    done = np.zeros(len(f), dtype=bool)
+    for seed in range(len(f)):
+        if done[seed]:
+            continue
+        done[seed] = True
+        stack = [seed]
+        while stack:
+            a = stack.pop()
+            fa = out[a].tolist()
+            for b, u, w in nbrs[a]:
+                if done[b]:
+                    continue
+                # a traverses the shared edge u->w or w->u; b must traverse it the other way
+                ia, ib = fa.index(u), fa.index(w)
+                a_uw = (ib - ia) % 3 == 1
+                fb = out[b].tolist()
+                ja, jb = fb.index(u), fb.index(w)
+                b_uw = (jb - ja) % 3 == 1
+                if a_uw == b_uw:
+                    out[b] = out[b][::-1]
+                done[b] = True
+                stack.append(b)
+    return out
+
+
+def _union_meshes(
+    pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]], name: str
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Boolean union of closed meshes (manifold3d, double precision)."""
+    import manifold3d
+
+    result = None
+    for k, (v, fb) in enumerate(pieces):
+        used, local = np.unique(fb, return_inverse=True)
+        m = manifold3d.Manifold(
+            manifold3d.Mesh64(
+                vert_properties=np.ascontiguousarray(v[used], dtype=np.float64),
+                tri_verts=np.ascontiguousarray(local.reshape(-1, 3), dtype=np.uint64),
+            )
+        )
+        if m.status() != manifold3d.Error.NoError:
+            raise PartError(f"{name}: body {k} is not a valid closed solid ({m.status()})")
+        result = m if result is None else result + m
+    assert result is not None
+    out = result.to_mesh64()
+    vv = np.asarray(out.vert_properties, dtype=np.float64)[:, :3]
+    ff = np.asarray(out.tri_verts, dtype=np.int64)
+    if len(ff) == 0:
+        raise PartError(f"{name}: the union of the bodies is empty")
+    return np.ascontiguousarray(vv), np.ascontiguousarray(ff)
