@@ -411,7 +411,7 @@ def _seg_tri(tri, t, ax, ay, az, dx, dy, dz):
 @njit(cache=True)
 def _segment_params(tri, start, items, origin, h, dims, a, b, buf):
     """Crossing parameters of segment a-b with the surface (unsorted, may repeat)."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
+    ny, nz = dims[1], dims[2]
     dx, dy, dz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
