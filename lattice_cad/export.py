@@ -1,0 +1,543 @@
+"""Writing lattices, meshes and graphs to files, chosen by suffix.
+
+============  =====================================================  =====================
+suffix        content                                                writer
+============  =====================================================  =====================
+``.stl``      binary STL of the mesh                                 :mod:`fast_stitch`
+``.3mf``      3MF core mesh, or with ``beam_lattice=True`` the 3MF   lib3mf
+              Beam Lattice extension (beams with per-end radii,
+              balls at the nodes, the part as clipping mesh)
+``.ply``      binary PLY                                             trimesh
+``.obj``      Wavefront OBJ                                          trimesh
+``.json``     the lattice graph (exact, text)                        :class:`LatticeGraph`
+``.npz``      the lattice graph (exact, compressed)                  :class:`LatticeGraph`
+============  =====================================================  =====================
+
+Every file is written atomically (:func:`lattice_cad._atomic.atomic_write`): a
+failed or interrupted export never leaves a half-written file behind. Formats
+that cannot hold the result are refused with :class:`ExportError` (binary STL
+counts triangles in 32 bits; lib3mf indexes with signed 32-bit integers), and
+files estimated above :data:`WARN_BYTES` (2 GB, where many slicers fail) raise an
+:class:`ExportWarning`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lattice_cad._atomic import atomic_write
+from lattice_cad.errors import LatticeError, LatticeWarning
+from lattice_cad.graph import LatticeGraph
+
+__all__ = [
+    "ExportError",
+    "ExportWarning",
+    "MESH_SUFFIXES",
+    "GRAPH_SUFFIXES",
+    "WARN_BYTES",
+    "STL_MAX_TRIANGLES",
+    "THREEMF_MAX",
+    "estimate_bytes",
+    "check_limits",
+    "save_mesh",
+    "save_graph",
+    "save_beam_lattice",
+    "read_mesh",
+    "read_beam_lattice",
+]
+
+#: Mesh formats written by :func:`save_mesh`.
+MESH_SUFFIXES = (".stl", ".3mf", ".ply", ".obj")
+#: Graph formats written by :func:`save_graph`.
+GRAPH_SUFFIXES = (".json", ".npz")
+#: Files estimated above this size raise an :class:`ExportWarning`.
+WARN_BYTES = 2 * 1024**3
+#: Binary STL stores the triangle count as uint32.
+STL_MAX_TRIANGLES = 2**32 - 1
+#: lib3mf indexes vertices, triangles and beams with signed 32-bit integers.
+THREEMF_MAX = 2**31 - 1
+
+
+try:  # one class for both layers: fast_stitch raises it too
+    from fast_stitch.mesh import ExportError
+except ImportError:  # pragma: no cover - fast_stitch is part of the distribution
+
+    class ExportError(LatticeError, ValueError):  # type: ignore[no-redef]
+        """A result cannot be written faithfully in the requested format."""
+
+
+class ExportWarning(LatticeWarning):
+    """An export succeeded but the file may be too large for common slicers."""
+
+
+# ---------------------------------------------------------------- utilities
+def _arrays(mesh: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Vertices (V, 3) float64 and faces (F, 3) int64 of any mesh-like object."""
+    from lattice_cad.skin import _mesh_arrays
+
+    arrays = _mesh_arrays(mesh)
+    if arrays is None:
+        raise TypeError(
+            f"cannot export a {type(mesh).__name__}: expected a mesh (vertices and faces), "
+            "a manifold3d.Manifold or a (vertices, faces) tuple"
+        )
+    v, f = arrays
+    v = np.ascontiguousarray(v, dtype=np.float64).reshape(-1, 3)
+    f = np.ascontiguousarray(f, dtype=np.int64).reshape(-1, 3)
+    return v, f
+
+
+def _suffix(path: Path) -> str:
+    return path.suffix.lower()
+
+
+def estimate_bytes(suffix: str, n_vertices: int, n_faces: int, *, n_beams: int = 0) -> int:
+    """Approximate size in bytes of a file of the given format.
+
+    Exact for binary STL (``84 + 50 F``) and binary PLY; 3MF and OBJ are estimates
+    (3MF is zip-compressed XML, about 12 bytes per vertex and 10 per triangle or beam).
+    """
+    s = suffix.lower()
+    if s == ".stl":
+        return 84 + 50 * n_faces
+    if s == ".ply":
+        return 200 + 12 * n_vertices + 13 * n_faces
+    if s == ".obj":
+        return 34 * n_vertices + 22 * n_faces
+    if s == ".3mf":
+        return 1200 + 12 * n_vertices + 10 * n_faces + 14 * n_beams
+    raise ValueError(f"no size estimate for {suffix!r}")
+
+
+def check_limits(
+    path: str | os.PathLike[str], n_vertices: int, n_faces: int, *, n_beams: int = 0
+) -> int:
+    """Refuse what a format cannot hold; warn above :data:`WARN_BYTES`.
+
+    Returns
+    -------
+    int
+        The estimated file size in bytes.
+
+    Raises
+    ------
+    ExportError
+        More than 2**32 - 1 triangles for STL, or more than 2**31 - 1 vertices,
+        triangles or beams for 3MF (the message names the file and the counts).
+    """
+    p = Path(path)
+    s = _suffix(p)
+    if s == ".stl" and n_faces > STL_MAX_TRIANGLES:
+        raise ExportError(
+            f"{p.name}: {n_faces:,} triangles do not fit in a binary STL "
+            f"(at most {STL_MAX_TRIANGLES:,}); save as a 3MF beam lattice or split the part"
+        )
+    if s == ".3mf":
+        for what, n in (("vertices", n_vertices), ("triangles", n_faces), ("beams", n_beams)):
+            if n > THREEMF_MAX:
+                raise ExportError(
+                    f"{p.name}: {n:,} {what} do not fit in a 3MF file (at most {THREEMF_MAX:,}); "
+                    "use beam_lattice=True or split the part"
+                )
+    size = estimate_bytes(s, n_vertices, n_faces, n_beams=n_beams)
+    if size > WARN_BYTES:
+        warnings.warn(
+            f"{p.name}: the file will be about {size / 1024**3:.1f} GiB; many slicers fail "
+            "above 2 GB (consider a 3MF beam lattice, fewer segments or a coarser lattice)",
+            ExportWarning,
+            stacklevel=3,
+        )
+    return size
+
+
+def _write_via_temp(path: Path, write: Any) -> None:
+    """Let ``write(tmp_path)`` produce the file, then copy it atomically onto ``path``."""
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    os.close(fd)
+    try:
+        write(tmp)
+        with atomic_write(path, "wb") as fh, open(tmp, "rb") as src:
+            shutil.copyfileobj(src, fh, 1 << 22)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+# ------------------------------------------------------------------- lib3mf
+def _lib3mf() -> tuple[Any, Any]:
+    try:
+        import lib3mf
+    except ImportError as exc:  # pragma: no cover - a declared dependency
+        raise ExportError(f"3MF export needs lib3mf (pip install lib3mf): {exc}") from None
+    wrapper = lib3mf.get_wrapper()
+    return lib3mf, wrapper
+
+
+def _set_geometry(lib3mf: Any, mesh_obj: Any, v: NDArray[np.float64], f: NDArray[np.int64]) -> None:
+    """``MeshObject.SetGeometry`` from numpy arrays without per-element Python objects."""
+    pos = np.ascontiguousarray(v, dtype=np.float32)
+    tri = np.ascontiguousarray(f, dtype=np.uint32)
+    pbuf = (lib3mf.Position * len(pos)).from_buffer(pos) if len(pos) else None
+    tbuf = (lib3mf.Triangle * len(tri)).from_buffer(tri) if len(tri) else None
+    w = mesh_obj._wrapper
+    w.checkError(
+        mesh_obj,
+        w.lib.lib3mf_meshobject_setgeometry(
+            mesh_obj._handle, ctypes.c_uint64(len(pos)), pbuf, ctypes.c_uint64(len(tri)), tbuf
+        ),
+    )
+
+
+def _write_model(lib3mf: Any, model: Any, path: Path) -> None:
+    writer = model.QueryWriter("3mf")
+
+    def write(tmp: str) -> None:
+        writer.WriteToFile(tmp)
+
+    _write_via_temp(path, write)
+
+
+def _save_3mf(path: Path, v: NDArray[np.float64], f: NDArray[np.int64], name: str) -> None:
+    lib3mf, wrapper = _lib3mf()
+    model = wrapper.CreateModel()
+    model.SetUnit(lib3mf.ModelUnit.MilliMeter)
+    mesh_obj = model.AddMeshObject()
+    mesh_obj.SetName(name)
+    _set_geometry(lib3mf, mesh_obj, v, f)
+    model.AddBuildItem(mesh_obj, wrapper.GetIdentityTransform())
+    _write_model(lib3mf, model, path)
+
+
+# ---------------------------------------------------------------------- API
+def save_mesh(mesh: Any, path: str | os.PathLike[str], *, name: str = "lattice") -> Path:
+    """Write a triangle mesh; the format is chosen by the suffix.
+
+    Parameters
+    ----------
+    mesh : fast_stitch.Mesh, manifold3d.Manifold, trimesh.Trimesh or (vertices, faces)
+    path : path-like
+        ``.stl`` (binary), ``.3mf`` (core mesh), ``.ply`` (binary) or ``.obj``.
+    name : str
+        Object name stored in 3MF files.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ExportError
+        Too many triangles for the format, or an STL whose triangles degenerate in
+        single precision.
+    ValueError
+        For an unknown suffix.
+
+    Warns
+    -----
+    ExportWarning
+        When the file will be larger than 2 GB.
+    """
+    p = Path(path)
+    s = _suffix(p)
+    if s not in MESH_SUFFIXES:
+        raise ValueError(
+            f"cannot write a mesh as {s or 'a file without suffix'} ({p.name}): "
+            f"use one of {', '.join(MESH_SUFFIXES)}"
+        )
+    v, f = _arrays(mesh)
+    if len(f) == 0:
+        raise ExportError(f"{p.name}: the mesh is empty (no triangles)")
+    check_limits(p, len(v), len(f))
+    if s == ".stl":
+        from fast_stitch.mesh import Mesh
+
+        m = mesh if isinstance(mesh, Mesh) else Mesh(vertices=v, faces=f)
+        m.save(p)
+    elif s == ".3mf":
+        _save_3mf(p, v, f, name)
+    else:
+        import trimesh
+
+        tm = trimesh.Trimesh(vertices=v, faces=f, process=False)
+        if s == ".ply":
+            data: bytes | str = trimesh.exchange.ply.export_ply(tm, encoding="binary")
+        else:
+            data = trimesh.exchange.obj.export_obj(tm, include_normals=False)
+        if isinstance(data, str):
+            with atomic_write(p, "w") as fh:
+                fh.write(data)
+        else:
+            with atomic_write(p, "wb") as fh:
+                fh.write(data)
+    return p
+
+
+def save_graph(graph: LatticeGraph, path: str | os.PathLike[str]) -> Path:
+    """Write a graph as ``.json`` or ``.npz`` (see :meth:`LatticeGraph.save`)."""
+    p = Path(path)
+    if _suffix(p) not in GRAPH_SUFFIXES:
+        raise ValueError(
+            f"cannot write a graph as {_suffix(p) or 'a file without suffix'} ({p.name}): "
+            "use .json or .npz"
+        )
+    return graph.save(p)
+
+
+def save_beam_lattice(
+    graph: LatticeGraph,
+    path: str | os.PathLike[str],
+    *,
+    clip: Any = None,
+    balls: bool = True,
+    name: str = "lattice",
+) -> Path:
+    """Write a graph as a 3MF Beam Lattice (a tiny file for printers that support it).
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+        Beams take the graph's per-end radii; nodes with a single strut get flat
+        (butt) caps, the others spherical caps.
+    path : path-like
+        Must end in ``.3mf``.
+    clip : mesh-like, optional
+        Closed mesh of the part (``fast_stitch.Mesh``, Manifold, trimesh or
+        ``(vertices, faces)``): written as a separate mesh object and referenced as
+        the lattice's clipping mesh (clip mode ``inside``), so the printer trims
+        the beams to the part.
+    balls : bool
+        Put a ball at every node of degree >= 2, with the largest radius of the
+        struts there (smooth joints).
+    name : str
+        Object name.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ExportError
+        An empty graph, too many beams for 3MF, or lib3mf refusing the model.
+    """
+    p = Path(path)
+    if _suffix(p) != ".3mf":
+        raise ValueError(f"a beam lattice is written as .3mf, got {p.name!r}")
+    if graph.num_edges == 0:
+        raise ExportError(f"{p.name}: the graph has no struts: nothing to write")
+    used = np.flatnonzero(graph.degree > 0)
+    remap = np.full(graph.num_nodes, -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    nodes = graph.nodes[used]
+    edges = remap[graph.edges]
+    check_limits(p, len(nodes), 0, n_beams=len(edges))
+    lib3mf, wrapper = _lib3mf()
+    model = wrapper.CreateModel()
+    model.SetUnit(lib3mf.ModelUnit.MilliMeter)
+    try:
+        clip_obj = None
+        if clip is not None:
+            cv, cf = _arrays(clip)
+            clip_obj = model.AddMeshObject()
+            clip_obj.SetName(f"{name} clipping mesh")
+            _set_geometry(lib3mf, clip_obj, cv, cf)
+        obj = model.AddMeshObject()
+        obj.SetName(name)
+        _set_geometry(lib3mf, obj, nodes, np.zeros((0, 3), dtype=np.int64))
+        bl = obj.BeamLattice()
+        bl.SetMinLength(float(min(1e-4, 0.5 * graph.edge_lengths.min())))
+        degree = graph.degree[used]
+        caps = np.where(
+            degree[edges] >= 2,
+            int(lib3mf.BeamLatticeCapMode.Sphere),
+            int(lib3mf.BeamLatticeCapMode.Butt),
+        ).astype(np.int32)
+        beams = np.zeros(
+            len(edges),
+            dtype=np.dtype(
+                {
+                    "names": ["idx", "rad", "cap"],
+                    "formats": [("<u4", (2,)), ("<f8", (2,)), ("<i4", (2,))],
+                    "offsets": [
+                        lib3mf.Beam.Indices.offset,
+                        lib3mf.Beam.Radii.offset,
+                        lib3mf.Beam.CapModes.offset,
+                    ],
+                    "itemsize": ctypes.sizeof(lib3mf.Beam),
+                }
+            ),
+        )
+        beams["idx"] = edges
+        beams["rad"] = graph.radii
+        beams["cap"] = caps
+        bbuf = (lib3mf.Beam * len(beams)).from_buffer(beams)
+        w = bl._wrapper
+        w.checkError(
+            bl, w.lib.lib3mf_beamlattice_setbeams(bl._handle, ctypes.c_uint64(len(beams)), bbuf)
+        )
+        if balls:
+            inner = np.flatnonzero(degree >= 2)
+            if len(inner):
+                rmax = np.zeros(len(nodes))
+                np.maximum.at(rmax, edges.ravel(), graph.radii.ravel())
+                ball_arr = np.zeros(
+                    len(inner),
+                    dtype=np.dtype(
+                        {
+                            "names": ["idx", "rad"],
+                            "formats": ["<u4", "<f8"],
+                            "offsets": [lib3mf.Ball.Index.offset, lib3mf.Ball.Radius.offset],
+                            "itemsize": ctypes.sizeof(lib3mf.Ball),
+                        }
+                    ),
+                )
+                ball_arr["idx"] = inner
+                ball_arr["rad"] = rmax[inner]
+                bl.SetBallOptions(lib3mf.BeamLatticeBallMode.Mixed, float(rmax[inner].min()))
+                abuf = (lib3mf.Ball * len(ball_arr)).from_buffer(ball_arr)
+                w.checkError(
+                    bl,
+                    w.lib.lib3mf_beamlattice_setballs(
+                        bl._handle, ctypes.c_uint64(len(ball_arr)), abuf
+                    ),
+                )
+        if clip_obj is not None:
+            bl.SetClipping(lib3mf.BeamLatticeClipMode.Inside, clip_obj.GetUniqueResourceID())
+        model.AddBuildItem(obj, wrapper.GetIdentityTransform())
+        _write_model(lib3mf, model, p)
+    except lib3mf.ELib3MFException as exc:
+        raise ExportError(f"{p.name}: lib3mf refused the beam lattice: {exc}") from None
+    return p
+
+
+# ------------------------------------------------------------------ reading
+def _read_3mf_model(path: Path) -> tuple[Any, Any]:
+    lib3mf, wrapper = _lib3mf()
+    model = wrapper.CreateModel()
+    reader = model.QueryReader("3mf")
+    try:
+        reader.ReadFromFile(str(path))
+    except lib3mf.ELib3MFException as exc:
+        raise ExportError(f"{path}: not a readable 3MF file: {exc}") from None
+    return lib3mf, model
+
+
+def _mesh_objects(model: Any) -> list[Any]:
+    out = []
+    it = model.GetMeshObjects()
+    while it.MoveNext():
+        out.append(it.GetCurrentMeshObject())
+    return out
+
+
+def _get_geometry(lib3mf: Any, obj: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    nv, nt = obj.GetVertexCount(), obj.GetTriangleCount()
+    pos = np.zeros((nv, 3), dtype=np.float32)
+    tri = np.zeros((nt, 3), dtype=np.uint32)
+    w = obj._wrapper
+    need = ctypes.c_uint64(0)
+    if nv:
+        buf = (lib3mf.Position * nv).from_buffer(pos)
+        w.checkError(
+            obj, w.lib.lib3mf_meshobject_getvertices(obj._handle, ctypes.c_uint64(nv), need, buf)
+        )
+    if nt:
+        buf2 = (lib3mf.Triangle * nt).from_buffer(tri)
+        w.checkError(
+            obj,
+            w.lib.lib3mf_meshobject_gettriangleindices(
+                obj._handle, ctypes.c_uint64(nt), need, buf2
+            ),
+        )
+    return pos.astype(np.float64), tri.astype(np.int64)
+
+
+def read_beam_lattice(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Summary of the beam lattices in a 3MF file (for checks and tests).
+
+    Returns
+    -------
+    dict
+        ``objects`` (mesh objects), ``beams``, ``balls`` and ``vertices`` (totals over
+        the objects with a beam lattice), ``clipped`` (whether one uses a clipping mesh).
+    """
+    p = Path(path)
+    lib3mf, model = _read_3mf_model(p)
+    objs = _mesh_objects(model)
+    out = {"objects": len(objs), "beams": 0, "balls": 0, "vertices": 0, "clipped": False}
+    for obj in objs:
+        bl = obj.BeamLattice()
+        nb = bl.GetBeamCount()
+        if nb:
+            out["beams"] += nb
+            out["balls"] += bl.GetBallCount()
+            out["vertices"] += obj.GetVertexCount()
+            mode, _ = bl.GetClipping()
+            out["clipped"] |= mode != lib3mf.BeamLatticeClipMode.NoClipMode
+    return out
+
+
+def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Read the triangles of a mesh file (``.stl``, ``.3mf``, ``.ply``, ``.obj``, ``.off``...).
+
+    STL vertices are merged by position (STL stores each triangle separately);
+    the other formats keep their indexing. A 3MF's triangle objects are
+    concatenated (clipping meshes of beam lattices are skipped).
+
+    Returns
+    -------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+
+    Raises
+    ------
+    FileNotFoundError, ExportError
+        A missing or unreadable file (named in the message).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"mesh file not found: {p}")
+    s = _suffix(p)
+    if s == ".3mf":
+        lib3mf, model = _read_3mf_model(p)
+        objs = _mesh_objects(model)
+        clip_ids = set()
+        for obj in objs:
+            mode, rid = obj.BeamLattice().GetClipping()
+            if mode != lib3mf.BeamLatticeClipMode.NoClipMode:
+                clip_ids.add(rid)
+        vs, fs, base = [], [], 0
+        for obj in objs:
+            if obj.GetUniqueResourceID() in clip_ids or obj.GetTriangleCount() == 0:
+                continue
+            v, f = _get_geometry(lib3mf, obj)
+            vs.append(v)
+            fs.append(f + base)
+            base += len(v)
+        if not fs:
+            return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+        return np.vstack(vs), np.vstack(fs)
+    import trimesh
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loaded = trimesh.load(str(p), force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise ExportError(f"{p}: cannot read mesh: {exc}") from None
+    v = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
+    if s == ".stl" and len(v):
+        from lattice_cad.skin import _weld
+
+        v, f = _weld(v, f, decimals=12, drop=False)
+    return v, f
