@@ -148,7 +148,6 @@ class Reference:
         if suffix == ".stl":
             return self.mesh.save(p)
         if suffix in (".step", ".stp"):
-            from lattice_cad._atomic import atomic_write
             from reference_boolean import _occ
 
             nodes = [
@@ -158,14 +157,13 @@ class Reference:
             ]
             breps = [self.breps[self.node_template[n]] for n in nodes]
             trans = [self.graph.nodes[n] for n in nodes]
-            # OCCT writes to a path; write beside the target and move it atomically
-            with atomic_write(p, "wb") as fh:
-                tmp = Path(fh.name + ".step")
-                try:
-                    _occ.write_step(str(tmp), breps, trans)
-                    fh.write(tmp.read_bytes())
-                finally:
-                    tmp.unlink(missing_ok=True)
+            # OCCT writes to a path: a temp file beside the target, then an atomic rename
+            tmp = p.with_name(f".{p.name}.{os.getpid()}.part.step")
+            try:
+                _occ.write_step(str(tmp), breps, trans)
+                os.replace(tmp, p)
+            finally:
+                tmp.unlink(missing_ok=True)
             return p
         raise ValueError(
             f"cannot save a reference as {suffix or 'a file without suffix'}: "

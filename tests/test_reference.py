@@ -1,0 +1,218 @@
+"""Tests of reference_boolean.build_reference (exact per-hub B-rep reference)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from conformal.cells import block
+from lattice_cad import LatticeError, LatticeGraph
+from reference_boolean import (
+    DirtyLatticeError,
+    ReferenceBuildError,
+    build_reference,
+    find_overlaps,
+)
+from reference_boolean.reference import SPHERE_FACTOR
+from tests.conftest import star_graph
+
+
+def capped_cylinder_volume(r: float, length: float) -> float:
+    """Exact volume of two spheres R = 1.00001 r at the ends of a cylinder (r, length)."""
+    R = SPHERE_FACTOR * r
+    a = math.sqrt(R * R - r * r)  # where the sphere crosses the cylinder
+    inside = math.pi * r * r * a + math.pi * (R * R * (R - a) - (R**3 - a**3) / 3)
+    hub = 4 / 3 * math.pi * R**3 + math.pi * r * r * 0.5 * length - inside
+    return 2 * hub
+
+
+def check_watertight(mesh) -> None:
+    import manifold3d
+    import trimesh
+
+    tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False)
+    assert tm.is_watertight
+    assert tm.is_winding_consistent
+    assert tm.volume > 0
+    man = manifold3d.Manifold(
+        manifold3d.Mesh(
+            vert_properties=mesh.vertices.astype(np.float32),
+            tri_verts=mesh.faces.astype(np.uint32),
+        )
+    )
+    assert man.status() == manifold3d.Error.NoError
+
+
+@pytest.mark.parametrize("r,length", [(0.25, 2.0), (0.05, 1.0)])
+def test_single_strut_exact_volume(r, length):
+    g = LatticeGraph([[0, 0, 0], [length, 0.3, -0.2]], [[0, 1]], r)
+    L = float(g.edge_lengths[0])
+    ref = build_reference(g, workers=1)
+    assert ref.complete and not ref.failed
+    assert ref.volume == pytest.approx(capped_cylinder_volume(r, L), rel=1e-8)
+    check_watertight(ref.mesh)
+    # the tessellation is inscribed: slightly smaller, within the chordal tolerance
+    assert 0.98 * ref.volume < ref.mesh.volume < ref.volume
+    # both hubs are translates (one reversed) -> the line's two ends are distinct hubs
+    assert ref.unique_hubs == 2
+
+
+@pytest.mark.parametrize("angle_deg", [30, 60, 90, 120, 150, 180])
+def test_two_strut_joints(angle_deg):
+    t = math.radians(angle_deg)
+    g = star_graph([[1, 0, 0], [math.cos(t), math.sin(t), 0.0]], lengths=1.0, radii=0.08)
+    ref = build_reference(g, workers=1)
+    assert ref.complete, ref.failed
+    check_watertight(ref.mesh)
+    hv = ref.hub_volume
+    assert np.isfinite(hv).all()
+    assert ref.volume == pytest.approx(hv.sum(), rel=1e-12)
+    # the centre hub is at most sphere + both stumps, at least one stump + the sphere
+    r, R = 0.08, SPHERE_FACTOR * 0.08
+    stump = math.pi * r * r * 0.5
+    assert 4 / 3 * math.pi * R**3 < hv[0] < 4 / 3 * math.pi * R**3 + 2 * stump
+    if angle_deg == 180:  # straight: sphere + cylinder through it, in closed form
+        a = math.sqrt(R * R - r * r)
+        inside = 2 * (math.pi * r * r * a + math.pi * (R * R * (R - a) - (R**3 - a**3) / 3))
+        exact = 4 / 3 * math.pi * R**3 + 2 * stump - inside
+        assert hv[0] == pytest.approx(exact, rel=1e-8)
+
+
+def test_star_and_tapered():
+    dirs = [[1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, -1, -1], [1, -1, 0.3]]
+    radii = np.array([[0.1, 0.06], [0.08, 0.08], [0.12, 0.05], [0.07, 0.09], [0.1, 0.1]])
+    g = star_graph(dirs, lengths=[1.0, 1.2, 0.9, 1.1, 1.0], radii=radii)
+    ref = build_reference(g, workers=2)
+    assert ref.complete, ref.failed
+    check_watertight(ref.mesh)
+    assert 0.97 * ref.volume < ref.mesh.volume < ref.volume
+
+
+def test_tapered_strut_volume():
+    # one tapered strut; its two hubs: spheres R_a, R_b and frustums meeting at r_mid
+    ra, rb, L = 0.1, 0.2, 2.0
+    g = LatticeGraph([[0, 0, 0], [0, 0, L]], [[0, 1]], [[ra, rb]])
+    ref = build_reference(g, workers=1)
+    assert ref.complete
+    check_watertight(ref.mesh)
+    # volume of the union of two spheres and a cone frustum, by numerical integration
+    Ra, Rb = SPHERE_FACTOR * ra, SPHERE_FACTOR * rb
+    z = np.linspace(-Ra, L + Rb, 400_001)
+    rc = np.where((z >= 0) & (z <= L), ra + (rb - ra) * z / L, 0.0)
+    rsa = np.sqrt(np.clip(Ra**2 - z**2, 0, None))
+    rsb = np.sqrt(np.clip(Rb**2 - (z - L) ** 2, 0, None))
+    rr = np.maximum(rc, np.maximum(rsa, rsb))
+    y = np.pi * rr**2
+    vol = float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(z)))
+    assert ref.volume == pytest.approx(vol, rel=1e-6)
+
+
+def test_bcc_block_cache_and_sum():
+    g = block("bcc", (2, 2, 2), cell_size=2.0, radius=0.2)
+    ref = build_reference(g)
+    assert ref.complete, ref.failed
+    check_watertight(ref.mesh)
+    assert ref.unique_hubs + ref.cache_hits == int((g.degree > 0).sum())
+    assert ref.cache_hits > 0
+    nocache = build_reference(g, cache=False, keep_solids=False)
+    assert nocache.cache_hits == 0
+    assert nocache.volume == pytest.approx(ref.volume, rel=1e-9)
+    # cached hubs are identical: same volume, same triangle count per node
+    per_node = np.bincount(ref.face_node, minlength=g.num_nodes)
+    tpl = ref.node_template
+    for t in np.unique(tpl[tpl >= 0]):
+        ns = np.flatnonzero(tpl == t)
+        assert len(set(per_node[ns].tolist())) == 1
+        assert len(set(ref.hub_volume[ns].tolist())) == 1
+
+
+def test_stl_and_step_round_trip(tmp_path):
+    import trimesh
+
+    from reference_boolean import _occ
+
+    g = star_graph([[1, 0, 0], [0, 1, 0], [0, 0, 1]], lengths=1.0, radii=0.1)
+    ref = build_reference(g)
+    p = ref.save(tmp_path / "ref.stl")
+    tm = trimesh.load(p)
+    assert len(tm.faces) == len(ref.mesh.faces)
+    s = ref.save(tmp_path / "ref.step")
+    solids = _occ.read_step_solids(str(s))
+    assert len(solids) == 4
+    assert all(valid for valid, _ in solids)
+    assert sum(v for _, v in solids) == pytest.approx(ref.volume, rel=1e-7)
+    with pytest.raises(ValueError, match="use .stl"):
+        ref.save(tmp_path / "ref.obj")
+
+
+def test_dirty_lattice_detected():
+    # struts too short for their spheres
+    g = LatticeGraph([[0, 0, 0], [1, 0, 0], [1.4, 0, 0]], [[0, 1], [1, 2]], [0.3, 0.05])
+    probs = find_overlaps(g)
+    assert probs and any("strut 1" in p for p in probs)
+    with pytest.raises(DirtyLatticeError, match="node 1"):
+        build_reference(g)
+    # two struts at a small angle: a stump reaches the other strut's cut plane
+    g = star_graph([[1, 0, 0], [1, 0.05, 0]], lengths=[1.0, 0.5], radii=0.05)
+    assert find_overlaps(g)
+    assert issubclass(DirtyLatticeError, LatticeError)
+    assert issubclass(ReferenceBuildError, RuntimeError)
+
+
+def test_forced_occt_failure_is_reported(monkeypatch):
+    from reference_boolean import _occ
+
+    real = _occ.make_hub_shape
+    calls = []
+
+    def broken(spec, **kw):
+        calls.append(kw)
+        if len(spec.vecs) == 3:  # only the centre hub of the star
+            raise _occ.OCCTFailure("forced failure for the test")
+        return real(spec, **kw)
+
+    monkeypatch.setattr(_occ, "make_hub_shape", broken)
+    g = star_graph([[1, 0, 0], [0, 1, 0], [0, 0, 1]], lengths=1.0, radii=0.1)
+    ref = build_reference(g, workers=0)
+    assert not ref.complete
+    assert list(ref.failed) == [0]
+    assert "forced failure" in ref.failed[0]
+    assert len(ref.attempts[0]) == len(_occ.ATTEMPTS)  # every retry was tried
+    assert math.isnan(ref.hub_volume[0])
+    assert "INCOMPLETE" in repr(ref)
+    # the leaves were built; their open circles are not hidden: the mesh is not watertight
+    assert np.isfinite(ref.hub_volume[1:]).all()
+    assert ref.volume == pytest.approx(np.nansum(ref.hub_volume))
+    import trimesh
+
+    tm = trimesh.Trimesh(vertices=ref.mesh.vertices, faces=ref.mesh.faces, process=False)
+    assert not tm.is_watertight
+
+
+def test_invalid_shape_is_caught(monkeypatch):
+    from reference_boolean import _occ
+
+    def invalid(spec, **kw):
+        from OCP.TopoDS import TopoDS_Shape
+
+        _occ._check_valid(TopoDS_Shape(), "hub")  # a null shape never passes
+        raise AssertionError("unreachable")
+
+    monkeypatch.setattr(_occ, "make_hub_shape", invalid)
+    g = LatticeGraph([[0, 0, 0], [1, 0, 0]], [[0, 1]], 0.1)
+    ref = build_reference(g)  # in worker processes (fork keeps the patch)
+    assert sorted(ref.failed) == [0, 1]
+    assert all("null shape" in v for v in ref.failed.values())
+    assert len(ref.mesh.faces) == 0
+
+
+def test_bad_options():
+    g = LatticeGraph([[0, 0, 0], [1, 0, 0]], [[0, 1]], 0.1)
+    with pytest.raises(ValueError, match="tolerance"):
+        build_reference(g, tolerance=-1.0)
+    with pytest.raises(TypeError):
+        build_reference("not a graph")  # type: ignore[arg-type]
+    with pytest.raises(ReferenceBuildError, match="no struts"):
+        build_reference(LatticeGraph(np.zeros((0, 3)), np.zeros((0, 2)), 0.1))
