@@ -140,7 +140,8 @@ def bench_table2(quick: bool) -> None:
     )
     print(
         table(
-            f"3. Seed Table 2 box lattice {counts[0]}x{counts[1]}x{counts[2]} cubic cells of 1.5 mm, "
+            f"3. Seed Table 2 box lattice {counts[0]}x{counts[1]}x{counts[2]} cubic cells "
+            "of 1.5 mm, "
             f"R = 0.25 mm, {g.num_edges:,} struts: exact reference volume {vref:.3f} mm^3 "
             f"({'complete' if ref.complete else 'INCOMPLETE'}, built in {dt:.1f} s, "
             f"{ref.unique_hubs} distinct hubs){notes}",
