@@ -431,4 +431,17 @@ def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None =
     man = as_manifold(part)
     skin = hollow(man, thickness, voxel=voxel)
     lat = as_manifold(lattice, name="lattice mesh")
-    return skin + (lat ^ man)
+    out = skin + (lat ^ man)
+    pieces = len(out.decompose())
+    if pieces > 1:
+        import warnings
+
+        from lattice_cad.errors import LatticeWarning
+
+        warnings.warn(
+            f"the skinned part has {pieces} separate pieces: some lattice struts do not reach "
+            "the skin (use fill='clip' so that struts run into the wall)",
+            LatticeWarning,
+            stacklevel=2,
+        )
+    return out
