@@ -1,0 +1,487 @@
+"""Voxel lattices: unit cells tiled over the cells of a grid that fill a part (seed Fig. 5).
+
+The part is voxelised on a grid of cells of size ``(hx, hy, hz)``: the corners
+of every cell are classified inside/outside (one vertical ray per grid
+column, winding numbers), and every cell that a surface triangle touches is
+marked *cut* (exact triangle/box separating-axis test). A cell is *inside*
+when its 8 corners are inside and it is not cut, i.e. its whole closed box is
+inside the part. Unit cells are tiled with :func:`conformal.cells.tile_arrays`,
+which merges shared nodes and struts exactly by integer lattice coordinates.
+
+Fill modes
+----------
+``"inside"``
+    Only inside cells.
+``"clip"``
+    Inside and cut cells; struts that cross the surface are cut there, with a
+    new node on the surface, and the parts outside are dropped.
+``"conform"``
+    Inside and cut cells; struts with at least one end inside are kept and
+    their outside ends are moved to the closest surface point. Nodes inside the
+    part never move, so interior cells are unchanged.
+
+After clipping or conforming, struts shorter than ``min_strut`` times the
+smallest cell size, dangling struts (a strut ending at a node of degree 1
+that is not on the surface, removed repeatedly), pieces with no node inside
+the part, and isolated nodes are removed; :class:`BuildReport` counts them.
+Finally the radii are fitted so that the graph stitches (see
+:func:`conformal.radius.fit_radii`).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from conformal import _kernels
+from conformal.cells import UnitCell, _resolve, tile_arrays
+from conformal.part import Part
+from conformal.radius import FitError, RadiusSpec, fit_radii, resolve_radii
+from lattice_cad.errors import LatticeWarning
+from lattice_cad.graph import LatticeGraph
+
+__all__ = ["voxel_lattice", "voxelize", "BuildReport", "Voxels"]
+
+FillMode = Literal["inside", "clip", "conform"]
+FitMode = Literal["shrink", "raise", "off"]
+
+
+@dataclass
+class BuildReport:
+    """What a lattice builder did (counts of cells, removed and adjusted elements)."""
+
+    cells_inside: int = 0
+    cells_cut: int = 0
+    clipped_struts: int = 0
+    moved_nodes: int = 0
+    merged_nodes: int = 0
+    removed_outside: int = 0
+    removed_short: int = 0
+    removed_dangling: int = 0
+    removed_fragments: int = 0
+    removed_isolated: int = 0
+    radii_reduced: int = 0
+    min_radius: float = float("nan")
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def removed(self) -> int:
+        """Struts removed by the clean-up (short + dangling + fragments)."""
+        return self.removed_short + self.removed_dangling + self.removed_fragments
+
+
+@dataclass(frozen=True)
+class Voxels:
+    """Cell classification of a part on a grid.
+
+    Attributes
+    ----------
+    origin : (3,) float64
+        Corner of cell ``(0, 0, 0)``.
+    cell_size : (3,) float64
+    inside : (nx, ny, nz) bool
+        Cells whose whole box is inside the part.
+    cut : (nx, ny, nz) bool
+        Cells that a surface triangle touches.
+    corner_inside : (nx + 1, ny + 1, nz + 1) bool
+    """
+
+    origin: NDArray[np.float64]
+    cell_size: NDArray[np.float64]
+    inside: NDArray[np.bool_]
+    cut: NDArray[np.bool_]
+    corner_inside: NDArray[np.bool_]
+
+
+def _vec3(value: ArrayLike, what: str) -> NDArray[np.float64]:
+    v = np.asarray(value, dtype=np.float64)
+    if v.ndim == 0:
+        v = np.full(3, float(v))
+    if v.shape != (3,) or not np.isfinite(v).all():
+        raise ValueError(f"{what} must be a number or 3 finite numbers, got {value!r}")
+    return v
+
+
+def voxelize(
+    part: Part, cell_size: float | ArrayLike, *, origin: ArrayLike | None = None
+) -> Voxels:
+    """Classify the cells of a grid covering ``part``.
+
+    Parameters
+    ----------
+    part : Part
+    cell_size : float or (hx, hy, hz)
+    origin : (3,) float, optional
+        A grid point (default: the grid is centred on the part's bounding
+        box, so that the part's extreme faces do not lie on cell planes). The grid covers the
+        part's bounding box; cell ``(0, 0, 0)`` is the first cell that does.
+
+    Returns
+    -------
+    Voxels
+    """
+    h = _vec3(cell_size, "cell_size")
+    if (h <= 0).any():
+        raise ValueError(f"cell_size must be > 0, got {h.tolist()}")
+    b = part.bounds
+    if origin is None:  # centre the grid on the bounding box
+        n = np.maximum(np.ceil((b[1] - b[0]) / h), 1.0)
+        o = 0.5 * (b[0] + b[1]) - 0.5 * n * h
+    else:
+        o = _vec3(origin, "origin")
+    lo = np.floor((b[0] - o) / h).astype(np.int64)
+    hi = np.ceil((b[1] - o) / h).astype(np.int64)
+    hi = np.maximum(hi, lo + 1)
+    start = o + lo * h
+    dims = hi - lo
+    if int(np.prod(dims + 1)) > 400_000_000:
+        raise ValueError(f"grid of {dims.tolist()} cells is too large; use larger cells")
+    corner = part.grid_contains(start, h, dims + 1)
+    cut = _kernels.mark_cut_cells(part.triangles, start, h, dims, 1e-9)
+    all_in = (
+        corner[:-1, :-1, :-1]
+        & corner[1:, :-1, :-1]
+        & corner[:-1, 1:, :-1]
+        & corner[:-1, :-1, 1:]
+        & corner[1:, 1:, :-1]
+        & corner[1:, :-1, 1:]
+        & corner[:-1, 1:, 1:]
+        & corner[1:, 1:, 1:]
+    )
+    return Voxels(start, h, all_in & ~cut, cut, corner)
+
+
+def _rotation(rotation: ArrayLike | None) -> NDArray[np.float64] | None:
+    if rotation is None:
+        return None
+    r = np.asarray(rotation, dtype=np.float64)
+    if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
+        raise ValueError("rotation must be a 3x3 rotation matrix (orthonormal, det +1)")
+    return r
+
+
+def voxel_lattice(
+    part: Part,
+    cell: str | UnitCell = "bcc",
+    cell_size: float | ArrayLike = 5.0,
+    radius: RadiusSpec = 0.4,
+    *,
+    fill: FillMode = "inside",
+    origin: ArrayLike | None = None,
+    rotation: ArrayLike | None = None,
+    min_strut: float = 0.1,
+    min_radius: float | None = None,
+    fit: FitMode = "shrink",
+    return_report: bool = False,
+) -> LatticeGraph | tuple[LatticeGraph, BuildReport]:
+    """Fill a part with a lattice of unit cells.
+
+    Parameters
+    ----------
+    part : Part
+        From :func:`conformal.load_part`.
+    cell : str or UnitCell
+        A name in :data:`conformal.CELLS` or a user-defined cell.
+    cell_size : float or (hx, hy, hz)
+        Cell edge lengths (mm).
+    radius : float, (M,), (M, 2) or callable
+        Strut radius; see :mod:`conformal.radius`. A callable receives the
+        (M, 3) strut midpoints (in the part's frame).
+    fill : {"inside", "clip", "conform"}
+        See the module docstring.
+    origin : (3,) float, optional
+        A lattice grid point, in the lattice frame (default: centred on the
+        part's bounding box in that frame).
+    rotation : (3, 3) float, optional
+        Orientation of the lattice: lattice axes are the columns of the
+        matrix (world = rotation @ lattice).
+    min_strut : float
+        Struts shorter than this fraction of the smallest cell size are
+        removed after clipping/conforming.
+    min_radius : float, optional
+        ``fit="shrink"`` never thins a strut below this (default: a tenth of
+        the smallest requested radius).
+    fit : {"shrink", "raise", "off"}
+        What to do with struts that would not stitch (their end profiles would
+        meet): thin the struts at the crowded nodes (a :class:`LatticeWarning`
+        says how many), raise :class:`conformal.radius.FitError` listing them,
+        or nothing.
+    return_report : bool
+        Also return a :class:`BuildReport`.
+
+    Returns
+    -------
+    LatticeGraph, or (LatticeGraph, BuildReport)
+
+    Raises
+    ------
+    ValueError
+        Bad parameters; no cell of the grid qualifies (the part is thinner than
+        a cell for ``fill="inside"``).
+    FitError
+        With ``fit="raise"``, when some struts do not fit.
+    """
+    if fill not in ("inside", "clip", "conform"):
+        raise ValueError(f"fill must be 'inside', 'clip' or 'conform', got {fill!r}")
+    if fit not in ("shrink", "raise", "off"):
+        raise ValueError(f"fit must be 'shrink', 'raise' or 'off', got {fit!r}")
+    if not isinstance(part, Part):
+        raise TypeError(f"part must be a conformal.Part (see load_part), got {type(part).__name__}")
+    c = _resolve(cell)
+    h = _vec3(cell_size, "cell_size")
+    if (h <= 0).any():
+        raise ValueError(f"cell_size must be > 0, got {h.tolist()}")
+    rot = _rotation(rotation)
+    rep = BuildReport()
+    t0 = time.perf_counter()
+    local = part if rot is None else part.transformed(_homog(rot.T))
+    vox = voxelize(local, h, origin=origin)
+    rep.cells_inside = int(vox.inside.sum())
+    rep.cells_cut = int(vox.cut.sum())
+    rep.seconds["voxelize"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    occupied = vox.inside if fill == "inside" else (vox.inside | vox.cut)
+    ijk = np.argwhere(occupied).astype(np.int64)
+    if not len(ijk):
+        raise ValueError(
+            f"no cell of size {h.tolist()} fits {'inside ' if fill == 'inside' else ''}"
+            f"{part.name}; use smaller cells"
+        )
+    nodes, edges, _ = tile_arrays(c, ijk, cell_size=h, origin=vox.origin)
+    rep.seconds["tile"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    on_surface = np.zeros(len(nodes), dtype=bool)
+    if fill == "clip":
+        nodes, edges, on_surface = _clip(local, nodes, edges, rep)
+    elif fill == "conform":
+        nodes, edges, on_surface = _conform(local, nodes, edges, rep)
+    min_len = float(min_strut) * float(h.min())
+    nodes, edges = _cleanup(nodes, edges, on_surface, min_len, fill != "inside", rep)
+    rep.seconds["clip"] = time.perf_counter() - t0
+    if not len(edges):
+        raise ValueError(f"no strut of the lattice is left inside {part.name}; use smaller cells")
+    if rot is not None:
+        nodes = nodes @ rot.T
+    t0 = time.perf_counter()
+    graph = _finish(nodes, edges, radius, min_radius, fit, rep)
+    rep.seconds["fit"] = time.perf_counter() - t0
+    return (graph, rep) if return_report else graph
+
+
+def _homog(r: NDArray[np.float64]) -> NDArray[np.float64]:
+    m = np.eye(4)
+    m[:3, :3] = r
+    return m
+
+
+def _finish(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radius: RadiusSpec,
+    min_radius: float | None,
+    fit: str,
+    rep: BuildReport,
+) -> LatticeGraph:
+    """Radii, fitting and the graph (shared by the voxel and tet builders)."""
+    r = resolve_radii(radius, nodes, edges)
+    if fit == "shrink":
+        floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
+        new, unfit = fit_radii(nodes, edges, r, min_radius=floor)
+        changed = int((new < r).any(axis=1).sum())
+        if len(unfit):
+            raise FitError(
+                f"{len(unfit)} strut(s) cannot be thinned enough to stitch (min radius {floor:g}); "
+                f"e.g. strut {int(unfit[0])} (nodes {edges[unfit[0]].tolist()}); "
+                "lower min_radius or use larger cells"
+            )
+        if changed:
+            warnings.warn(
+                f"{changed} of {len(edges)} struts were thinned (down to radius "
+                f"{float(new.min()):.4g}) so that every strut can be stitched",
+                LatticeWarning,
+                stacklevel=3,
+            )
+        rep.radii_reduced = changed
+        r = new
+    elif fit == "raise":
+        from fast_stitch.fit import misfits
+
+        length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+        bad, need, _ = misfits(nodes, edges, r)
+        fat = np.flatnonzero(r.max(axis=1) >= 0.5 * length)
+        bad = np.union1d(bad, fat)
+        if len(bad):
+            shown = "; ".join(
+                f"strut {int(e)} (nodes {int(edges[e, 0])}, {int(edges[e, 1])}): length "
+                f"{length[e]:.4g}, needs {max(need[e], 2 * r[e].max()):.4g}"
+                for e in bad[:5]
+            )
+            raise FitError(
+                f"{len(bad)} of {len(edges)} struts would not stitch with these radii: {shown}"
+                f"{' ...' if len(bad) > 5 else ''}; use thinner struts or fit='shrink'"
+            )
+    rep.min_radius = float(r.min())
+    return LatticeGraph(nodes, edges, r)
+
+
+# ------------------------------------------------------------------- clip
+def _clip(
+    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]:
+    inside = part.contains(nodes)
+    a = nodes[edges[:, 0]]
+    b = nodes[edges[:, 1]]
+    count, params = part.segment_crossings(a, b, cap=8)
+    if (count > 8).any():
+        count = np.minimum(count, 8)
+    plain = count == 0
+    keep_plain = plain & inside[edges[:, 0]]
+    rep.removed_outside = int((plain & ~inside[edges[:, 0]]).sum())
+    new_nodes: list[NDArray[np.float64]] = []
+    new_edges: list[NDArray[np.int64]] = [edges[keep_plain]]
+    n0 = len(nodes)
+    crossed = np.flatnonzero(~plain)
+    rep.clipped_struts = len(crossed)
+    if len(crossed):
+        # sub-intervals between crossings; classify their midpoints
+        k = count[crossed]
+        t = params[crossed]
+        cols = np.arange(params.shape[1] + 1)
+        bounds = np.concatenate([np.zeros((len(crossed), 1)), t, np.ones((len(crossed), 1))], 1)
+        # put the closing 1 right after the last crossing
+        bounds[np.arange(len(crossed)), k + 1] = 1.0
+        valid = cols[None, :] <= k[:, None]  # sub-interval j in 0..k
+        lo_t = bounds[:, :-1]
+        hi_t = bounds[:, 1:]
+        mid_t = 0.5 * (lo_t + hi_t)
+        ea = a[crossed][:, None, :]
+        eb = b[crossed][:, None, :]
+        mids = ea + mid_t[:, :, None] * (eb - ea)
+        sel = np.argwhere(valid)
+        mid_in = np.zeros(valid.shape, dtype=bool)
+        mid_in[sel[:, 0], sel[:, 1]] = part.contains(mids[sel[:, 0], sel[:, 1]])
+        # node ids: t = 0 -> edges[:,0], t = 1 -> edges[:,1], crossing j -> new node
+        cross_ids = np.full(t.shape, -1, dtype=np.int64)
+        cv = np.argwhere(cols[None, :-1] < k[:, None])
+        cross_ids[cv[:, 0], cv[:, 1]] = n0 + np.arange(len(cv))
+        pts = a[crossed][cv[:, 0]] + t[cv[:, 0], cv[:, 1]][:, None] * (
+            b[crossed][cv[:, 0]] - a[crossed][cv[:, 0]]
+        )
+        new_nodes.append(pts)
+        ids = np.concatenate(
+            [edges[crossed, :1], cross_ids, np.full((len(crossed), 1), -1, dtype=np.int64)], 1
+        )
+        ids[np.arange(len(crossed)), k + 1] = edges[crossed, 1]
+        keep = mid_in & valid
+        kk = np.argwhere(keep)
+        pieces = np.stack([ids[kk[:, 0], kk[:, 1]], ids[kk[:, 0], kk[:, 1] + 1]], axis=1)
+        new_edges.append(pieces)
+    nodes_out = np.vstack([nodes, *new_nodes]) if new_nodes else nodes
+    edges_out = np.vstack(new_edges)
+    on_surface = np.zeros(len(nodes_out), dtype=bool)
+    on_surface[n0:] = True
+    return nodes_out, edges_out, on_surface
+
+
+# ---------------------------------------------------------------- conform
+def _conform(
+    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]:
+    inside = part.contains(nodes)
+    ein = inside[edges]
+    keep = ein.any(axis=1)
+    rep.removed_outside = int((~keep).sum())
+    edges = edges[keep]
+    move = np.zeros(len(nodes), dtype=bool)
+    move[edges[~inside[edges]]] = True
+    idx = np.flatnonzero(move)
+    nodes = nodes.copy()
+    if len(idx):
+        _, cp = part.closest(nodes[idx])
+        nodes[idx] = cp
+    rep.moved_nodes = len(idx)
+    on_surface = move.copy()
+    return nodes, edges, on_surface
+
+
+# ---------------------------------------------------------------- cleanup
+def _cleanup(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    on_surface: NDArray[np.bool_],
+    min_len: float,
+    boundary: bool,
+    rep: BuildReport,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    n = len(nodes)
+    if boundary and len(edges):
+        # merge surface nodes closer than min_len to another node (conform: projections can meet)
+        surf = np.flatnonzero(on_surface)
+        if len(surf):
+            from scipy.spatial import cKDTree
+
+            tree = cKDTree(nodes)
+            pairs = tree.query_pairs(min_len, output_type="ndarray")
+            pairs = pairs[on_surface[pairs].any(axis=1)]
+            if len(pairs):
+                parent = np.arange(n)
+                # a surface node merges into its partner (an interior node wins)
+                for i, j in pairs.tolist():
+                    ri, rj = _find(parent, i), _find(parent, j)
+                    if ri == rj:
+                        continue
+                    if on_surface[ri] and not on_surface[rj]:
+                        parent[ri] = rj
+                    else:
+                        parent[rj] = ri
+                root = np.array([_find(parent, i) for i in range(n)])
+                rep.merged_nodes = int((root != np.arange(n)).sum())
+                edges = root[edges]
+                edges = edges[edges[:, 0] != edges[:, 1]]
+                edges = np.unique(np.sort(edges, axis=1), axis=0)
+        length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+        short = length < min_len
+        rep.removed_short = int(short.sum())
+        edges = edges[~short]
+    # dangling struts: degree-1 nodes that are not on the surface, repeatedly
+    alive = np.ones(len(edges), dtype=bool)
+    while True:
+        deg = np.bincount(edges[alive].ravel(), minlength=n)
+        leaf = (deg == 1) & ~on_surface
+        drop = alive & (leaf[edges[:, 0]] | leaf[edges[:, 1]])
+        if not drop.any():
+            break
+        rep.removed_dangling += int(drop.sum())
+        alive &= ~drop
+    edges = edges[alive]
+    if boundary and len(edges):
+        # fragments: connected pieces without any interior node
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+        _, lab = connected_components(g, directed=False)
+        used = np.zeros(n, dtype=bool)
+        used[edges.ravel()] = True
+        has_interior = np.zeros(lab.max() + 1, dtype=bool)
+        has_interior[lab[used & ~on_surface]] = True
+        ok = has_interior[lab[edges[:, 0]]]
+        rep.removed_fragments = int((~ok).sum())
+        edges = edges[ok]
+    used = np.zeros(n, dtype=bool)
+    used[edges.ravel()] = True
+    rep.removed_isolated = int((~used).sum())
+    new_id = np.cumsum(used) - 1
+    return nodes[used], new_id[edges].astype(np.int64)
+
+
+def _find(parent: NDArray[np.int64], i: int) -> int:
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = int(parent[i])
+    return i
