@@ -8,8 +8,18 @@
 True
 """
 
+from fast_stitch.check import CheckReport, check
 from fast_stitch.mesh import ExportError, Mesh
 from fast_stitch.stitch import Estimate, estimate, stitch
 from lattice_cad.errors import StitchError
 
-__all__ = ["stitch", "estimate", "Estimate", "Mesh", "StitchError", "ExportError"]
+__all__ = [
+    "stitch",
+    "estimate",
+    "Estimate",
+    "check",
+    "CheckReport",
+    "Mesh",
+    "StitchError",
+    "ExportError",
+]

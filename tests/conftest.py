@@ -71,7 +71,11 @@ def independent_check(mesh, *, self_intersections: bool = True) -> dict:
 
 
 def assert_valid(mesh, *, self_intersections: bool = True) -> None:
-    """Assert the guarantees of fast_stitch with independent checkers."""
+    """Assert the guarantees of fast_stitch with independent checkers, and with ours beside them."""
+    import fast_stitch
+
+    ours = fast_stitch.check(mesh, self_intersections=self_intersections)
+    assert ours.valid, str(ours)
     rep = independent_check(mesh, self_intersections=self_intersections)
     assert rep["watertight"], rep
     assert rep["winding_consistent"], rep
