@@ -1,0 +1,187 @@
+"""Offscreen pictures (PNG) of lattices, meshes and parts.
+
+Rendering uses matplotlib's Agg canvas directly (no pyplot, no display, no
+global backend switch). It stays fast on large inputs by drawing less:
+
+* a :class:`~lattice_cad.LatticeGraph` is drawn as line segments coloured by
+  strut radius (at most ``max_struts`` of them, an evenly spread subset);
+* a triangle mesh is drawn flat-shaded from at most ``max_triangles`` triangles
+  (an evenly spread subset when there are more).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lattice_cad._atomic import atomic_write
+from lattice_cad.graph import LatticeGraph
+
+__all__ = ["render", "render_png", "save_png", "load_for_preview"]
+
+#: Default caps on what is drawn (keeps a 1M-triangle mesh under a few seconds).
+MAX_TRIANGLES = 40_000
+MAX_STRUTS = 60_000
+
+
+def _subset(n: int, k: int) -> NDArray[np.int64]:
+    """Evenly spread indices of ``k`` of ``n`` items (all of them when ``n <= k``)."""
+    if n <= k:
+        return np.arange(n, dtype=np.int64)
+    return np.unique(np.linspace(0, n - 1, k).astype(np.int64))
+
+
+def _axes_limits(ax: Any, lo: NDArray[np.float64], hi: NDArray[np.float64]) -> None:
+    centre = 0.5 * (lo + hi)
+    half = 0.5 * float(max(np.max(hi - lo), 1e-9))
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_zlabel("z (mm)")
+
+
+def _draw_graph(ax: Any, fig: Any, graph: LatticeGraph, max_struts: int) -> str:
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    idx = _subset(graph.num_edges, max_struts)
+    segs = graph.nodes[graph.edges[idx]]
+    r = graph.radii[idx].mean(axis=1)
+    lo, hi = (float(r.min()), float(r.max())) if len(r) else (0.0, 1.0)
+    norm = Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1e-9)
+    cmap = colormaps["viridis"]
+    width = 0.4 + 1.6 * (r - lo) / (hi - lo) if hi > lo else np.full(len(r), 1.0)
+    ax.add_collection3d(Line3DCollection(segs, colors=cmap(norm(r)), linewidths=width))
+    if hi > lo:
+        fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.6, label="radius (mm)")
+    b = graph.bounds
+    _axes_limits(ax, b[0], b[1])
+    shown = "" if len(idx) == graph.num_edges else f" ({len(idx):,} shown)"
+    return f"{graph.num_edges:,} struts{shown}"
+
+
+def _draw_mesh(
+    ax: Any, vertices: NDArray[np.float64], faces: NDArray[np.int64], max_triangles: int
+) -> str:
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    tri = vertices[faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = np.linalg.norm(n, axis=1)
+    if len(faces) > max_triangles:
+        keep = _subset(len(faces), max_triangles)
+        tri, n, area = tri[keep], n[keep], area[keep]
+    unit = n / np.maximum(area, 1e-300)[:, None]
+    light = np.array([0.4, -0.5, 0.75])
+    light /= np.linalg.norm(light)
+    shade = 0.35 + 0.65 * np.clip(unit @ light, 0.0, 1.0)
+    base = np.array([0.30, 0.55, 0.85])
+    colors = np.clip(shade[:, None] * base[None, :], 0, 1)
+    ax.add_collection3d(Poly3DCollection(tri, facecolors=colors, edgecolors="none"))
+    _axes_limits(ax, vertices.min(axis=0), vertices.max(axis=0))
+    shown = "" if len(tri) == len(faces) else f" ({len(tri):,} shown)"
+    return f"{len(faces):,} triangles{shown}"
+
+
+def load_for_preview(path: str | os.PathLike[str]) -> Any:
+    """What ``lattice-cad preview`` draws for a file: a graph or ``(vertices, faces)``.
+
+    ``.json``/``.npz`` are graphs; ``.step``/``.stp`` parts are tessellated
+    (``conformal.load_part``); other suffixes are read as meshes.
+    """
+    p = Path(path)
+    s = p.suffix.lower()
+    if s in (".json", ".npz"):
+        return LatticeGraph.load(p)
+    if s in (".step", ".stp"):
+        from conformal.part import load_part
+
+        part = load_part(p)
+        return (np.asarray(part.vertices), np.asarray(part.faces))
+    from lattice_cad.export import read_mesh
+
+    return read_mesh(p)
+
+
+def render_png(
+    obj: Any,
+    *,
+    size: tuple[int, int] = (900, 700),
+    view: tuple[float, float] = (25.0, -60.0),
+    title: str | None = None,
+    max_triangles: int = MAX_TRIANGLES,
+    max_struts: int = MAX_STRUTS,
+) -> bytes:
+    """A PNG picture of ``obj`` as bytes.
+
+    Parameters
+    ----------
+    obj : LatticeGraph, Lattice, mesh-like, conformal.Part or path
+        A ``Lattice`` is drawn as its graph; a path is read with :func:`load_for_preview`.
+    size : (int, int)
+        Width and height in pixels.
+    view : (float, float)
+        Elevation and azimuth of the camera (degrees).
+    title : str, optional
+        Defaults to a count of what is drawn.
+    max_triangles, max_struts : int
+        Caps on what is drawn.
+
+    Returns
+    -------
+    bytes
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    if isinstance(obj, (str, os.PathLike)):
+        obj = load_for_preview(obj)
+    if hasattr(obj, "graph") and isinstance(obj.graph, LatticeGraph):
+        obj = obj.graph
+    dpi = 100
+    fig = Figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="3d")
+    ax.view_init(elev=view[0], azim=view[1])
+    if isinstance(obj, LatticeGraph):
+        if obj.num_edges == 0:
+            raise ValueError("cannot draw an empty graph (no struts)")
+        what = _draw_graph(ax, fig, obj, max_struts)
+    else:
+        from lattice_cad.skin import _mesh_arrays
+
+        arrays = _mesh_arrays(obj)
+        if arrays is None:
+            raise TypeError(f"cannot draw a {type(obj).__name__}")
+        v, f = arrays
+        if len(f) == 0:
+            raise ValueError("cannot draw an empty mesh (no triangles)")
+        what = _draw_mesh(ax, v, f, max_triangles)
+    ax.set_title(title if title is not None else what)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def save_png(obj: Any, path: str | os.PathLike[str], **options: Any) -> Path:
+    """Render ``obj`` (see :func:`render_png`) to a PNG file, atomically."""
+    p = Path(path)
+    if p.suffix.lower() != ".png":
+        raise ValueError(f"preview pictures are PNG files; got {p.name!r}")
+    data = render_png(obj, **options)
+    with atomic_write(p, "wb") as fh:
+        fh.write(data)
+    return p
+
+
+render = save_png
