@@ -40,7 +40,7 @@ __all__ = [
     "FitError",
 ]
 
-RadiusSpec = Union[float, ArrayLike, Callable[[NDArray[np.float64]], ArrayLike]]
+RadiusSpec = Union[float, ArrayLike, Callable[[NDArray[np.float64]], ArrayLike]]  # noqa: UP007
 
 #: Fraction of its length every strut keeps as open cylinder after :func:`fit_radii`.
 FIT_SLACK = 0.05
