@@ -38,21 +38,16 @@ def _gl_frustum(za, zb, pa, pb):  # pragma: no cover - numba
     zm = 0.5 * (za + zb)
     pm = 0.5 * (pa + pb)
     dp = 0.5 * (pb - pa)
-    v = 0.0
-    m = 0.0
-    j = 0.0
-    for k in range(3):
-        if k == 0:
-            u, w = -_GX, _GW0
-        elif k == 1:
-            u, w = 0.0, _GW1
-        else:
-            u, w = _GX, _GW0
-        z = zm + u * h
-        p2 = (pm + u * dp) ** 2
-        v += w * p2
-        m += w * p2 * z
-        j += w * (p2 * z * z + 0.5 * p2 * p2)
+    zl = zm - _GX * h
+    zh = zm + _GX * h
+    ql = (pm - _GX * dp) ** 2
+    qm = pm * pm
+    qh = (pm + _GX * dp) ** 2
+    v = _GW0 * (ql + qh) + _GW1 * qm
+    m = _GW0 * (ql * zl + qh * zh) + _GW1 * qm * zm
+    j = _GW0 * (ql * (zl * zl + 0.5 * ql) + qh * (zh * zh + 0.5 * qh)) + _GW1 * qm * (
+        zm * zm + 0.5 * qm
+    )
     f = _PI * h
     return f * v, f * m, f * j
 
@@ -62,21 +57,16 @@ def _gl_cap(c, r, za, zb):  # pragma: no cover - numba
     """Same for the slab za <= z <= zb of the ball of centre z=c and radius r."""
     h = 0.5 * (zb - za)
     zm = 0.5 * (za + zb)
-    v = 0.0
-    m = 0.0
-    j = 0.0
-    for k in range(3):
-        if k == 0:
-            u, w = -_GX, _GW0
-        elif k == 1:
-            u, w = 0.0, _GW1
-        else:
-            u, w = _GX, _GW0
-        z = zm + u * h
-        p2 = r * r - (z - c) * (z - c)
-        v += w * p2
-        m += w * p2 * z
-        j += w * (p2 * z * z + 0.5 * p2 * p2)
+    zl = zm - _GX * h
+    zh = zm + _GX * h
+    ql = r * r - (zl - c) * (zl - c)
+    qm = r * r - (zm - c) * (zm - c)
+    qh = r * r - (zh - c) * (zh - c)
+    v = _GW0 * (ql + qh) + _GW1 * qm
+    m = _GW0 * (ql * zl + qh * zh) + _GW1 * qm * zm
+    j = _GW0 * (ql * (zl * zl + 0.5 * ql) + qh * (zh * zh + 0.5 * qh)) + _GW1 * qm * (
+        zm * zm + 0.5 * qm
+    )
     f = _PI * h
     return f * v, f * m, f * j
 
@@ -95,7 +85,7 @@ def connector_local(L, r1, r2):  # pragma: no cover - numba
     v2, m2, j2 = _gl_cap(L, r2, L - r2, z2)
     h1 = r1 * (1.0 - sb)
     h2 = r2 * (1.0 + sb)
-    slant = math.sqrt((z2 - z1) ** 2 + (p2 - p1) ** 2)
+    slant = L * cb  # length of the common tangent between the tangent circles
     area = _PI * (p1 + p2) * slant - 2.0 * _PI * (r1 * h1 + r2 * h2)
     return vf - v1 - v2, area, mf - m1 - m2, jf - j1 - j2
 
@@ -106,6 +96,18 @@ def _xform(s, R, t, x0, x1, x2):  # pragma: no cover - numba
     y1 = s * (R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2) + t[1]
     y2 = s * (R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2) + t[2]
     return y0, y1, y2
+
+
+@numba.njit(cache=True, inline="always")
+def _compose(s1, r1, t1, s2, r2, t2):  # pragma: no cover - numba
+    """(s1, r1, t1) after (s2, r2, t2) as (scale, (3, 3), (3,))."""
+    r = np.empty((3, 3))
+    t = np.empty(3)
+    for a in range(3):
+        for b in range(3):
+            r[a, b] = r1[a, 0] * r2[0, b] + r1[a, 1] * r2[1, b] + r1[a, 2] * r2[2, b]
+        t[a] = s1 * (r1[a, 0] * t2[0] + r1[a, 1] * t2[1] + r1[a, 2] * t2[2]) + t1[a]
+    return s1 * s2, r, t
 
 
 @numba.njit(cache=True, parallel=True)
@@ -151,11 +153,13 @@ def family_moments(
     ref : (3,) float64
         Reference point of the first and second moments.
     out : (rows, 1 + P, 6) float64, rows = (k1 - k0) * nj
-        Zeroed on entry; row ``(k - k0) * nj + j`` gets the sums of that row.
+        Zeroed on entry; row ``(k - k0) * nj + j`` gets the sums of that row:
+        volume, area, first moment about ``ref`` (3), second moment about ``ref``.
     err : (rows, 4) int64
-        Zeroed to -1 on entry; gets ``(rack, i, j, k)`` of the first beam whose
-        balls overlap (``L <= r1 + r2``) in the row.
+        -1 on entry; gets ``(rack, i, j, k)`` of the first beam whose balls
+        overlap (``L <= r1 + r2``) in the row.
     """
+    ni = pts.shape[0]
     nb = pts.shape[1]
     nj = vsc.shape[0]
     npk = racks.shape[0]
@@ -165,21 +169,44 @@ def family_moments(
         j = row - (row // nj) * nj
         kw = k + koff
         o = out[row]
+        # start-cluster transform W^k V^j and the row's ball centres
+        sm, rm, tm = _compose(wsc[kw], wrot[kw], wtr[kw], vsc[j], vrot[j], vtr[j])
+        buf = np.empty((ni, nb, 3))
+        for i in range(ni):
+            for b in range(nb):
+                p0 = pts[i, b, 0]
+                p1 = pts[i, b, 1]
+                p2 = pts[i, b, 2]
+                for c in range(3):
+                    buf[i, b, c] = (
+                        sm * (rm[c, 0] * p0 + rm[c, 1] * p1 + rm[c, 2] * p2) + tm[c] - ref[c]
+                    )
         if lo[0, 1] <= j < hi[0, 1] and lo[0, 2] <= k < hi[0, 2]:
+            sv = 0.0
+            sa = 0.0
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            sj = 0.0
             for i in range(lo[0, 0], hi[0, 0]):
                 for b in range(nb):
-                    p = pts[i, b]
-                    y0, y1, y2 = _xform(vsc[j], vrot[j], vtr[j], p[0], p[1], p[2])
-                    x0, x1, x2 = _xform(wsc[kw], wrot[kw], wtr[kw], y0, y1, y2)
-                    r = wsc[kw] * vsc[j] * usc[i] * radii[b]
+                    r = sm * usc[i] * radii[b]
                     v = 4.0 / 3.0 * _PI * r * r * r
-                    d0, d1, d2 = x0 - ref[0], x1 - ref[1], x2 - ref[2]
-                    o[0, 0] += v
-                    o[0, 1] += 4.0 * _PI * r * r
-                    o[0, 2] += v * d0
-                    o[0, 3] += v * d1
-                    o[0, 4] += v * d2
-                    o[0, 5] += v * (0.6 * r * r + d0 * d0 + d1 * d1 + d2 * d2)
+                    d0 = buf[i, b, 0]
+                    d1 = buf[i, b, 1]
+                    d2 = buf[i, b, 2]
+                    sv += v
+                    sa += 4.0 * _PI * r * r
+                    s0 += v * d0
+                    s1 += v * d1
+                    s2 += v * d2
+                    sj += v * (0.6 * r * r + d0 * d0 + d1 * d1 + d2 * d2)
+            o[0, 0] += sv
+            o[0, 1] += sa
+            o[0, 2] += s0
+            o[0, 3] += s1
+            o[0, 4] += s2
+            o[0, 5] += sj
         for q in range(npk):
             f = q + 1
             if not (lo[f, 1] <= j < hi[f, 1] and lo[f, 2] <= k < hi[f, 2]):
@@ -187,20 +214,35 @@ def family_moments(
             bs = racks[q, 0]
             be = racks[q, 1]
             di = racks[q, 2]
-            dj = racks[q, 3]
+            jj = j + racks[q, 3]
             ke = kw + racks[q, 4]
-            jj = j + dj
-            acc = o[f]
+            se, re, te = _compose(wsc[ke], wrot[ke], wtr[ke], vsc[jj], vrot[jj], vtr[jj])
+            for c in range(3):
+                te[c] -= ref[c]
+            r00, r01, r02 = re[0, 0], re[0, 1], re[0, 2]
+            r10, r11, r12 = re[1, 0], re[1, 1], re[1, 2]
+            r20, r21, r22 = re[2, 0], re[2, 1], re[2, 2]
+            t0, t1, t2 = te[0], te[1], te[2]
+            rs0 = sm * radii[bs]
+            re0 = se * radii[be]
+            sv = 0.0
+            sa = 0.0
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            sj = 0.0
             for i in range(lo[f, 0], hi[f, 0]):
-                p = pts[i, bs]
-                y0, y1, y2 = _xform(vsc[j], vrot[j], vtr[j], p[0], p[1], p[2])
-                a0, a1, a2 = _xform(wsc[kw], wrot[kw], wtr[kw], y0, y1, y2)
-                p = pts[i + di, be]
-                y0, y1, y2 = _xform(vsc[jj], vrot[jj], vtr[jj], p[0], p[1], p[2])
-                b0, b1, b2 = _xform(wsc[ke], wrot[ke], wtr[ke], y0, y1, y2)
-                r1 = wsc[kw] * vsc[j] * usc[i] * radii[bs]
-                r2 = wsc[ke] * vsc[jj] * usc[i + di] * radii[be]
-                e0, e1, e2 = b0 - a0, b1 - a1, b2 - a2
+                d0 = buf[i, bs, 0]
+                d1 = buf[i, bs, 1]
+                d2 = buf[i, bs, 2]
+                p0 = pts[i + di, be, 0]
+                p1 = pts[i + di, be, 1]
+                p2 = pts[i + di, be, 2]
+                e0 = se * (r00 * p0 + r01 * p1 + r02 * p2) + t0 - d0
+                e1 = se * (r10 * p0 + r11 * p1 + r12 * p2) + t1 - d1
+                e2 = se * (r20 * p0 + r21 * p1 + r22 * p2) + t2 - d2
+                r1 = rs0 * usc[i]
+                r2 = re0 * usc[i + di]
                 L = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
                 if not L > r1 + r2:
                     if err[row, 0] < 0:
@@ -210,21 +252,23 @@ def family_moments(
                         err[row, 3] = k
                     continue
                 v, a, mz, jl = connector_local(L, r1, r2)
-                inv = 1.0 / L
-                e0 *= inv
-                e1 *= inv
-                e2 *= inv
-                d0, d1, d2 = a0 - ref[0], a1 - ref[1], a2 - ref[2]
-                acc[0] += v
-                acc[1] += a
-                acc[2] += mz * e0 + v * d0
-                acc[3] += mz * e1 + v * d1
-                acc[4] += mz * e2 + v * d2
-                acc[5] += (
+                mz /= L
+                sv += v
+                sa += a
+                s0 += mz * e0 + v * d0
+                s1 += mz * e1 + v * d1
+                s2 += mz * e2 + v * d2
+                sj += (
                     jl
                     + 2.0 * mz * (e0 * d0 + e1 * d1 + e2 * d2)
                     + v * (d0 * d0 + d1 * d1 + d2 * d2)
                 )
+            o[f, 0] += sv
+            o[f, 1] += sa
+            o[f, 2] += s0
+            o[f, 3] += s1
+            o[f, 4] += s2
+            o[f, 5] += sj
     return 0
 
 

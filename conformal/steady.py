@@ -73,6 +73,7 @@ import math
 from collections.abc import Sequence
 from typing import Any, Literal
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -398,10 +399,15 @@ class SteadyLattice:
         ws, wr, wt = powers(self.w, range(kmin, kmax))
         racks = np.ascontiguousarray(self.racks, dtype=np.int64).reshape(-1, 5)
         out, err = _k.empty_outputs((k1 - k0) * nj, 1 + len(racks))
-        _k.family_moments(
-            np.ascontiguousarray(pts), us, np.ascontiguousarray(self.radii), vs, vr, vt,
-            ws, wr, wt, -kmin, racks, lo, hi, ref, k0, k1, out, err,
-        )  # fmt: skip
+        # dynamic scheduling of rows: robust to busy cores
+        chunk = numba.set_parallel_chunksize(4)
+        try:
+            _k.family_moments(
+                np.ascontiguousarray(pts), us, np.ascontiguousarray(self.radii), vs, vr, vt,
+                ws, wr, wt, -kmin, racks, lo, hi, ref, k0, k1, out, err,
+            )  # fmt: skip
+        finally:
+            numba.set_parallel_chunksize(chunk)
         bad = np.flatnonzero(err[:, 0] >= 0)
         if len(bad):
             q, i, j, k = (int(x) for x in err[bad[0]])
