@@ -25,7 +25,12 @@ from OCP.BRepTools import BRepTools
 from OCP.GProp import GProp_GProps
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Interface import Interface_Static
-from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
+from OCP.STEPControl import (
+    STEPControl_AsIs,
+    STEPControl_Controller,
+    STEPControl_Reader,
+    STEPControl_Writer,
+)
 from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
@@ -61,8 +66,11 @@ def read_step(path: str | os.PathLike[str]) -> TopoDS_Shape | None:
 
 
 def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "MM") -> None:
-    """Write ``shape`` (in mm) to a STEP file declaring ``unit`` (e.g. ``"IN"``)."""
-    Interface_Static.SetCVal_s("write.step.unit", unit)
+    """Write ``shape`` (in mm) to a STEP file declaring ``unit`` ("MM", "INCH", "M", ...)."""
+    STEPControl_Controller.Init_s()
+    unit = {"IN": "INCH"}.get(unit.upper(), unit.upper())
+    if not Interface_Static.SetCVal_s("write.step.unit", unit):
+        raise ValueError(f"OCCT does not know the STEP unit {unit!r}")
     try:
         writer = STEPControl_Writer()
         writer.Transfer(shape, STEPControl_AsIs)

@@ -175,6 +175,7 @@ def voxel_lattice(
     origin: ArrayLike | None = None,
     rotation: ArrayLike | None = None,
     min_strut: float = 0.1,
+    prune: bool = True,
     min_radius: float | None = None,
     fit: FitMode = "shrink",
     return_report: bool = False,
@@ -203,6 +204,10 @@ def voxel_lattice(
     min_strut : float
         Struts shorter than this fraction of the smallest cell size are
         removed after clipping/conforming.
+    prune : bool
+        Remove dangling struts (ending at a degree-1 node inside the part) and
+        isolated nodes. With ``prune=False`` and ``fill="inside"`` the graph is
+        exactly :func:`conformal.cells.tile` of the inside cells.
     min_radius : float, optional
         ``fit="shrink"`` never thins a strut below this (default: a tenth of
         the smallest requested radius).
@@ -261,7 +266,8 @@ def voxel_lattice(
     elif fill == "conform":
         nodes, edges, on_surface = _conform(local, nodes, edges, rep)
     min_len = float(min_strut) * float(h.min())
-    nodes, edges = _cleanup(nodes, edges, on_surface, min_len, fill != "inside", rep)
+    if prune or fill != "inside":
+        nodes, edges = _cleanup(nodes, edges, on_surface, min_len, fill != "inside", prune, rep)
     rep.seconds["clip"] = time.perf_counter() - t0
     if not len(edges):
         raise ValueError(f"no strut of the lattice is left inside {part.name}; use smaller cells")
@@ -416,6 +422,7 @@ def _cleanup(
     on_surface: NDArray[np.bool_],
     min_len: float,
     boundary: bool,
+    prune: bool,
     rep: BuildReport,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     n = len(nodes)
@@ -450,7 +457,7 @@ def _cleanup(
         edges = edges[~short]
     # dangling struts: degree-1 nodes that are not on the surface, repeatedly
     alive = np.ones(len(edges), dtype=bool)
-    while True:
+    while prune:
         deg = np.bincount(edges[alive].ravel(), minlength=n)
         leaf = (deg == 1) & ~on_surface
         drop = alive & (leaf[edges[:, 0]] | leaf[edges[:, 1]])

@@ -1,0 +1,231 @@
+"""conformal.load_part / Part: file formats, bad inputs, units, inside and distance queries."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conformal.part import Part, PartError, load_part
+from lattice_cad.errors import LatticeError, LatticeWarning
+
+DATA = Path(__file__).parents[2] / "shared" / "data"
+needs_data = pytest.mark.skipif(not DATA.exists(), reason="shared/data not available")
+
+
+@pytest.fixture(scope="module")
+def sphere() -> Part:
+    import cadquery as cq
+
+    return load_part(cq.Workplane().sphere(10.0))
+
+
+@pytest.fixture(scope="module")
+def box() -> Part:
+    import cadquery as cq
+
+    return load_part(cq.Workplane().box(10.0, 20.0, 30.0, centered=False))
+
+
+def test_parterror_is_valueerror_and_latticeerror():
+    assert issubclass(PartError, ValueError) and issubclass(PartError, LatticeError)
+
+
+# ------------------------------------------------------------ bad inputs
+BROKEN = {
+    "pythonocc_splinecage_surfaces_only.stp": r"no closed solid, only 4 open shell",
+    "trimesh_teapot_open.stl": r"not a closed solid: \d+ open",
+    "newell_teapot_open.obj": r"not a closed solid: \d+ open",
+    "cube_no_bottom.obj": r"not a closed solid: 8 open",
+    "plane_holes.obj": r"not a closed solid: \d+ open",
+    "stanford-bunny_original_with_holes.obj": r"not a closed solid: \d+ open",
+    "trimesh_wallhole_open.obj": r"non-manifold edge",
+    "trimesh_shared_nonmanifold_edge.STL": r"1 non-manifold edge",
+    "trimesh_soup.stl": r"not a closed solid: 300 open",
+    "trimesh_stl_empty_ascii.stl": r"no triangles",
+    "trimesh_stl_empty_bin.stl": r"no triangles",
+}
+
+
+@needs_data
+@pytest.mark.parametrize("name", sorted(BROKEN))
+def test_broken_files_raise_clear_error(name):
+    path = DATA / "broken" / name
+    with pytest.raises(PartError, match=BROKEN[name]) as info:
+        load_part(path)
+    assert name in str(info.value)
+
+
+@needs_data
+def test_overlapping_solids_are_united_with_warning():
+    path = DATA / "broken" / "kcl_food-service-spatula_overlapping_solids.step"
+    with pytest.warns(LatticeWarning, match=r"3 solids were united .*overlapping by 9000"):
+        part = load_part(path)
+    assert part.volume > 0
+    assert Part.__name__ in repr(type(part))
+
+
+@needs_data
+def test_flipped_body_is_reoriented_with_warning():
+    path = DATA / "broken" / "trimesh_multibody_flipped_body.stl"
+    with pytest.warns(LatticeWarning) as rec:
+        part = load_part(path)
+    msgs = " | ".join(str(w.message) for w in rec)
+    assert "re-oriented outward" in msgs and "2 bodies were united" in msgs
+    assert part.volume > 0
+    # both bodies count as inside
+    assert part.contains(part.vertices.mean(axis=0, keepdims=True)).dtype == bool
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(FileNotFoundError, match="not found"):
+        load_part(tmp_path / "nope.step")
+
+
+@pytest.mark.parametrize("suffix", [".step", ".stl"])
+def test_empty_and_garbage_files(tmp_path, suffix):
+    empty = tmp_path / f"empty{suffix}"
+    empty.write_bytes(b"")
+    with pytest.raises(PartError, match="empty"):
+        load_part(empty)
+
+
+def test_garbage_step(tmp_path):
+    bad = tmp_path / "bad.step"
+    bad.write_text("this is not a STEP file\n")
+    with pytest.raises(PartError, match="bad.step"):
+        load_part(bad)
+
+
+def test_unsupported_suffix(tmp_path):
+    f = tmp_path / "x.iges"
+    f.write_text("x")
+    with pytest.raises(PartError, match="unsupported file type"):
+        load_part(f)
+
+
+def test_bad_source_type():
+    with pytest.raises(TypeError):
+        load_part(42)
+
+
+# ----------------------------------------------------------------- units
+def test_step_in_inches_comes_out_in_mm(tmp_path):
+    import cadquery as cq
+
+    from conformal import _occ
+
+    shape = cq.Workplane().box(25.4, 50.8, 12.7, centered=False).val().wrapped
+    path = tmp_path / "inch.step"
+    _occ.write_step(shape, path, unit="IN")
+    text = path.read_text(errors="ignore").upper()
+    assert "INCH" in text
+    part = load_part(path)
+    np.testing.assert_allclose(part.size, [25.4, 50.8, 12.7], rtol=1e-6)
+    np.testing.assert_allclose(part.volume, 25.4 * 50.8 * 12.7, rtol=1e-6)
+
+
+@needs_data
+def test_inch_step_file_from_the_wild():
+    part = load_part(DATA / "step" / "trimesh_featuretype.STEP")
+    # a 5 x 2.5 x 1.375 inch block
+    np.testing.assert_allclose(part.size, [127.0, 63.5, 34.925], atol=0.02)
+
+
+@needs_data
+def test_mesh_units_override():
+    path = DATA / "meshes" / "bunny_closed_odedstein.obj"
+    a = load_part(path)
+    b = load_part(path, units="cm")
+    np.testing.assert_allclose(b.size, 10 * a.size)
+    with pytest.raises(ValueError, match="unknown unit"):
+        load_part(path, units="furlong")
+    with pytest.raises(ValueError, match="STEP files declare"):
+        load_part(DATA / "step" / "kcl_bracket.step", units="mm")
+
+
+# ------------------------------------------------------------ in memory
+def test_cadquery_and_build123d_shapes(box):
+    import build123d as bd
+    import cadquery as cq
+
+    np.testing.assert_allclose(box.size, [10, 20, 30], atol=1e-9)
+    np.testing.assert_allclose(box.volume, 6000.0, rtol=1e-9)
+    p = load_part(cq.Workplane().box(4, 5, 6).val())
+    np.testing.assert_allclose(p.volume, 120.0, rtol=1e-9)
+    q = load_part(bd.Box(4, 5, 6))
+    np.testing.assert_allclose(q.volume, 120.0, rtol=1e-9)
+
+
+def test_two_solids_in_memory_united(recwarn):
+    import cadquery as cq
+
+    wp = cq.Workplane().box(2, 2, 2).add(cq.Workplane().box(2, 2, 2).translate((1, 0, 0)))
+    with pytest.warns(LatticeWarning, match="2 solids were united.*overlapping by 4"):
+        p = load_part(wp)
+    np.testing.assert_allclose(p.volume, 12.0, rtol=1e-6)
+
+
+# -------------------------------------------------------------- queries
+def test_contains_box_exact(box, rng):
+    pts = rng.uniform(-5, 35, size=(20000, 3))
+    inside = (pts > 0).all(axis=1) & (pts < [10, 20, 30]).all(axis=1)
+    np.testing.assert_array_equal(box.contains(pts), inside)
+
+
+def test_contains_on_vertices_and_edges_of_grid(box):
+    # grid points through mesh vertices and edges: simulation of simplicity counts once
+    g = np.stack(np.meshgrid(*[np.linspace(-1, 31, 33)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    off = g + [0.0, 0.0, 0.5]  # z off the faces; x/y on the diagonals of the top/bottom faces
+    on_side = np.isin(off[:, 0], [0.0, 10.0]) | np.isin(off[:, 1], [0.0, 20.0])
+    off = off[~on_side]
+    assert np.any(np.isclose(off[:, 1], 2 * off[:, 0]))  # rays through mesh edges
+    inside = (off > 0).all(axis=1) & (off < [10, 20, 30]).all(axis=1)
+    np.testing.assert_array_equal(box.contains(off), inside)
+
+
+def test_sphere_contains_and_distance(sphere, rng):
+    pts = rng.uniform(-12, 12, size=(20000, 3))
+    r = np.linalg.norm(pts, axis=1)
+    tol = sphere.deflection * 1.01
+    far = np.abs(r - 10) > tol
+    np.testing.assert_array_equal(sphere.contains(pts)[far], (r < 10)[far])
+    d = sphere.distance(pts)
+    assert np.all(np.abs(d - np.abs(r - 10)) <= tol)
+    sd = sphere.signed_distance(pts[far])
+    assert np.all(np.sign(sd) == np.sign(r[far] - 10))
+
+
+def test_distance_matches_brute_force(box, rng):
+    import trimesh
+
+    pts = rng.uniform(-3, 33, size=(300, 3))
+    d, cp = box.closest(pts)
+    tm = trimesh.Trimesh(box.vertices, box.faces, process=False)
+    _, ref, _ = trimesh.proximity.closest_point(tm, pts)
+    np.testing.assert_allclose(d, ref, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(cp - pts, axis=1), d, atol=1e-9)
+
+
+def test_grid_contains_matches_points(sphere):
+    origin = np.array([-11.3, -10.7, -12.1])
+    step = np.array([0.9, 1.1, 0.7])
+    dims = np.array([25, 21, 35])
+    grid = sphere.grid_contains(origin, step, dims)
+    idx = np.indices(dims).reshape(3, -1).T
+    pts = origin + idx * step
+    np.testing.assert_array_equal(grid.reshape(-1), sphere.contains(pts))
+
+
+@needs_data
+def test_real_mesh_contains_agrees_with_trimesh(rng):
+    import trimesh
+
+    part = load_part(DATA / "meshes" / "bunny_closed_odedstein.obj")
+    b = part.bounds
+    pts = rng.uniform(b[0], b[1], size=(3000, 3))
+    tm = trimesh.Trimesh(part.vertices, part.faces, process=False)
+    d = part.distance(pts)
+    ok = d > 1e-6
+    np.testing.assert_array_equal(part.contains(pts)[ok], tm.contains(pts)[ok])
