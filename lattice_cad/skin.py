@@ -28,6 +28,8 @@ __all__ = ["SkinError", "as_manifold", "inset", "hollow", "add_skin", "MAX_VOXEL
 
 #: Upper bound on the number of voxels of the distance grid (memory ~ 20 bytes/voxel).
 MAX_VOXELS = 8_000_000
+#: Edges shorter than this (mm) are collapsed after the booleans (no float32 slivers in STL).
+SLIVER = 1e-4
 #: Voxels per wall thickness, when the budget allows.
 VOXELS_PER_THICKNESS = 3.0
 
@@ -431,8 +433,9 @@ def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None =
     man = as_manifold(part)
     skin = hollow(man, thickness, voxel=voxel)
     lat = as_manifold(lattice, name="lattice mesh")
-    out = skin + (lat ^ man)
-    pieces = len(out.decompose())
+    out = (skin + (lat ^ man)).simplify(SLIVER)
+    # negative-volume shells are the walls of the (lattice-filled) cavity, not bodies
+    pieces = sum(1 for p in out.decompose() if p.volume() > 0)
     if pieces > 1:
         import warnings
 
