@@ -1,0 +1,165 @@
+"""conformal.voxel_lattice: cell counts, fill modes, radii, fit check, stitching."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fast_stitch
+from conformal.cells import CELLS, block, cell_counts
+from conformal.part import Part, load_part
+from conformal.radius import FitError, check_fit, graded_by_distance
+from conformal.voxel import voxel_lattice, voxelize
+from lattice_cad import LatticeGraph
+from lattice_cad.errors import LatticeWarning
+from tests.conftest import assert_valid
+
+
+@pytest.fixture(scope="module")
+def cube() -> Part:
+    import cadquery as cq
+
+    return load_part(cq.Workplane().box(10.2, 10.2, 10.2, centered=False))
+
+
+@pytest.fixture(scope="module")
+def sphere() -> Part:
+    import cadquery as cq
+
+    return load_part(cq.Workplane().sphere(10.0))
+
+
+@pytest.mark.parametrize("name", sorted(CELLS))
+def test_inside_block_matches_closed_form(cube, name):
+    g = voxel_lattice(
+        cube, name, 2.5, 0.05, fill="inside", origin=(0.1, 0.1, 0.1), prune=False, fit="off"
+    )
+    n_nodes, n_edges = cell_counts(name, 4)
+    assert (g.num_nodes, g.num_edges) == (n_nodes, n_edges)
+    ref = block(name, 4, cell_size=2.5, origin=(0.1, 0.1, 0.1), radius=0.05)
+    np.testing.assert_array_equal(g.edges, ref.edges)
+    np.testing.assert_allclose(g.nodes, ref.nodes, rtol=0, atol=1e-12)
+    key = np.sort(g.edges, axis=1)
+    assert len(np.unique(key, axis=0)) == g.num_edges
+    assert cube.contains(g.nodes).all()
+
+
+@pytest.mark.parametrize("name", sorted(CELLS))
+def test_every_cell_inside_sphere_nodes_inside(sphere, name):
+    g = voxel_lattice(sphere, name, 4.0, 0.1, fill="inside")
+    assert g.num_edges > 0
+    assert sphere.contains(g.nodes).all()
+    assert (g.degree != 1).all()  # no dangling struts
+
+
+def test_non_cubic_cells(cube):
+    g = voxel_lattice(
+        cube, "cubic", (2.5, 5.0, 10.0), 0.05, origin=(0.1, 0.1, 0.1), prune=False, fit="off"
+    )
+    # 4 x 2 x 1 cells
+    assert g.num_nodes == 5 * 3 * 2
+    np.testing.assert_allclose(np.unique(g.nodes[:, 1]), [0.1, 5.1, 10.1])
+
+
+def test_clip_nodes_on_surface(sphere):
+    g, rep = voxel_lattice(sphere, "bcc", 4.0, 0.2, fill="clip", return_report=True)
+    d = sphere.distance(g.nodes)
+    inside = sphere.contains(g.nodes)
+    assert np.all(inside | (d < 1e-9 * sphere.diagonal))
+    leaves = g.degree == 1
+    assert leaves.any()
+    assert np.all(d[leaves] < 1e-9 * sphere.diagonal)  # every strut end that is a leaf is on it
+    assert rep.clipped_struts > 0 and rep.removed_outside > 0
+
+
+def test_conform_keeps_interior_cells(sphere):
+    inner = voxel_lattice(sphere, "bcc", 4.0, 0.2, fill="inside", prune=False, fit="off")
+    with pytest.warns(LatticeWarning, match="thinned"):
+        g, rep = voxel_lattice(sphere, "bcc", 4.0, 0.2, fill="conform", return_report=True)
+    assert rep.moved_nodes > 0
+    # every node and strut of the inside cells is there, at exactly the same place
+    pos = {tuple(p) for p in g.nodes.tolist()}
+    assert all(tuple(p) in pos for p in inner.nodes.tolist())
+    index = {tuple(p): i for i, p in enumerate(g.nodes.tolist())}
+    have = {tuple(sorted(e)) for e in g.edges.tolist()}
+    for a, b in inner.edges.tolist():
+        ia, ib = index[tuple(inner.nodes[a])], index[tuple(inner.nodes[b])]
+        assert tuple(sorted((ia, ib))) in have
+    # moved nodes are on the surface
+    moved = ~sphere.contains(g.nodes) | (sphere.distance(g.nodes) < 1e-9)
+    assert np.all(sphere.distance(g.nodes[moved]) < 1e-6)
+
+
+@pytest.mark.parametrize("fill", ["inside", "clip", "conform"])
+def test_stitches_into_valid_mesh(sphere, fill):
+    g = voxel_lattice(sphere, "box-bcc", 5.0, 0.3, fill=fill)
+    assert check_fit(g) == []
+    assert_valid(fast_stitch.stitch(g))
+
+
+def test_radius_forms(sphere):
+    g = voxel_lattice(sphere, "bcc", 4.0, 0.2)
+    m = g.num_edges
+    g2 = voxel_lattice(sphere, "bcc", 4.0, np.full(m, 0.15))
+    np.testing.assert_allclose(g2.radii, 0.15)
+    taper = np.column_stack([np.full(m, 0.1), np.full(m, 0.2)])
+    g3 = voxel_lattice(sphere, "bcc", 4.0, taper)
+    assert g3.is_tapered
+    g4 = voxel_lattice(sphere, "bcc", 4.0, lambda mid: 0.1 + 0.01 * np.abs(mid[:, 0]))
+    assert g4.radii.max() > g4.radii.min()
+    f = graded_by_distance(sphere, near=0.3, far=0.1, width=8.0)
+    g5 = voxel_lattice(sphere, "bcc", 4.0, f)
+    mid = 0.5 * (g5.nodes[g5.edges[:, 0]] + g5.nodes[g5.edges[:, 1]])
+    d = sphere.distance(mid)
+    expected = 0.1 + 0.2 * np.clip(1.0 - d / 8.0, 0.0, 1.0)
+    np.testing.assert_allclose(g5.radii[:, 0], expected)
+    assert expected.max() > expected.min()
+    assert_valid(fast_stitch.stitch(g5))
+    with pytest.raises(ValueError, match="shape"):
+        voxel_lattice(sphere, "bcc", 4.0, np.ones(3))
+
+
+def test_fit_raise_and_check_fit():
+    nodes = np.array([[0, 0, 0], [1, 0, 0], [1, 0.05, 0]], dtype=float)
+    g = LatticeGraph(nodes, [[0, 1], [0, 2]], 0.03)
+    probs = check_fit(g)
+    assert probs and "strut" in str(probs[0])
+    with pytest.raises(fast_stitch.StitchError):
+        fast_stitch.stitch(g)
+
+
+def test_fit_raise_mode(sphere):
+    with pytest.raises(FitError, match="would not stitch"):
+        voxel_lattice(sphere, "bcc", 4.0, 1.5, fit="raise")
+
+
+def test_rotation(sphere):
+    c, s = np.cos(0.3), np.sin(0.3)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    g = voxel_lattice(sphere, "cubic", 4.0, 0.2, rotation=rot)
+    assert sphere.contains(g.nodes).all()
+    v = g.edge_vectors / g.edge_lengths[:, None]
+    # struts along the rotated axes
+    assert np.allclose(np.abs(v @ rot).max(axis=1), 1.0)
+
+
+def test_voxelize_consistent_with_contains(sphere):
+    vox = voxelize(sphere, 1.7)
+    idx = np.argwhere(vox.inside)
+    centres = vox.origin + (idx + 0.5) * vox.cell_size
+    assert sphere.contains(centres).all()
+    assert (sphere.distance(centres) > 0).all()
+    # a cell that is neither inside nor cut is outside
+    out = np.argwhere(~vox.inside & ~vox.cut)
+    assert not sphere.contains(vox.origin + (out + 0.5) * vox.cell_size).any()
+
+
+def test_bad_arguments(sphere):
+    with pytest.raises(ValueError, match="fill"):
+        voxel_lattice(sphere, fill="outside")
+    with pytest.raises(ValueError, match="unknown cell"):
+        voxel_lattice(sphere, "nope")
+    with pytest.raises(ValueError, match="no cell"):
+        voxel_lattice(sphere, "bcc", 50.0)
+    with pytest.raises(TypeError):
+        voxel_lattice("part.step")
