@@ -2,9 +2,9 @@
 
 >>> from lattice_cad.lattice import Lattice
 >>> from conformal import block
->>> lat = Lattice(block("bcc", 2, cell_size=5.0, radius=0.4))
+>>> lat = Lattice(block("bcc", 1, cell_size=5.0, radius=0.4))
 >>> lat.info()["struts"]
-16
+8
 
 ``Lattice.fill(part, ...)`` takes a build123d Part/Solid, a cadquery
 Workplane/Shape, an OCCT shape, a ``conformal.Part`` or a path (STEP or mesh),
