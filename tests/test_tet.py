@@ -1,0 +1,77 @@
+"""conformal.tet_lattice: tet-mesh graphs with gmsh."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fast_stitch
+from conformal.part import Part, PartError, load_part
+from conformal.radius import check_fit
+from conformal.tet import tet_edges, tet_lattice, tet_mesh
+from lattice_cad.errors import LatticeWarning
+from tests.conftest import assert_valid
+
+DATA = Path(__file__).parents[2] / "shared" / "data"
+
+
+@pytest.fixture(scope="module")
+def cyl() -> Part:
+    import cadquery as cq
+
+    return load_part(cq.Workplane().cylinder(20.0, 8.0))
+
+
+def test_graph_is_unique_edges_of_tets(cyl):
+    nodes, tets = tet_mesh(cyl, 5.0)
+    ref = set()
+    for t in tets.tolist():
+        for i in range(4):
+            for j in range(i + 1, 4):
+                ref.add((min(t[i], t[j]), max(t[i], t[j])))
+    edges = tet_edges(tets)
+    assert {tuple(e) for e in edges.tolist()} == ref and len(edges) == len(ref)
+    g = tet_lattice(cyl, 5.0, 0.1, fit="off")
+    np.testing.assert_array_equal(g.edges, edges)
+    np.testing.assert_array_equal(g.nodes, nodes)
+    # conforms: every node inside or on the surface, and many on it
+    d = cyl.distance(g.nodes)
+    on = (
+        d <= cyl.deflection * 1.01 + 1e-9
+    )  # nodes lie on the exact surface, within the tessellation
+    assert np.all(cyl.contains(g.nodes) | on)
+    assert on.sum() > 0.3 * g.num_nodes
+
+
+def test_tet_stitches(cyl):
+    g = tet_lattice(cyl, 6.0, 0.15)
+    assert check_fit(g) == []
+    assert_valid(fast_stitch.stitch(g))
+
+
+@pytest.mark.skipif(not DATA.exists(), reason="shared/data not available")
+def test_mesh_part_tet():
+    part = load_part(DATA / "meshes" / "bunny_closed_odedstein.obj", units=100)
+    with pytest.warns(LatticeWarning, match="thinned"):
+        g = tet_lattice(part, 20.0, 0.3)
+    assert g.num_edges > 100
+    assert np.all(part.contains(g.nodes) | (part.distance(g.nodes) < 1e-3 * part.diagonal))
+
+
+def test_gmsh_failure_is_parterror(cyl, monkeypatch):
+    import gmsh
+
+    def boom(dim=3):
+        raise Exception("No elements in volume 1")
+
+    monkeypatch.setattr(gmsh.model.mesh, "generate", boom)
+    with pytest.raises(PartError, match=r"gmsh failed to mesh volume\(s\) \[1\]: No elements"):
+        tet_lattice(cyl, 5.0)
+    assert not gmsh.isInitialized()
+
+
+def test_bad_size(cyl):
+    with pytest.raises(ValueError, match="size"):
+        tet_lattice(cyl, -1.0)
