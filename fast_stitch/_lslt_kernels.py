@@ -449,6 +449,24 @@ def node_structure(dirs, rad, P, eps, mitre):
     return verts[:nv].copy(), sec_ptr, sec_ids[:ns].copy(), fan, ST_OK
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _det(vertices, a, b, c, o):
+    ax = vertices[a, 0] - o[0]
+    ay = vertices[a, 1] - o[1]
+    az = vertices[a, 2] - o[2]
+    bx = vertices[b, 0] - o[0]
+    by = vertices[b, 1] - o[1]
+    bz = vertices[b, 2] - o[2]
+    cx = vertices[c, 0] - o[0]
+    cy = vertices[c, 1] - o[1]
+    cz = vertices[c, 2] - o[2]
+    d = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+    na = np.sqrt(ax * ax + ay * ay + az * az)
+    nb = np.sqrt(bx * bx + by * by + bz * bz)
+    nc = np.sqrt(cx * cx + cy * cy + cz * cz)
+    return d / max(na * nb * nc, 1e-300)
+
+
 # -------------------------------------------------------------------- tubes
 @njit(cache=True, error_model="numpy")
 def _unwrap_from_min(ids, vertices, centre, u, v, out_ids, out_az):
@@ -476,9 +494,26 @@ def _unwrap_from_min(ids, vertices, centre, u, v, out_ids, out_az):
         prev = a
 
 
+@njit(cache=True, error_model="numpy")
+def _band_score(vertices, a, b, c, s, nsec, ca, cb, ax, hub_a, hub_b):
+    """Smallest normalised orientation of triangle (a, b, c) seen from the points that
+    the validity check uses: node a for the first band, node b for the last, else the
+    axis point level with the centroid."""
+    best = 1e300
+    if s == 0 and hub_a:
+        best = min(best, _det(vertices, a, b, c, ca))
+    if s == nsec - 2 and hub_b:
+        best = min(best, _det(vertices, a, b, c, cb))
+    if not ((s == 0 and hub_a) or (s == nsec - 2 and hub_b)):
+        cen = (vertices[a] + vertices[b] + vertices[c]) / 3.0
+        h = _dot(cen - ca, ax)
+        best = _det(vertices, a, b, c, ca + h * ax)
+    return best
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def build_tubes(
-    nodes, edges, axis, fu, fv, radii, sec_ptr, sec_ids,
+    nodes, degree, edges, axis, fu, fv, radii, sec_ptr, sec_ids,
     n_inter, inter_cnt_ptr, inter_cnt, inter_vstart, face_start, vertices, faces,
 ):  # fmt: skip
     """Intermediary sections and tube triangles of every strut.
@@ -486,6 +521,7 @@ def build_tubes(
     Parameters
     ----------
     nodes : (N, 3) float64
+    degree : (N,) int64
     edges : (M, 2) int64
     axis, fu, fv : (M, 3) float64
         Unit axis ``nodes[e1] - nodes[e0]`` and a frame ``fu x fv == axis``.
@@ -515,6 +551,8 @@ def build_tubes(
         v = fv[e]
         ca = nodes[a]
         cb = nodes[b]
+        hub_a = degree[a] >= 2
+        hub_b = degree[b] >= 2
         ida = np.empty(na, dtype=np.int64)
         aza = np.empty(na)
         _unwrap_from_min(sec_ids[sec_ptr[2 * e] : sec_ptr[2 * e + 1]], vertices, ca, u, v, ida, aza)
@@ -592,7 +630,18 @@ def build_tubes(
                 nxb = az[pb0 + j + 1] if j + 1 < n1 else az[pb0] + TWO_PI
                 A = ids[pa0 + i % n0]
                 B = ids[pb0 + j % n1]
-                if j >= n1 or (i < n0 and nxa <= nxb):
+                adv_a = j >= n1 or (i < n0 and nxa <= nxb)
+                if i < n0 and j < n1:
+                    # prefer the triangle seen from outside by the nodes / the axis
+                    A1 = ids[pa0 + (i + 1) % n0]
+                    B1 = ids[pb0 + (j + 1) % n1]
+                    sa = _band_score(vertices, A, A1, B, s, nsec, ca, cb, axis[e], hub_a, hub_b)
+                    sb = _band_score(vertices, A, B1, B, s, nsec, ca, cb, axis[e], hub_a, hub_b)
+                    if adv_a and sa <= 1e-9 and sb > sa:
+                        adv_a = False
+                    elif not adv_a and sb <= 1e-9 and sa > sb:
+                        adv_a = True
+                if adv_a:
                     faces[f, 0] = A
                     faces[f, 1] = ids[pa0 + (i + 1) % n0]
                     faces[f, 2] = B
@@ -606,24 +655,6 @@ def build_tubes(
 
 
 # ------------------------------------------------------------------- checks
-@njit(cache=True, inline="always", error_model="numpy")
-def _det(vertices, a, b, c, o):
-    ax = vertices[a, 0] - o[0]
-    ay = vertices[a, 1] - o[1]
-    az = vertices[a, 2] - o[2]
-    bx = vertices[b, 0] - o[0]
-    by = vertices[b, 1] - o[1]
-    bz = vertices[b, 2] - o[2]
-    cx = vertices[c, 0] - o[0]
-    cy = vertices[c, 1] - o[1]
-    cz = vertices[c, 2] - o[2]
-    d = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
-    na = np.sqrt(ax * ax + ay * ay + az * az)
-    nb = np.sqrt(bx * bx + by * by + bz * bz)
-    nc = np.sqrt(cx * cx + cy * cy + cz * cz)
-    return d / max(na * nb * nc, 1e-300)
-
-
 @njit(cache=True, parallel=True, error_model="numpy")
 def check_tubes(
     nodes, edges, axis, offsets, inc_edge, inc_side, sec_ptr, sec_ids, face_start, face_stop,
@@ -648,22 +679,44 @@ def check_tubes(
         bad_node[e] = -1
         bad_other[e] = -1
         bad_kind[e] = 0
+        # (2) orientation: a triangle touching the section at a node of degree >= 2 is
+        # seen from that node; the others (intermediary sections, leaf ends) from the
+        # axis point level with their centroid
+        for f in range(face_start[e], face_stop[e]):
+            judged = False
+            for side in range(2):
+                n = edges[e, side]
+                if offsets[n + 1] - offsets[n] < 2:
+                    continue
+                touch = False
+                for c in range(3):
+                    for i in range(sec_ptr[2 * e + side], sec_ptr[2 * e + side + 1]):
+                        if sec_ids[i] == faces[f, c]:
+                            touch = True
+                            break
+                if touch:
+                    judged = True
+                    if _det(vertices, faces[f, 0], faces[f, 1], faces[f, 2], nodes[n]) <= 1e-12:
+                        bad_node[e] = n
+                        bad_kind[e] = 2
+            if not judged:
+                o = nodes[edges[e, 0]]
+                cen = (vertices[faces[f, 0]] + vertices[faces[f, 1]] + vertices[faces[f, 2]]) / 3.0
+                h = _dot(cen - o, axis[e])
+                if _det(vertices, faces[f, 0], faces[f, 1], faces[f, 2], o + h * axis[e]) <= 1e-12:
+                    bad_node[e] = edges[e, 0]
+                    bad_kind[e] = 2
+            if bad_kind[e] != 0:
+                break
         for side in range(2):
+            if bad_kind[e] != 0:
+                break
             n = edges[e, side]
             o = nodes[n]
             sg = 1.0 if side == 0 else -1.0
             de = sg * axis[e]
             lo_own = sec_ptr[2 * e + side]
             hi_own = sec_ptr[2 * e + side + 1]
-            d = offsets[n + 1] - offsets[n]
-            # (2) orientation
-            for f in range(face_start[e], face_stop[e]):
-                if _det(vertices, faces[f, 0], faces[f, 1], faces[f, 2], o) <= 1e-12:
-                    bad_node[e] = n
-                    bad_kind[e] = 2
-                    break
-            if bad_kind[e] != 0:
-                break
             # (1) cones: all tube vertices not in the own section
             for f in range(face_start[e], face_stop[e]):
                 for c in range(3):
@@ -679,7 +732,7 @@ def check_tubes(
                     ry = vertices[x, 1] - o[1]
                     rz = vertices[x, 2] - o[2]
                     scale = np.sqrt(rx * rx + ry * ry + rz * rz)
-                    if d >= 2 and rx * de[0] + ry * de[1] + rz * de[2] <= margin * scale:
+                    if rx * de[0] + ry * de[1] + rz * de[2] <= margin * scale:
                         bad_node[e] = n
                         bad_kind[e] = 1
                     for t in range(offsets[n], offsets[n + 1]):

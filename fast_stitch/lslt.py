@@ -386,7 +386,7 @@ def _stitch(
     if cb is not None:
         cb("tubes", 0, 1)
     _k.build_tubes(
-        nodes, edges, axis, fu, fv, radii, sec_ptr, sec_ids, n_inter, inter_cnt_ptr,
+        nodes, degree, edges, axis, fu, fv, radii, sec_ptr, sec_ids, n_inter, inter_cnt_ptr,
         inter_cnt, inter_vstart, face_start, vertices, faces,
     )  # fmt: skip
 
