@@ -217,7 +217,9 @@ def node_structure(dirs, rad, P, eps, mitre):
             rx = q[m, 0] - cx
             ry = q[m, 1] - cy
             rz = q[m, 2] - cz
-            ang[i] = np.arctan2(rx * e2[0] + ry * e2[1] + rz * e2[2], rx * e1[0] + ry * e1[1] + rz * e1[2])
+            ang[i] = np.arctan2(
+                rx * e2[0] + ry * e2[1] + rz * e2[2], rx * e1[0] + ry * e1[1] + rz * e1[2]
+            )
         for i in range(1, k):  # insertion sort by angle
             j = i
             while j > 0 and ang[j] < ang[j - 1]:
@@ -241,9 +243,11 @@ def node_structure(dirs, rad, P, eps, mitre):
                 wx = q[b, 0] - q[0, 0]
                 wy = q[b, 1] - q[0, 1]
                 wz = q[b, 2] - q[0, 2]
-                turn = (uy * wz - uz * wy) * v[0] + (uz * wx - ux * wz) * v[1] + (
-                    ux * wy - uy * wx
-                ) * v[2]
+                turn = (
+                    (uy * wz - uz * wy) * v[0]
+                    + (uz * wx - ux * wz) * v[1]
+                    + (ux * wy - uy * wx) * v[2]
+                )
                 if turn <= eps:
                     continue
             poly[poly_ptr[f] + kk] = m

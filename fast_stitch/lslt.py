@@ -237,7 +237,9 @@ def stitch_lslt(
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     if sections is not None and not (isinstance(sections, str) and sections == "auto"):
-        _inter_counts(sections, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+        _inter_counts(
+            sections, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+        )
     if graph.num_edges == 0:
         raise StitchError("the graph has no struts: nothing to stitch")
     prev = numba.get_num_threads()
@@ -268,7 +270,9 @@ def _stitch(
     too_big = np.flatnonzero(degree > MAX_DEGREE)
     if len(too_big):
         n = int(too_big[0])
-        raise StitchError(f"node {n} has {int(degree[n])} struts; LSLT supports at most {MAX_DEGREE}")
+        raise StitchError(
+            f"node {n} has {int(degree[n])} struts; LSLT supports at most {MAX_DEGREE}"
+        )
     mitre_sin = 1.0 / (1.0 + chord_error)  # mitre when sin(alpha / 2) >= this
 
     # ------------------------------------------------------------ node structures
@@ -293,9 +297,7 @@ def _stitch(
         if d == 1:
             e, side = int(es[0]), int(ss[0])
             ang = 2.0 * np.pi * ring / P
-            pts = nodes[n] + rad[0] * (
-                np.cos(ang)[:, None] * fu[e] + np.sin(ang)[:, None] * fv[e]
-            )
+            pts = nodes[n] + rad[0] * (np.cos(ang)[:, None] * fu[e] + np.sin(ang)[:, None] * fv[e])
             ids = nv + (ring if side == 0 else ring[::-1])
             verts_blocks.append(pts)
             sec_lists[2 * e + side] = ids.astype(np.int64)
@@ -314,7 +316,9 @@ def _stitch(
         if cosm.max() > 1.0 - 1e-12:
             i, j = np.unravel_index(int(np.argmax(cosm)), cosm.shape)
             a, b = sorted((int(es[i]), int(es[j])))
-            raise StitchError(f"node {n}: struts {a} and {b} leave it in the same direction (parallel)")
+            raise StitchError(
+                f"node {n}: struts {a} and {b} leave it in the same direction (parallel)"
+            )
         rq = np.rint(rad / float(rad.max()) * 2.0**40).astype(np.int64)
         key = q.tobytes() + rq.tobytes() + np.float64(rad.max()).tobytes()
         hit = cache.get(key)
@@ -352,10 +356,11 @@ def _stitch(
     # ------------------------------------------------------------------ tubes
     na, nb = sizes[0::2], sizes[1::2]
     ext = np.zeros((m, 2))  # axial reach of each end section from its node
+    end_of = np.repeat(np.arange(2 * m), sizes)
     for side in range(2):
         sg = 1.0 if side == 0 else -1.0
-        owner = np.repeat(np.arange(m), sizes[side::2])
-        ids = np.concatenate([sec_ids[sec_ptr[2 * e + side] : sec_ptr[2 * e + side + 1]] for e in range(m)])
+        sel = end_of % 2 == side
+        ids, owner = sec_ids[sel], end_of[sel] // 2
         rel = node_v[ids] - nodes[edges[owner, side]]
         reach = sg * np.einsum("ij,ij->i", rel, axis[owner])
         np.maximum.at(ext[:, side], owner, reach)
@@ -434,19 +439,16 @@ def _check_local(
         a, b = (int(v) for v in graph.edges[e])
         other = b if n == a else a
         need = float(ext[e].sum())
+        if f < 0 and graph.degree[n] >= 2:  # name the tightest neighbour at that node
+            others = [k for k in _edges_at(graph, n) if k != e]
+            f = min(others, key=lambda k: _angle_deg(_out(graph, n, e), _out(graph, n, k)))
         reach = (
             f"its LSLT sections reach {ext[e, 0 if n == a else 1]:.4g} along it at node {n} and "
             f"{ext[e, 1 if n == a else 0]:.4g} at node {other}, so it would need to be longer "
             f"than {need:.4g}"
         )
         if f >= 0:
-
-            def out_dir(k: int) -> NDArray[np.float64]:
-                ka, kb = graph.edges[k]
-                v = graph.nodes[kb] - graph.nodes[ka]
-                return v if ka == n else -v
-
-            ang = _angle_deg(out_dir(e), out_dir(f))
+            ang = _angle_deg(_out(graph, n, e), _out(graph, n, f))
             raise StitchError(
                 f"node {n}: struts {e} and {f} meet at {ang:.3g} degrees, too small an angle for "
                 f"strut {e} (length {L:.4g}): {reach} (or use thinner struts or a larger angle)"
@@ -469,6 +471,13 @@ def _check_local(
                 "validly (nearly coplanar or nearly opposite struts); this is a bug, please "
                 "report it with the graph"
             )
+
+
+def _out(graph: LatticeGraph, n: int, k: int) -> NDArray[np.float64]:
+    """Direction of strut k leaving node n."""
+    ka, kb = graph.edges[k]
+    v = graph.nodes[kb] - graph.nodes[ka]
+    return v if ka == n else -v
 
 
 def _edges_at(graph: LatticeGraph, n: int) -> list[int]:
@@ -568,7 +577,10 @@ def _check_clearance(
 
 
 def _seg_dist(
-    p1: NDArray[np.float64], q1: NDArray[np.float64], p2: NDArray[np.float64], q2: NDArray[np.float64]
+    p1: NDArray[np.float64],
+    q1: NDArray[np.float64],
+    p2: NDArray[np.float64],
+    q2: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """(K,) distances between segments p1-q1 and p2-q2 (vectorised, clamped)."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
@@ -581,7 +593,9 @@ def _seg_dist(
     with np.errstate(divide="ignore", invalid="ignore"):
         s = np.where(den > 1e-300, np.clip((b * f - c * e) / den, 0.0, 1.0), 0.0)
         t = (b * s + f) / e
-        s = np.where(t < 0.0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s))
+        s = np.where(
+            t < 0.0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s)
+        )
     t = np.clip(t, 0.0, 1.0)
     w = r + d1 * s[:, None] - d2 * t[:, None]
     return np.sqrt(np.einsum("ij,ij->i", w, w))
