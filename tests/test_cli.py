@@ -1,0 +1,316 @@
+"""The lattice-cad command line: every subcommand, every flag, exit codes, errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conformal import CELLS, block
+from lattice_cad.cli import build_parser, main
+
+COMMANDS = ["fill", "stitch", "reference", "validate", "cells", "check", "preview"]
+
+
+@pytest.fixture(scope="module")
+def box_step(tmp_path_factory):
+    cq = pytest.importorskip("cadquery")
+    p = tmp_path_factory.mktemp("parts") / "box.step"
+    cq.exporters.export(cq.Workplane("XY").box(20, 16, 12), str(p))
+    return p
+
+
+@pytest.fixture(scope="module")
+def graph_json(tmp_path_factory):
+    p = tmp_path_factory.mktemp("graphs") / "g.json"
+    block("bcc", 2, cell_size=5.0, radius=0.4).save(p)
+    return p
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+# ---------------------------------------------------------------------- help
+def test_help(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    for cmd in COMMANDS:
+        assert cmd in out
+
+
+@pytest.mark.parametrize("cmd", COMMANDS)
+def test_help_of_each_command(capsys, cmd):
+    with pytest.raises(SystemExit) as e:
+        main([cmd, "--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert f"lattice-cad {cmd}" in out
+    assert "--quiet" in out and "--debug" in out
+
+
+def test_every_flag_is_documented():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    flags = {
+        "fill": [
+            "--output",
+            "--cell",
+            "--cell-size",
+            "--radius",
+            "--method",
+            "--fill",
+            "--skin",
+            "--segments",
+            "--beam-lattice",
+            "--report",
+        ],
+        "stitch": ["--output", "--segments", "--beam-lattice"],
+        "reference": ["--output"],
+        "validate": [
+            "--report",
+            "--cell",
+            "--cell-size",
+            "--radius",
+            "--method",
+            "--fill",
+            "--segments",
+        ],
+        "check": ["--no-self-intersections"],
+        "preview": ["--output", "--width", "--height"],
+        "cells": [],
+    }
+    for cmd, expected in flags.items():
+        p = sub.choices[cmd]
+        have = {o for a in p._actions for o in a.option_strings}
+        assert set(expected) <= have, (cmd, set(expected) - have)
+        for a in p._actions:
+            assert a.help, (cmd, a.option_strings)
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.startswith("lattice-cad ")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        [],
+        ["frobnicate"],
+        ["fill"],
+        ["fill", "x.step"],  # -o is required
+        ["fill", "x.step", "-o", "y.stl", "--radius", "-1"],
+        ["fill", "x.step", "-o", "y.stl", "--cell-size", "abc"],
+        ["fill", "x.step", "-o", "y.stl", "--segments", "2"],
+        ["fill", "x.step", "-o", "y.stl", "--method", "octree"],
+        ["fill", "x.step", "-o", "y.stl", "--fill", "outside"],
+        ["fill", "x.step", "-o", "y.stl", "--skin", "0"],
+        ["validate", "g.json"],  # --report is required
+    ],
+)
+def test_usage_errors_exit_2(capsys, argv):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert "usage: lattice-cad" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ commands
+def test_cells(capsys):
+    code, out, _ = run(capsys, "cells")
+    assert code == 0
+    lines = out.strip().splitlines()
+    assert len(lines) == len(CELLS)
+    for name, cell in CELLS.items():
+        assert any(ln.split()[0] == name and ln.endswith(cell.description) for ln in lines)
+
+
+def test_fill_all_flags(capsys, box_step, tmp_path):
+    out = tmp_path / "box.stl"
+    code, stdout, err = run(
+        capsys,
+        "fill",
+        box_step,
+        "-o",
+        out,
+        "--cell",
+        "bccz",
+        "--cell-size",
+        "4",
+        "--radius",
+        "0.35",
+        "--method",
+        "voxel",
+        "--fill",
+        "inside",
+        "--segments",
+        "8",
+    )
+    assert code == 0, err
+    assert out.exists() and f"wrote {out}" in stdout and "struts" in stdout
+    code, _, _ = run(capsys, "check", out, "--no-self-intersections")
+    assert code == 0
+    code, stdout, err = run(
+        capsys, "fill", box_step, "-o", tmp_path / "q.3mf", "--quiet", "--cell-size", "4"
+    )
+    assert code == 0 and stdout == "" and err == ""
+
+
+def test_fill_beam_lattice_and_skin(capsys, box_step, tmp_path):
+    from lattice_cad.export import read_beam_lattice
+
+    out = tmp_path / "box.3mf"
+    code, _, err = run(capsys, "fill", box_step, "-o", out, "--beam-lattice", "--cell-size", "4")
+    assert code == 0, err
+    info = read_beam_lattice(out)
+    assert info["beams"] > 0 and info["clipped"]
+    skinned = tmp_path / "skin.stl"
+    code, stdout, err = run(
+        capsys, "fill", box_step, "-o", skinned, "--skin", "1", "--cell-size", "4", "-q"
+    )
+    assert code == 0, err
+    code, out_text, _ = run(capsys, "check", skinned, "--no-self-intersections")
+    assert code == 0 and "valid" in out_text
+
+
+def test_fill_tet_method(capsys, box_step, tmp_path):
+    code, _, err = run(
+        capsys,
+        "fill",
+        box_step,
+        "-o",
+        tmp_path / "t.stl",
+        "--method",
+        "tet",
+        "--cell-size",
+        "6",
+        "-q",
+    )
+    # without conformal.tet_lattice this is a one-line error, not a traceback
+    assert code == 0 or (code == 1 and err.count("\n") == 1 and err.startswith("error: ")), err
+
+
+def test_errors_are_one_line(capsys, tmp_path):
+    code, out, err = run(capsys, "fill", tmp_path / "missing.step", "-o", tmp_path / "x.stl")
+    assert code == 1
+    assert err.startswith("error: ") and "missing.step" in err and err.count("\n") == 1
+    assert "Traceback" not in err
+    assert not (tmp_path / "x.stl").exists()
+    code, _, err = run(capsys, "fill", tmp_path / "missing.step", "-o", "x.stl", "--debug")
+    assert code == 1 and "Traceback" in err and err.rstrip().splitlines()[-1].startswith("error:")
+    code, _, err = run(capsys, "stitch", tmp_path / "g.txt", "-o", tmp_path / "x.stl")
+    assert code == 1 and "must end in .json or .npz" in err
+
+
+def test_stitch_check_preview(capsys, graph_json, tmp_path):
+    stl = tmp_path / "g.stl"
+    code, stdout, err = run(capsys, "stitch", graph_json, "-o", stl, "--segments", "8")
+    assert code == 0, err
+    assert "triangles" in stdout
+    code, stdout, _ = run(capsys, "check", stl, "--no-self-intersections")
+    assert code == 0 and "valid" in stdout
+    code, _, err = run(capsys, "stitch", graph_json, "-o", tmp_path / "g.3mf", "--beam-lattice")
+    assert code == 0, err
+    png = tmp_path / "g.png"
+    code, _, err = run(
+        capsys, "preview", graph_json, "-o", png, "--width", "320", "--height", "240"
+    )
+    assert code == 0, err
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    code, _, err = run(capsys, "preview", stl, "-o", tmp_path / "m.png", "-q")
+    assert code == 0, err
+    code, _, err = run(capsys, "preview", stl, "-o", tmp_path / "m.jpg")
+    assert code == 1 and "PNG" in err
+
+
+def test_check_invalid_mesh_exit_1(capsys, tmp_path):
+    import trimesh
+
+    box = trimesh.creation.box()
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-1], process=False)
+    p = tmp_path / "open.stl"
+    open_box.export(p)
+    code, stdout, _ = run(capsys, "check", p, "--no-self-intersections")
+    assert code == 1
+    assert "INVALID" in stdout and "boundary edges" in stdout
+    code, _, err = run(capsys, "check", tmp_path / "none.stl")
+    assert code == 1 and "mesh file not found" in err
+
+
+@pytest.mark.slow
+def test_reference_and_validate(capsys, tmp_path):
+    g = tmp_path / "small.npz"
+    block("bcc", 1, cell_size=5.0, radius=0.5).save(g)
+    step = tmp_path / "ref.step"
+    code, stdout, err = run(capsys, "reference", g, "-o", step)
+    assert code == 0, err
+    assert step.exists() and "Reference(" in stdout
+    code, _, err = run(capsys, "reference", g, "-o", tmp_path / "ref.obj")
+    assert code == 1 and ".step, .stp or .stl" in err
+    rep = tmp_path / "report"
+    code, stdout, err = run(capsys, "validate", g, "--report", rep, "--segments", "8")
+    assert code == 0, err
+    assert (rep / "report.html").exists() and (rep / "lattice.png").exists()
+
+
+@pytest.mark.slow
+def test_fill_with_report(capsys, box_step, tmp_path):
+    rep = tmp_path / "rep"
+    code, _, err = run(
+        capsys,
+        "fill",
+        box_step,
+        "-o",
+        tmp_path / "b.npz",
+        "--cell-size",
+        "10",
+        "--fill",
+        "clip",
+        "--radius",
+        "0.5",
+        "--report",
+        rep,
+    )
+    assert code == 0, err
+    assert (rep / "report.html").exists()
+
+
+def test_module_entry_point(tmp_path):
+    r = subprocess.run(
+        [sys.executable, "-m", "lattice_cad.cli", "cells"], capture_output=True, text=True
+    )
+    assert r.returncode == 0 and "bcc" in r.stdout
+    r = subprocess.run(
+        [sys.executable, "-m", "lattice_cad.cli", "check", str(tmp_path / "x.stl")],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 1 and r.stderr.count("\n") == 1
+
+
+def test_graph_npz_input(capsys, tmp_path):
+    g = tmp_path / "g.npz"
+    block("cubic", 1, cell_size=5.0, radius=0.4).save(g)
+    code, _, err = run(capsys, "stitch", g, "-o", tmp_path / "g.ply")
+    assert code == 0, err
+    from lattice_cad.export import read_mesh
+
+    v, f = read_mesh(tmp_path / "g.ply")
+    assert len(f) > 0 and np.isfinite(v).all()
+
+
+@pytest.mark.slow
+def test_check_with_self_intersections(capsys, graph_json, tmp_path):
+    stl = tmp_path / "g.stl"
+    assert run(capsys, "stitch", graph_json, "-o", stl, "-q")[0] == 0
+    code, stdout, _ = run(capsys, "check", stl)
+    assert code == 0 and "self-intersections checked" in stdout
