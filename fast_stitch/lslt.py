@@ -438,13 +438,20 @@ def _check_local(
         L = float(graph.edge_lengths[e])
         a, b = (int(v) for v in graph.edges[e])
         other = b if n == a else a
-        need = float(ext[e].sum())
+        ext_e = ext[e].copy()
+        for side, nn in enumerate((a, b)):  # the continuous pushed curve reaches r cot(alpha / 2)
+            for k in _edges_at(graph, nn):
+                if k != e:
+                    half = math.radians(_angle_deg(_out(graph, nn, e), _out(graph, nn, k))) / 2
+                    rs = max(graph.radii[e, side], float(graph.radii[k].max()))
+                    ext_e[side] = max(ext_e[side], rs / max(math.tan(half), 1e-300))
+        need = float(ext_e.sum())
         if f < 0 and graph.degree[n] >= 2:  # name the tightest neighbour at that node
             others = [k for k in _edges_at(graph, n) if k != e]
             f = min(others, key=lambda k: _angle_deg(_out(graph, n, e), _out(graph, n, k)))
         reach = (
-            f"its LSLT sections reach {ext[e, 0 if n == a else 1]:.4g} along it at node {n} and "
-            f"{ext[e, 1 if n == a else 0]:.4g} at node {other}, so it would need to be longer "
+            f"its LSLT sections reach {ext_e[0 if n == a else 1]:.4g} along it at node {n} and "
+            f"{ext_e[1 if n == a else 0]:.4g} at node {other}, so it would need to be longer "
             f"than {need:.4g}"
         )
         if f >= 0:
