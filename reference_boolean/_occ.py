@@ -190,8 +190,41 @@ def _dir(v: NDArray[np.float64]) -> gp_Dir:
     return gp_Dir(float(v[0]), float(v[1]), float(v[2]))
 
 
-def make_primitives(spec: HubSpec) -> list[TopoDS_Shape]:
-    """The sphere and the stumps (cylinders or cone frustums), each checked."""
+#: A stump starts at ``TRIM_FRACTION`` of the largest height at which its start disc is
+#: still strictly inside the hub sphere (see :func:`stump_start`).
+TRIM_FRACTION = 0.9
+#: Stumps whose start could only move by less than this fraction of ``R`` start at the node.
+TRIM_MIN_REL = 0.05
+
+
+def stump_start(radius: float, r0: float, r1: float, h: float) -> float:
+    """Height along its axis at which a stump may start without changing the hub.
+
+    The part of a stump (radius between ``r0`` and ``r1``) below the height
+    ``h0`` lies within distance ``sqrt(h0^2 + max(r0, r1)^2)`` of the node, which
+    is less than the sphere radius ``R`` for ``h0 < sqrt(R^2 - max(r0, r1)^2)``:
+    that part is inside the sphere, so dropping it leaves the union (the hub)
+    unchanged as a point set. It does remove most of the stump/stump
+    intersection curves inside the sphere, which the fuse otherwise computes
+    and then throws away (about 20 % of the fuse time on jittered degree-6
+    hubs). ``h0 = TRIM_FRACTION * sqrt(R^2 - rmax^2)`` keeps the start disc's
+    rim clear of the sphere; stumps nearly as thick as the sphere (where
+    ``h0`` would be tiny) start at the node as before.
+    """
+    rmax = max(r0, r1)
+    room = math.sqrt(max(radius * radius - rmax * rmax, 0.0))
+    h0 = TRIM_FRACTION * room
+    if h0 < TRIM_MIN_REL * radius or h0 >= 0.5 * h:
+        return 0.0
+    return h0
+
+
+def make_primitives(spec: HubSpec, *, trim: bool = True) -> list[TopoDS_Shape]:
+    """The sphere and the stumps (cylinders or cone frustums), each checked.
+
+    With ``trim`` (default) each stump starts at :func:`stump_start` instead of
+    the node: the same hub, a cheaper fuse.
+    """
     origin = gp_Pnt(0.0, 0.0, 0.0)
     sphere_mk = BRepPrimAPI_MakeSphere(
         gp_Ax2(origin, gp_Dir(0, 0, 1), gp_Dir(1, 0, 0)), spec.radius
@@ -202,11 +235,14 @@ def make_primitives(spec: HubSpec) -> list[TopoDS_Shape]:
     _check_valid(shapes[0], "sphere")
     for j, v in enumerate(spec.vecs):
         h = float(np.linalg.norm(v))
-        ax = gp_Ax2(origin, _dir(v / h), _dir(spec.xdirs[j]))
+        u = v / h
         r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
-        mk = (
-            BRepPrimAPI_MakeCylinder(ax, r0, h) if r0 == r1 else BRepPrimAPI_MakeCone(ax, r0, r1, h)
-        )
+        h0 = stump_start(spec.radius, r0, r1, h) if trim else 0.0
+        ax = gp_Ax2(_pnt(u * h0) if h0 > 0.0 else origin, _dir(u), _dir(spec.xdirs[j]))
+        if r0 == r1:
+            mk = BRepPrimAPI_MakeCylinder(ax, r0, h - h0)
+        else:
+            mk = BRepPrimAPI_MakeCone(ax, r0 + (r1 - r0) * (h0 / h), r1, h - h0)
         mk.Build()
         _done(mk, f"stump {j}")
         s = mk.Shape()
@@ -234,7 +270,7 @@ def _fuse(objects: list[TopoDS_Shape], tools: list[TopoDS_Shape], fuzzy: float) 
 
 
 def make_hub_shape(
-    spec: HubSpec, *, construction: str = "fuse", fuzzy: float = 0.0
+    spec: HubSpec, *, construction: str = "fuse", fuzzy: float = 0.0, trim: bool = True
 ) -> TopoDS_Shape:
     """The hub solid: sphere union stumps (one general fuse, or one stump at a time).
 
@@ -243,7 +279,7 @@ def make_hub_shape(
     OCCTFailure
         A builder is not done, or a shape is invalid.
     """
-    prims = make_primitives(spec)
+    prims = make_primitives(spec, trim=trim)
     if construction == "fuse":
         shape = _fuse(prims[:1], prims[1:], fuzzy)
     elif construction == "sequential":
@@ -283,16 +319,19 @@ def _tessellate(
         tri = BRep_Tool.Triangulation_s(face, loc)
         if tri is None or tri.NbTriangles() == 0:
             raise OCCTFailure("BRepMesh left a face without triangulation")
-        trsf = loc.Transformation()
         nn = tri.NbNodes()
-        pts = np.empty((nn, 3))
-        for i in range(nn):
-            p = tri.Node(i + 1).Transformed(trsf)
-            pts[i] = (p.X(), p.Y(), p.Z())
-        nt = tri.NbTriangles()
-        t = np.empty((nt, 3), dtype=np.int64)
-        for i in range(nt):
-            t[i] = tri.Triangle(i + 1).Get()
+        node = tri.Node
+        pts = np.array(
+            [(p.X(), p.Y(), p.Z()) for p in (node(i) for i in range(1, nn + 1))], dtype=np.float64
+        ).reshape(nn, 3)
+        if not loc.IsIdentity():
+            m = loc.Transformation()
+            rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+            pts = pts @ rot.T + np.array([m.Value(r, 4) for r in (1, 2, 3)])
+        tri_at = tri.Triangle
+        t = np.array(
+            [tri_at(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
+        ).reshape(-1, 3)
         t -= 1
         if face.Orientation() == TopAbs_REVERSED:
             t = t[:, ::-1]
@@ -410,8 +449,13 @@ def _circles(
 
 
 # ------------------------------------------------------------------- driver
-#: Retry plan: (construction, fuzzy value relative to the hub size).
-ATTEMPTS: tuple[tuple[str, float], ...] = (("fuse", 0.0), ("fuse", 1e-7), ("sequential", 1e-7))
+#: Retry plan: (construction, fuzzy value relative to the hub size, trimmed stumps).
+ATTEMPTS: tuple[tuple[str, float, bool], ...] = (
+    ("fuse", 0.0, True),
+    ("fuse", 1e-7, True),
+    ("fuse", 0.0, False),
+    ("sequential", 1e-7, False),
+)
 
 
 def build_hub(
@@ -434,10 +478,16 @@ def build_hub(
     t0 = time.perf_counter()
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
     attempts: list[str] = []
-    for construction, fuzzy_rel in ATTEMPTS:
-        name = f"{construction}" + (f" (fuzzy {fuzzy_rel:g})" if fuzzy_rel else "")
+    for construction, fuzzy_rel, trim in ATTEMPTS:
+        name = (
+            f"{construction}"
+            + (f" (fuzzy {fuzzy_rel:g})" if fuzzy_rel else "")
+            + ("" if trim else " (untrimmed stumps)")
+        )
         try:
-            shape = make_hub_shape(spec, construction=construction, fuzzy=fuzzy_rel * scale)
+            shape = make_hub_shape(
+                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim
+            )
             vol = _volume(shape)
             if not (vol > 0.0 and math.isfinite(vol)):
                 raise OCCTFailure(f"hub volume {vol!r} is not positive")
