@@ -23,7 +23,14 @@ from fast_stitch.mesh import Mesh
 from lattice_cad.graph import LatticeGraph
 from reference_boolean.reference import SPHERE_FACTOR, Reference, build_reference
 
-__all__ = ["ValidationReport", "compare", "union_mesh", "surface_deviation", "mesh_validity"]
+__all__ = [
+    "ValidationReport",
+    "MeshComparison",
+    "compare",
+    "union_mesh",
+    "surface_deviation",
+    "mesh_validity",
+]
 
 #: Default number of surface samples per mesh for the deviation measures.
 DEFAULT_SAMPLES = 50_000
@@ -143,6 +150,51 @@ def _stats(d: NDArray[np.float64]) -> dict[str, float]:
 
 # ------------------------------------------------------------------ report
 @dataclass(frozen=True, eq=False)
+class MeshComparison:
+    """One mesh measured against the reference (one row of the report).
+
+    Attributes
+    ----------
+    label : str
+    mesh : Mesh
+    volume : float
+    relative_volume_error : float
+        ``(volume - V_ref) / V_ref``.
+    valid : dict[str, bool]
+        :func:`mesh_validity`.
+    hausdorff : dict[str, dict[str, float]]
+        ``"mesh_to_reference"`` / ``"reference_to_mesh"`` / ``"symmetric"`` (max, mean, p95).
+    node_deviation : (N,) float64
+        Largest sampled deviation near each node.
+    distances : dict[str, (S,) float64]
+    timings : dict[str, float]
+        ``"mesh_checks"`` and ``"deviation"`` seconds.
+    """
+
+    label: str
+    mesh: Mesh
+    volume: float
+    relative_volume_error: float
+    valid: dict[str, bool]
+    hausdorff: dict[str, dict[str, float]]
+    node_deviation: NDArray[np.float64] = field(repr=False)
+    distances: dict[str, NDArray[np.float64]] = field(repr=False)
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready row: label, volume, relative error, triangles, valid, hausdorff."""
+        return {
+            "label": self.label,
+            "volume": self.volume,
+            "relative_volume_error": self.relative_volume_error,
+            "triangles": int(len(self.mesh.faces)),
+            "valid": dict(self.valid),
+            "hausdorff": self.hausdorff,
+            "timings": dict(self.timings),
+        }
+
+
+@dataclass(frozen=True, eq=False)
 class ValidationReport:
     """Numbers (and the data for the plots) of :func:`compare`.
 
@@ -171,6 +223,10 @@ class ValidationReport:
         Name of the compared mesh (e.g. ``"fast_stitch P=6"``).
     extra : dict
         Free-form additions (shown in every format).
+    comparisons : dict[str, MeshComparison]
+        Every compared mesh by label, in the order given. ``mesh``,
+        ``volume_mesh``, ``mesh_valid``, ``hausdorff``, ``node_deviation``,
+        ``distances`` and ``label`` above are those of the first one.
     """
 
     graph: LatticeGraph
@@ -189,6 +245,7 @@ class ValidationReport:
     timings: dict[str, float] = field(default_factory=dict)
     label: str = "mesh"
     extra: dict[str, Any] = field(default_factory=dict)
+    comparisons: dict[str, MeshComparison] = field(default_factory=dict, repr=False)
 
     def worst_nodes(self, k: int = 10) -> list[tuple[int, float]]:
         """The ``k`` nodes with the largest local deviation, as (node, deviation)."""
@@ -198,10 +255,33 @@ class ValidationReport:
         return [(int(i), float(d[i])) for i in order]
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (no arrays except the worst nodes)."""
+        """JSON-ready summary (no arrays except the worst nodes).
+
+        With at most one compared mesh, ``volume_mesh`` is a float (or None),
+        ``relative_volume_error["mesh"]``, ``valid["mesh"]``, ``triangles["mesh"]``
+        are that mesh's, and ``hausdorff`` is ``{"mesh_to_reference": ...,
+        "reference_to_mesh": ..., "symmetric": ...}``. With several meshes, each
+        of these becomes a dict keyed by label (``volume_mesh[label]``,
+        ``relative_volume_error["mesh"][label]``, ``hausdorff[label]["symmetric"]``,
+        ...). ``"meshes"`` always lists one summary row per mesh
+        (:meth:`MeshComparison.summary`), in order.
+        """
         ref = self.reference
         vref = ref.volume
         rel_union = {int(n): (v - vref) / vref for n, v in self.volume_union.items()}
+        comps = list(self.comparisons.values())
+        if len(comps) > 1:
+            volume_mesh: Any = {c.label: c.volume for c in comps}
+            rel_mesh: Any = {c.label: c.relative_volume_error for c in comps}
+            hausdorff: Any = {c.label: c.hausdorff for c in comps}
+            valid_mesh: Any = {c.label: c.valid for c in comps}
+            tri_mesh: Any = {c.label: int(len(c.mesh.faces)) for c in comps}
+        else:
+            volume_mesh = self.volume_mesh
+            rel_mesh = None if self.volume_mesh is None else (self.volume_mesh - vref) / vref
+            hausdorff = self.hausdorff
+            valid_mesh = self.mesh_valid
+            tri_mesh = None if self.mesh is None else int(len(self.mesh.faces))
         out: dict[str, Any] = {
             "graph": {
                 "nodes": self.graph.num_nodes,
@@ -214,22 +294,23 @@ class ValidationReport:
             "reference_failed": {str(k): v for k, v in ref.failed.items()},
             "volume_reference_mesh": ref.mesh.volume,
             "volume_union": {int(n): float(v) for n, v in self.volume_union.items()},
-            "volume_mesh": self.volume_mesh,
+            "volume_mesh": volume_mesh,
+            "meshes": [c.summary() for c in comps],
             "relative_volume_error": {
-                "mesh": None if self.volume_mesh is None else (self.volume_mesh - vref) / vref,
+                "mesh": rel_mesh,
                 "reference_mesh": (ref.mesh.volume - vref) / vref,
                 "union": rel_union,
             },
             "convergence_order": self.convergence_order,
-            "hausdorff": self.hausdorff,
+            "hausdorff": hausdorff,
             "valid": {
                 "reference": mesh_validity(ref.mesh) if len(ref.mesh.faces) else {"valid": False},
-                "mesh": self.mesh_valid,
+                "mesh": valid_mesh,
                 "union": {int(n): bool(v) for n, v in self.union_valid.items()},
             },
             "triangles": {
                 "reference": int(len(ref.mesh.faces)),
-                "mesh": None if self.mesh is None else int(len(self.mesh.faces)),
+                "mesh": tri_mesh,
                 "union": {int(n): int(t) for n, t in self.union_triangles.items()},
             },
             "timings": {
@@ -262,10 +343,62 @@ def _fit_order(volumes: dict[int, float], vref: float) -> float | None:
     return float(-slope)
 
 
+def _measure(
+    graph: LatticeGraph,
+    reference: Reference,
+    mesh: Mesh | Any,
+    label: str,
+    samples: int,
+    seed: int,
+) -> MeshComparison:
+    """Volume, validity and two-sided deviation of one mesh against the reference."""
+    m = Mesh(
+        vertices=np.asarray(mesh.vertices, dtype=np.float64),
+        faces=np.asarray(mesh.faces, dtype=np.int64),
+    )
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+    vmesh = float(m.volume)
+    mvalid = mesh_validity(m)
+    timings["mesh_checks"] = time.perf_counter() - t
+    t = time.perf_counter()
+    p1, d1 = surface_deviation(m, reference.mesh, samples=samples, seed=seed)
+    p2, d2 = surface_deviation(reference.mesh, m, samples=samples, seed=seed + 1)
+    timings["deviation"] = time.perf_counter() - t
+    hausdorff = {"mesh_to_reference": _stats(d1), "reference_to_mesh": _stats(d2)}
+    hausdorff["symmetric"] = {
+        k: max(hausdorff["mesh_to_reference"][k], hausdorff["reference_to_mesh"][k])
+        for k in ("max", "mean", "p95")
+    }
+    from scipy.spatial import cKDTree
+
+    node_dev = np.full(graph.num_nodes, np.nan)
+    used = np.flatnonzero(graph.degree > 0)
+    tree = cKDTree(graph.nodes[used])
+    for p, d in ((p1, d1), (p2, d2)):
+        _, idx = tree.query(p)
+        dev = np.full(graph.num_nodes, -np.inf)
+        np.maximum.at(dev, used[idx], d)
+        node_dev = np.fmax(node_dev, np.where(np.isfinite(dev), dev, np.nan))
+    vref = reference.volume
+    return MeshComparison(
+        label=label,
+        mesh=m,
+        volume=vmesh,
+        relative_volume_error=(vmesh - vref) / vref,
+        valid=mvalid,
+        hausdorff=hausdorff,
+        node_deviation=node_dev,
+        distances={"mesh_to_reference": d1, "reference_to_mesh": d2},
+        timings=timings,
+    )
+
+
 def compare(
     graph: LatticeGraph,
     *,
     mesh: Mesh | Any | None = None,
+    meshes: dict[str, Mesh | Any] | None = None,
     union_segments: tuple[int, ...] = (16, 32, 64, 128),
     reference: Reference | None = None,
     samples: int = DEFAULT_SAMPLES,
@@ -273,13 +406,17 @@ def compare(
     seed: int = 0,
     **reference_options: Any,
 ) -> ValidationReport:
-    """Measure manifold3d unions and a mesh against the exact reference.
+    """Measure manifold3d unions and one or more meshes against the exact reference.
 
     Parameters
     ----------
     graph : LatticeGraph
     mesh : Mesh or object with ``vertices`` (V, 3) and ``faces`` (F, 3), optional
-        The mesh to validate (e.g. ``fast_stitch.stitch(graph)``).
+        The mesh to validate (e.g. ``fast_stitch.stitch(graph)``), named ``label``.
+    meshes : dict[str, Mesh], optional
+        More meshes to validate against the same reference, by label (e.g.
+        ``{"fast P=6": m1, "fast P=6 volume-preserving": m2}``): one row each in
+        the report. With ``mesh`` too, ``mesh`` comes first.
     union_segments : tuple of int
         Circle resolutions of the manifold3d unions (empty: no unions).
     reference : Reference, optional
@@ -288,17 +425,31 @@ def compare(
         Random surface samples per direction of the deviation measure (all
         vertices are added).
     label : str
-        Name of the mesh in the report.
+        Name of ``mesh`` in the report.
     seed : int
-        Seed of the surface sampling.
+        Seed of the surface sampling (the same for every mesh).
     **reference_options
         Passed to :func:`build_reference` (``tolerance``, ``workers``, ...).
 
     Returns
     -------
     ValidationReport
+        Its ``comparisons`` holds every mesh; the single-mesh attributes
+        (``volume_mesh``, ``hausdorff``, ...) are those of the first.
+
+    Raises
+    ------
+    ValueError
+        The reference belongs to another graph, or a label is used twice.
     """
     t0 = time.perf_counter()
+    todo: list[tuple[str, Any]] = []
+    if mesh is not None:
+        todo.append((str(label), mesh))
+    for lab, m in (meshes or {}).items():
+        if any(lab == t[0] for t in todo):
+            raise ValueError(f"mesh label {lab!r} is used twice")
+        todo.append((str(lab), m))
     if reference is None:
         reference = build_reference(graph, **reference_options)
     elif reference.graph != graph:
@@ -314,43 +465,14 @@ def compare(
         valid[int(n)] = mesh_validity(um)["valid"]
     timings["unions"] = float(sum(secs.values()))
     order = _fit_order(vols, reference.volume) if reference.complete else None
-    hausdorff: dict[str, dict[str, float]] = {}
-    distances: dict[str, NDArray[np.float64]] = {}
-    node_dev = np.full(graph.num_nodes, np.nan)
-    vmesh = mvalid = None
-    m: Mesh | None = None
-    if mesh is not None:
-        m = Mesh(
-            vertices=np.asarray(mesh.vertices, dtype=np.float64),
-            faces=np.asarray(mesh.faces, dtype=np.int64),
-        )
-        t = time.perf_counter()
-        vmesh = m.volume
-        mvalid = mesh_validity(m)
-        timings["mesh_checks"] = time.perf_counter() - t
-        t = time.perf_counter()
-        p1, d1 = surface_deviation(m, reference.mesh, samples=samples, seed=seed)
-        p2, d2 = surface_deviation(reference.mesh, m, samples=samples, seed=seed + 1)
-        timings["deviation"] = time.perf_counter() - t
-        hausdorff["mesh_to_reference"] = _stats(d1)
-        hausdorff["reference_to_mesh"] = _stats(d2)
-        hausdorff["symmetric"] = {
-            k: max(hausdorff["mesh_to_reference"][k], hausdorff["reference_to_mesh"][k])
-            for k in ("max", "mean", "p95")
-        }
-        distances = {"mesh_to_reference": d1, "reference_to_mesh": d2}
-        from scipy.spatial import cKDTree
-
-        used = np.flatnonzero(graph.degree > 0)
-        tree = cKDTree(graph.nodes[used])
-        for p, d in ((p1, d1), (p2, d2)):
-            _, idx = tree.query(p)
-            dev = np.full(graph.num_nodes, -np.inf)
-            np.maximum.at(dev, used[idx], d)
-            node_dev = np.fmax(node_dev, np.where(np.isfinite(dev), dev, np.nan))
+    comps = {lab: _measure(graph, reference, m, lab, samples, seed) for lab, m in todo}
+    if comps:
+        timings["mesh_checks"] = sum(c.timings["mesh_checks"] for c in comps.values())
+        timings["deviation"] = sum(c.timings["deviation"] for c in comps.values())
     timings["total"] = time.perf_counter() - t0
     if not math.isfinite(timings["total"]):  # pragma: no cover
         timings["total"] = 0.0
+    first = next(iter(comps.values()), None)
     return ValidationReport(
         graph=graph,
         reference=reference,
@@ -359,12 +481,15 @@ def compare(
         union_valid=valid,
         union_seconds=secs,
         convergence_order=order,
-        mesh=m,
-        volume_mesh=vmesh,
-        mesh_valid=mvalid,
-        hausdorff=hausdorff,
-        node_deviation=node_dev,
-        distances=distances,
+        mesh=None if first is None else first.mesh,
+        volume_mesh=None if first is None else first.volume,
+        mesh_valid=None if first is None else first.valid,
+        hausdorff={} if first is None else first.hausdorff,
+        node_deviation=(
+            np.full(graph.num_nodes, np.nan) if first is None else first.node_deviation
+        ),
+        distances={} if first is None else first.distances,
         timings=timings,
-        label=label,
+        label=label if first is None else first.label,
+        comparisons=comps,
     )

@@ -112,26 +112,61 @@ def _tables(rep: ValidationReport) -> list[tuple[str, list[str], list[list[str]]
                 urows,
             )
         )
-    if d["volume_mesh"] is not None:
-        h = d["hausdorff"]
+    meshes = d.get("meshes") or []
+    if meshes:
+        crows = []
+        for row in meshes:
+            sym = row["hausdorff"]["symmetric"]
+            crows.append(
+                [
+                    row["label"],
+                    _g(row["volume"], ".10g"),
+                    _pct(row["relative_volume_error"]),
+                    _g(sym["max"]),
+                    _g(sym["mean"]),
+                    _g(sym["p95"]),
+                    str(row["triangles"]),
+                    str(row["valid"]["valid"]),
+                ]
+            )
+        t.append(
+            (
+                "Meshes under test against the reference (one row per mesh; "
+                "symmetric surface deviation)",
+                [
+                    "mesh",
+                    "volume",
+                    "rel. volume error",
+                    "Hausdorff max",
+                    "mean",
+                    "p95",
+                    "triangles",
+                    "valid",
+                ],
+                crows,
+            )
+        )
+    for row in meshes:
+        h = row["hausdorff"]
         mrows = [
-            ["volume", _g(d["volume_mesh"], ".10g")],
-            ["relative volume error", _pct(d["relative_volume_error"]["mesh"])],
-            ["triangles", str(d["triangles"]["mesh"])],
-            ["valid", ", ".join(f"{k}={v}" for k, v in d["valid"]["mesh"].items())],
+            ["volume", _g(row["volume"], ".10g")],
+            ["relative volume error", _pct(row["relative_volume_error"])],
+            ["triangles", str(row["triangles"])],
+            ["valid", ", ".join(f"{k}={v}" for k, v in row["valid"].items())],
         ]
         for k in ("mesh_to_reference", "reference_to_mesh", "symmetric"):
-            s = h[k]
+            st = h[k]
             mrows.append(
                 [
                     f"deviation {k.replace('_', ' ')} (max / mean / p95)",
-                    f"{_g(s['max'])} / {_g(s['mean'])} / {_g(s['p95'])}",
+                    f"{_g(st['max'])} / {_g(st['mean'])} / {_g(st['p95'])}",
                 ]
             )
-        t.append((f"Mesh under test: {rep.label}", ["quantity", "value"], mrows))
+        t.append((f"Mesh under test: {row['label']}", ["quantity", "value"], mrows))
+    if meshes:
         t.append(
             (
-                "Worst nodes by local deviation",
+                f"Worst nodes by local deviation ({meshes[0]['label']})",
                 ["node", "deviation"],
                 [[str(w["node"]), _g(w["deviation"])] for w in d["worst_nodes"]],
             )
@@ -191,22 +226,30 @@ def plots(rep: ValidationReport) -> dict[str, bytes]:
         err = np.array([abs(rep.volume_union[int(n)] - vref) / vref for n in ns])
         ax.loglog(ns, np.maximum(err, 1e-17), "o-", label="manifold3d union")
         ax.loglog(ns, err[0] * (ns[0] / ns) ** 2, "k--", lw=0.8, label="1/n^2")
-        if rep.volume_mesh is not None:
-            ax.axhline(abs(rep.volume_mesh - vref) / vref, color="C3", label=rep.label)
+        for i, c in enumerate(rep.comparisons.values()):
+            ax.axhline(
+                max(abs(c.volume - vref) / vref, 1e-17),
+                color=f"C{3 + i}",
+                ls=("-", "--", ":", "-.")[i % 4],
+                label=c.label,
+            )
         ax.set_xlabel("segments per circle")
         ax.set_ylabel("|V - V_ref| / V_ref")
         ax.set_title("volume convergence to the exact reference")
         ax.legend()
         out["convergence"] = png(fig)
-    if rep.distances:
+    if rep.comparisons:
         fig = Figure(figsize=(5.5, 4))
         ax = fig.add_subplot()
-        for k, d in rep.distances.items():
-            ax.hist(d, bins=60, histtype="step", label=k.replace("_", " "))
+        many = len(rep.comparisons) > 1
+        for c in rep.comparisons.values():
+            for k, d in c.distances.items():
+                name = k.replace("_", " ")
+                ax.hist(d, bins=60, histtype="step", label=f"{c.label}: {name}" if many else name)
         ax.set_yscale("log")
         ax.set_xlabel("distance")
         ax.set_ylabel("samples")
-        ax.set_title(f"surface deviation: {rep.label}")
+        ax.set_title("surface deviation" + ("" if many else f": {rep.label}"))
         ax.legend()
         out["histogram"] = png(fig)
     g = rep.graph

@@ -99,14 +99,67 @@ def test_validate_one_call(tmp_path):
     from lattice_cad.validate import validate
 
     g = star_graph([[1, 0, 0], [0, 1, 0], [0, 0, 1]], lengths=1.0, radii=0.1)
-    out = tmp_path / "report.html"
+    out = tmp_path / "report.md"
     rep = validate(g, 6, out, union_segments=(16, 32), samples=2000)
-    assert out.exists() and out.stat().st_size > 1000
-    assert rep.label == "fast_stitch P=6"
+    assert out.exists() and out.stat().st_size > 500
+    # plain and volume-preserving side by side; the single-mesh attributes are the plain one's
+    plain, vp = "fast_stitch P=6", "fast_stitch P=6 volume_preserving"
+    assert list(rep.comparisons) == [plain, vp]
+    assert rep.label == plain
+    assert rep.volume_mesh == rep.comparisons[plain].volume
     assert rep.reference.complete
-    vp = validate(g, 6, None, volume_preserving=True, union_segments=(), samples=2000)
+    vref = rep.reference.volume
     # the area-preserving polygons bring the volume closer to the reference
-    assert abs(vp.volume_mesh - vp.reference.volume) < abs(rep.volume_mesh - rep.reference.volume)
+    assert abs(rep.comparisons[vp].volume - vref) < abs(rep.comparisons[plain].volume - vref)
+    d = rep.to_dict()
+    assert set(d["volume_mesh"]) == {plain, vp}
+    assert d["relative_volume_error"]["mesh"][vp] == pytest.approx(
+        (rep.comparisons[vp].volume - vref) / vref
+    )
+    assert set(d["hausdorff"][vp]["symmetric"]) == {"max", "mean", "p95"}
+    assert [m["label"] for m in d["meshes"]] == [plain, vp]
+    md = out.read_text()
+    rows = [ln for ln in md.splitlines() if ln.startswith("| fast_stitch P=6")]
+    assert len(rows) == 2  # one comparison row per mesh
+    only_vp = validate(g, 6, None, volume_preserving=True, union_segments=(), samples=2000)
+    assert list(only_vp.comparisons) == [vp]
+    assert isinstance(only_vp.to_dict()["volume_mesh"], float)
+    assert only_vp.volume_mesh == pytest.approx(rep.comparisons[vp].volume)
+    with pytest.raises(ValueError, match="volume_preserving"):
+        validate(g, 6, None, volume_preserving="sometimes", union_segments=())
+
+
+def test_compare_several_meshes(star, star_ref, tmp_path):
+    m6 = fast_stitch.stitch(star, 6)
+    m12 = fast_stitch.stitch(star, 12)
+    rep = compare(
+        star,
+        mesh=m6,
+        label="P=6",
+        meshes={"P=12": m12, "exact": star_ref.mesh},
+        reference=star_ref,
+        union_segments=(),
+        samples=1500,
+    )
+    assert list(rep.comparisons) == ["P=6", "P=12", "exact"]
+    c = rep.comparisons
+    # same reference, same samples: finer polygons deviate less, the reference's own mesh not at all
+    assert c["exact"].hausdorff["symmetric"]["max"] < 1e-9
+    assert c["P=12"].hausdorff["symmetric"]["mean"] < c["P=6"].hausdorff["symmetric"]["mean"]
+    assert abs(c["P=12"].relative_volume_error) < abs(c["P=6"].relative_volume_error)
+    assert rep.volume_mesh == c["P=6"].volume and rep.hausdorff is c["P=6"].hausdorff
+    d = json.loads(rep.save(tmp_path / "r.json").read_text())
+    assert set(d["volume_mesh"]) == {"P=6", "P=12", "exact"}
+    assert d["triangles"]["mesh"]["P=12"] == len(m12.faces)
+    assert d["valid"]["mesh"]["exact"]["valid"]
+    page = rep.save(tmp_path / "r.html").read_text()
+    assert page.count("<td>P=12</td>") == 1 and "Mesh under test: exact" in page
+    assert len(re.findall(r"data:image/png;base64,", page)) == 2  # no unions: no convergence
+    # meshes= alone, and label clashes
+    only = compare(star, meshes={"a": m6}, reference=star_ref, union_segments=(), samples=500)
+    assert only.label == "a" and isinstance(only.to_dict()["volume_mesh"], float)
+    with pytest.raises(ValueError, match="twice"):
+        compare(star, mesh=m6, label="a", meshes={"a": m12}, reference=star_ref)
 
 
 def test_reference_for_other_graph_rejected(star_ref):
