@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -10,15 +11,8 @@ import pytest
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 SCRIPTS = sorted(EXAMPLES.glob("*.py"))
-#: Command-line arguments per script (relative paths land in the temp directory).
-ARGS = {
-    "make_example_part.py": ["bracket.step"],
-    "stitch_bcc_block.py": ["bcc_block.stl"],
-}
-#: Files each script must have written.
+#: Files each script must have written (besides the one its ``[OUT.xxx]`` argument names).
 OUTPUTS = {
-    "make_example_part.py": ["bracket.step"],
-    "stitch_bcc_block.py": ["bcc_block.stl"],
     "cadquery_lattice.py": [
         "block_skin.stl",
         "block_lattice.3mf",
@@ -35,10 +29,24 @@ def test_examples_exist():
     assert (EXAMPLES / "bracket.step").stat().st_size < 200_000
 
 
+def _args(script: Path, tmp_path: Path) -> list[str]:
+    """The output argument the script's docstring advertises (``Run: ... [OUT.stl]``).
+
+    ``[OUT_DIR]`` gets the temp directory, ``[OUT.xxx]`` gets ``out.xxx`` inside it.
+    """
+    m = re.search(r"\[(OUT[^\]]*)\]", script.read_text(encoding="utf-8"))
+    if m is None:
+        return []
+    name = m.group(1).split()[0]
+    if "." in name:
+        return [str(tmp_path / ("out" + name[name.index(".") :].lower()))]
+    return [str(tmp_path)]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("script", SCRIPTS, ids=[s.name for s in SCRIPTS])
 def test_example_runs(script, tmp_path):
-    args = ARGS.get(script.name, [str(tmp_path)])
+    args = _args(script, tmp_path)
     r = subprocess.run(
         [sys.executable, str(script), *args],
         cwd=tmp_path,
@@ -47,7 +55,9 @@ def test_example_runs(script, tmp_path):
         timeout=600,
     )
     assert r.returncode == 0, r.stderr[-3000:]
-    for name in OUTPUTS.get(script.name, []):
+    expected = list(OUTPUTS.get(script.name, []))
+    expected += [Path(a).name for a in args if Path(a) != tmp_path]
+    for name in expected:
         assert (tmp_path / name).stat().st_size > 0, name
 
 
