@@ -73,8 +73,8 @@ def bench_periodic(quick: bool) -> None:
     )
 
 
-def bench_irregular(quick: bool) -> None:
-    n = 3 if quick else 5
+def bench_irregular(quick: bool, size: int | None = None) -> None:
+    n = size or (3 if quick else 5)
     g0 = block("cubic", (n, n, n), cell_size=1.0, radius=0.08)
     rng = np.random.default_rng(1)
     nodes = g0.nodes + rng.uniform(-0.12, 0.12, g0.nodes.shape)
@@ -84,9 +84,11 @@ def bench_irregular(quick: bool) -> None:
     ref = build_reference(g, keep_solids=False)
     dt = time.perf_counter() - t
     hubs = int((g.degree > 0).sum())
+    deg6 = int((g.degree == 6).sum())
     rows = [
         [
             f"{hubs:,}",
+            str(deg6),
             f"{g.num_edges:,}",
             str(ref.unique_hubs),
             f"{dt:.1f}",
@@ -99,9 +101,10 @@ def bench_irregular(quick: bool) -> None:
     print(
         table(
             f"2. Irregular lattice (jittered {n}^3 cubic grid, tapered random radii), "
-            f"{min(2, os.cpu_count() or 1)} workers",
+            f"{min(2, os.cpu_count() or 1)} workers, load {os.getloadavg()[0]:.1f}",
             [
                 "hubs",
+                "degree 6",
                 "struts",
                 "built",
                 "time s",
@@ -155,11 +158,23 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="small versions, < 1 min")
     ap.add_argument("--only", choices=["periodic", "irregular", "table2"], default=None)
+    ap.add_argument(
+        "--irregular-size", type=int, default=None, help="cells per side of the irregular grid"
+    )
+    ap.add_argument(
+        "--no-trim",
+        action="store_true",
+        help="stumps start at the node (the construction before trimming, for comparison)",
+    )
     a = ap.parse_args()
+    if a.no_trim:
+        from reference_boolean import _occ
+
+        _occ.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
     for name, fn in (
         ("periodic", bench_periodic),
-        ("irregular", bench_irregular),
+        ("irregular", lambda q: bench_irregular(q, a.irregular_size)),
         ("table2", bench_table2),
     ):
         if a.only in (None, name):

@@ -13,7 +13,7 @@ and stacked without any boolean between hubs.
 OCCT (OCP) is only imported when a reference is built.
 """
 
-from reference_boolean.compare import ValidationReport, compare, union_mesh
+from reference_boolean.compare import MeshComparison, ValidationReport, compare, union_mesh
 from reference_boolean.reference import (
     DirtyLatticeError,
     Reference,
@@ -32,5 +32,6 @@ __all__ = [
     "strut_frames",
     "compare",
     "ValidationReport",
+    "MeshComparison",
     "union_mesh",
 ]

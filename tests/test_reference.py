@@ -216,3 +216,30 @@ def test_bad_options():
         build_reference("not a graph")  # type: ignore[arg-type]
     with pytest.raises(ReferenceBuildError, match="no struts"):
         build_reference(LatticeGraph(np.zeros((0, 3)), np.zeros((0, 2)), 0.1))
+
+
+def test_trimmed_stumps_give_the_same_hub():
+    """Stumps that start inside the sphere (the fast default) leave the hub unchanged."""
+    from reference_boolean import _occ
+    from reference_boolean.reference import _hub_specs
+
+    # thin struts beside a thick one: the thin stumps are trimmed, the thick one is not
+    g = star_graph(
+        [[1, 0, 0], [0, 1, 0.1], [0, 0.1, 1], [-1, -0.2, 0]],
+        lengths=1.0,
+        radii=[[0.1, 0.1], [0.06, 0.05], [0.07, 0.07], [0.05, 0.06]],
+    )
+    specs, *_ = _hub_specs(g, True)
+    spec = max(specs, key=lambda s: len(s.vecs))
+    starts = [
+        _occ.stump_start(spec.radius, a, b, float(np.linalg.norm(v)))
+        for v, a, b in zip(spec.vecs, spec.r_node, spec.r_mid, strict=True)
+    ]
+    assert sum(h > 0 for h in starts) == 3 and starts[int(np.argmax(spec.r_node))] == 0.0
+    for h, a, b in zip(starts, spec.r_node, spec.r_mid, strict=True):
+        assert h**2 + max(a, b) ** 2 < spec.radius**2  # the dropped part is inside the sphere
+    vols = [_occ._volume(_occ.make_hub_shape(spec, trim=t)) for t in (True, False)]
+    assert vols[0] == pytest.approx(vols[1], rel=1e-8)
+    res = _occ.build_hub(spec, deflection=1e-3, angular=0.25, keep_brep=False)
+    assert res.status == "ok" and res.attempts == ["fuse: ok"]
+    assert res.volume == pytest.approx(vols[1], rel=1e-8)
