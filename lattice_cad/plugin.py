@@ -1,9 +1,12 @@
 """The CadQuery plugin: ``cq.Workplane.lattice``.
 
 Importing this module registers :func:`lattice` as a method of
-``cadquery.Workplane`` (``lattice_cad/__init__.py`` imports it when cadquery is
-installed). CadQuery's plugin contract: the function takes the workplane as
-``self`` and works in global coordinates.
+``cadquery.Workplane`` without importing cadquery itself (which takes seconds):
+if cadquery is already imported the method is added at once, otherwise a
+one-shot import hook adds it right after ``import cadquery`` runs. So
+``import lattice_cad`` stays light and ``cq.Workplane.lattice`` is always there.
+CadQuery's plugin contract: the function takes the workplane as ``self`` and
+works in global coordinates.
 
 >>> import cadquery as cq
 >>> import lattice_cad.plugin  # noqa: F401  (done by ``import lattice_cad``)
@@ -12,6 +15,9 @@ installed). CadQuery's plugin contract: the function takes the workplane as
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.util
+import sys
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -19,7 +25,7 @@ if TYPE_CHECKING:
 
     from lattice_cad.lattice import Fill, Lattice, Method
 
-__all__ = ["lattice", "register"]
+__all__ = ["lattice", "register", "install"]
 
 
 def lattice(
@@ -81,11 +87,53 @@ def lattice(
     )
 
 
-def register() -> None:
-    """Add :func:`lattice` to ``cadquery.Workplane`` (idempotent)."""
-    import cadquery as cq
+def register(module: Any = None) -> None:
+    """Add :func:`lattice` to ``cadquery.Workplane`` (idempotent; imports cadquery)."""
+    if module is None:
+        import cadquery as module
+    module.Workplane.lattice = lattice
 
-    cq.Workplane.lattice = lattice  # type: ignore[attr-defined]
+
+class _CadQueryHook(importlib.abc.MetaPathFinder):
+    """Registers the plugin right after ``cadquery`` is first imported, then removes itself."""
+
+    def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
+        if name != "cadquery":
+            return None
+        uninstall()
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+            return spec
+        loader = spec.loader
+        original = loader.exec_module
+
+        def exec_module(module: Any) -> None:
+            original(module)
+            register(module)
+
+        loader.exec_module = exec_module  # type: ignore[method-assign]
+        return spec
 
 
-register()
+_HOOK = _CadQueryHook()
+
+
+def uninstall() -> None:
+    """Remove the import hook (if still waiting for cadquery)."""
+    if _HOOK in sys.meta_path:
+        sys.meta_path.remove(_HOOK)
+
+
+def install() -> bool:
+    """Register now if cadquery is imported, else when it is; False if it is not installed."""
+    if "cadquery" in sys.modules:
+        register(sys.modules["cadquery"])
+        return True
+    if importlib.util.find_spec("cadquery") is None:
+        return False
+    if _HOOK not in sys.meta_path:
+        sys.meta_path.insert(0, _HOOK)
+    return True
+
+
+install()

@@ -265,3 +265,16 @@ def test_import_stays_light():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_plugin_registers_without_importing_cadquery():
+    code = (
+        "import sys, lattice_cad.plugin\n"
+        "assert 'cadquery' not in sys.modules\n"
+        "import cadquery as cq\n"
+        "assert cq.Workplane.lattice is lattice_cad.plugin.lattice\n"
+        "assert lattice_cad.plugin._HOOK not in sys.meta_path\n"
+        "print('ok')"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
