@@ -35,7 +35,10 @@ Engineering choices (where the paper is ambiguous or not robust)
   ``{x : x.d_j >= x.d_k for all k}``. The arrangement of these cones and of the
   uncovered part of the node sphere is the normal fan of
   ``conv({0} U {d_j})`` (maximal coplanar facets, coplanarity tolerance
-  1e-9): facet normals through the origin are the surviving mandatory
+  1e-9, retried with 1e-7, 1e-5 and 1e-3 when a node comes out with
+  near-duplicate section vertices or a sliver in its hole fan, as happens
+  for nodes within ~1e-9..1e-5 of a co-circular configuration): facet
+  normals through the origin are the surviving mandatory
   vertices of Eq. 1, the other facet normals are triple (or higher) points
   where three struts' intersection curves meet, hull edges ``(j, k)`` are the
   seams between two struts and edges ``(0, j)`` border the hole. Section
@@ -46,6 +49,10 @@ Engineering choices (where the paper is ambiguous or not robust)
   seam (its Fig. 12) and must be filled; shared seams leave no such gaps, so
   the only hole of a node is the (spherically convex) uncovered region, which
   the barycentre fan of Eq. 16 fills validly.
+* **Nearly planar nodes.** When all struts of a node lie within 1e-5 rad of
+  one plane through it, the structure is built for their projections onto
+  that plane (exactly planar: the sections meet at the two poles and there is
+  no hole), instead of a hole of angular size ~1e-5 filled with slivers.
 * **Unequal radii at a node.** The paper has one radius per node, so the
   bisecting plane is exactly where two cylinders meet. Struts of different
   radii keep the (unweighted) bisecting planes; on a seam the *larger* of the
@@ -96,6 +103,12 @@ __all__ = ["stitch_lslt", "segments_for_chord_error", "triangle_quality"]
 
 #: Coplanarity tolerance of the node structure (unit directions).
 COPLANAR_EPS = 1e-9
+#: Tolerances tried in turn when a node's structure has slivers (near-degenerate nodes).
+COPLANAR_EPS_RETRY = (COPLANAR_EPS, 1e-7, 1e-5, 1e-3)
+#: Smallest distance between consecutive section vertices, relative to the radius.
+MIN_STEP = 1e-5
+#: Struts within this (radians) of one plane through their node are projected onto it.
+FLAT_EPS = 1e-5
 #: Tube vertices must lie this far (relative) inside their cone at each node.
 CONE_MARGIN = 1e-7
 #: Largest supported node degree (bit masks of 64 points incl. the origin).
@@ -323,10 +336,21 @@ def _stitch(
         key = q.tobytes() + rq.tobytes() + np.float64(rad.max()).tobytes()
         hit = cache.get(key)
         if hit is None:
+            if d >= 3:  # nearly planar node: make it exactly planar (no sliver of a hole)
+                nrm = np.linalg.svd(dirs)[2][-1]
+                h = dirs @ nrm
+                if np.abs(h).max() < FLAT_EPS:
+                    dirs = dirs - h[:, None] * nrm
+                    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
             mitre = d == 2 and math.sqrt(max(0.0, 0.5 * (1.0 - float(cosm[0, 1])))) >= mitre_sin
-            lv, sp, sid, fan, status = _k.node_structure(
-                np.ascontiguousarray(dirs), np.ascontiguousarray(rad), P, COPLANAR_EPS, mitre
-            )
+            status = _k.ST_DEGENERATE
+            for eps in COPLANAR_EPS_RETRY:  # near-degenerate nodes: merge more generously
+                lv, sp, sid, fan, status = _k.node_structure(
+                    np.ascontiguousarray(dirs), np.ascontiguousarray(rad), P, eps, mitre
+                )
+                if status == _k.ST_OK and _node_ok(lv, sp, sid, fan, rad):
+                    break
+                status = status if status != _k.ST_OK else _k.ST_ARC
             if status != _k.ST_OK:
                 raise StitchError(
                     f"node {n}: could not build the LSLT node structure (status {status}) from its "
@@ -406,6 +430,28 @@ def _stitch(
     if cb is not None:
         cb("done", 1, 1)
     return mesh
+
+
+def _node_ok(
+    lv: NDArray[np.float64],
+    sp: NDArray[np.int64],
+    sid: NDArray[np.int64],
+    fan: NDArray[np.int64],
+    rad: NDArray[np.float64],
+) -> bool:
+    """No near-duplicate consecutive section vertices, no sliver in the hole fan."""
+    for t in range(len(sp) - 1):
+        ring = lv[sid[sp[t] : sp[t + 1]]]
+        step = np.linalg.norm(ring - np.roll(ring, -1, axis=0), axis=1)
+        if step.min() <= MIN_STEP * rad[t]:
+            return False
+    if len(fan):
+        a, b, c = lv[fan[:, 0]], lv[fan[:, 1]], lv[fan[:, 2]]
+        det = np.einsum("ij,ij->i", a, np.cross(b, c))
+        scale = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1) * np.linalg.norm(c, axis=1)
+        if not (det > 1e-9 * scale).all():
+            return False
+    return True
 
 
 def _check_local(

@@ -271,3 +271,24 @@ def test_independent_checker_sees_lslt_mesh_breakage():
     mesh = stitch_lslt(tight_v(60))
     rep = independent_check(type(mesh)(mesh.vertices, mesh.faces[1:]))
     assert not rep["watertight"]
+
+
+@pytest.mark.parametrize("jitter", [1e-11, 1e-8, 1e-6, 1e-4])
+@pytest.mark.parametrize("cell", ["bcc", "cubic", "octet"])
+def test_micro_jittered_blocks_near_cocircular_nodes(rng, cell, jitter):
+    """Nodes a hair away from a co-circular configuration (floating-point noise)."""
+    g0 = block(cell, 2, cell_size=10.0, radius=0.3)
+    g = LatticeGraph(
+        g0.nodes + rng.uniform(-10 * jitter, 10 * jitter, g0.nodes.shape), g0.edges, 0.3
+    )
+    assert_valid(stitch_lslt(g, chord_error=0.05), self_intersections=False)
+
+
+@pytest.mark.parametrize("tilt", [1e-12, 1e-8, 3e-6, 1.5e-5, 3e-5, 1e-3])
+@pytest.mark.parametrize("d", [3, 5, 8])
+def test_nearly_planar_stars(rng, tilt, d):
+    t = 2 * np.pi * np.arange(d) / d + 0.1
+    dirs = np.column_stack([np.cos(t), np.sin(t), np.full(d, tilt)])
+    dirs[0, 2] = -0.5 * tilt
+    g = star_graph(dirs, 1.0, rng.uniform(0.02, 0.08, d))
+    assert_valid(stitch_lslt(g, chord_error=0.02))
