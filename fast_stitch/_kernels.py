@@ -296,16 +296,22 @@ def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
     for i in range(d):
         out_d[i] = ideal[i]
     converged = False
+    prev = np.empty(d)
     for _sweep in range(200):
+        # Jacobi sweeps (every update reads the previous sweep), so the result
+        # does not depend on the order of the struts
+        for i in range(d):
+            prev[i] = out_d[i]
         changed = False
         for i in range(d):
             for j in range(d):
                 if j == i:
                     continue
-                dj = out_d[j] if cosm[i, j] > 0.0 else ideal[j]
+                dj = prev[j] if cosm[i, j] > 0.0 else ideal[j]
                 need = dj * cosm[i, j] + rad[j] * sinm[i, j] + delta
-                if need > out_d[i] * (1.0 + 1e-12):
-                    out_d[i] = need
+                if need > prev[i] * (1.0 + 1e-9) and need + 0.1 * delta > out_d[i]:
+                    # a little slack stops the geometric creep of coupled constraints
+                    out_d[i] = need + 0.1 * delta
                     out_det[i] = j
                     changed = True
         if not changed:
@@ -452,6 +458,7 @@ def convex_hull(pts, order, eps, cap):
     end_at = np.full(n, -1, dtype=np.int64)
     new_list = np.empty(cap, dtype=np.int64)
     last = 0
+    n_last = 1
     for t in range(n):
         p = order[t]
         if used[p]:
@@ -459,10 +466,17 @@ def convex_hull(pts, order, eps, cap):
         px = pts[p, 0]
         py = pts[p, 1]
         pz = pts[p, 2]
-        # walk from the last new face towards p (greedy on the plane distance),
-        # then flood-fill the connected visible region
+        # start from the best face of the previous point's fan (consecutive
+        # points are neighbours), walk greedily on the plane distance, then
+        # flood-fill the connected visible region
         f = last
         dist = nrm[f, 0] * px + nrm[f, 1] * py + nrm[f, 2] * pz - off[f]
+        for iv in range(1, n_last):
+            g = new_list[iv]
+            dg = nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g]
+            if dg > dist:
+                dist = dg
+                f = g
         for _step in range(nf):
             if dist > eps:
                 break
@@ -548,6 +562,7 @@ def convex_hull(pts, order, eps, cap):
             alive[f] = False
             visible[f] = False
         last = new_list[0]
+        n_last = nnew
     for q in range(n):
         if not used[q]:
             return empty, 2

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numba
 import numpy as np
@@ -57,7 +57,7 @@ class Estimate:
     stl_bytes: int
 
 
-def _check_segments(segments: int) -> int:
+def _check_segments(segments: int | None) -> int:
     if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)):
         raise TypeError(f"segments must be an integer >= 3, got {segments!r}")
     if segments < 3:
@@ -112,8 +112,11 @@ class _Progress:
 
 def stitch(
     graph: LatticeGraph,
-    segments: int = 6,
+    segments: int | None = 6,
     *,
+    method: Literal["verma", "lslt"] = "verma",
+    chord_error: float | None = None,
+    sections: int | Literal["auto"] | None = None,
     shrink: bool = True,
     seed: int = 0,
     workers: int | None = None,
@@ -128,6 +131,18 @@ def stitch(
     graph : LatticeGraph
     segments : int
         P, the number of sides of every strut's polygonal profile (>= 3).
+        Ignored by ``method="lslt"``; with ``chord_error`` it may be None.
+    method : {"verma", "lslt"}
+        ``"verma"``: the combinatorial stitcher (Verma et al. 2019, this module).
+        ``"lslt"``: lightweight triangulation (Chougrani et al. 2017), see
+        :func:`fast_stitch.lslt.stitch_lslt`.
+    chord_error : float, optional
+        Largest distance between a strut's circle and its polygon, relative to
+        the radius. For ``"verma"`` it chooses ``segments`` (the smallest P
+        that meets it, overriding ``segments``); for ``"lslt"`` it is the
+        method's accuracy (default 0.05).
+    sections : int or "auto", optional
+        LSLT intermediary sections per strut (``"auto"``: the paper's Eq. 11).
     shrink : bool
         Reduce hub volume: each profile sits as close to its node as the
         geometry allows, instead of all on one sphere.
@@ -166,6 +181,25 @@ def stitch(
         two struts at a node are parallel; struts or joints that share no node
         overlap (with ``check_clearance``).
     """
+    if method == "lslt":
+        from fast_stitch.lslt import stitch_lslt
+
+        return stitch_lslt(
+            graph,
+            chord_error=0.05 if chord_error is None else chord_error,
+            sections=sections,
+            seed=seed,
+            workers=workers,
+            progress=progress,
+        )
+    if method != "verma":
+        raise ValueError(f"method must be 'verma' or 'lslt', got {method!r}")
+    if sections is not None:
+        raise ValueError("sections only applies to method='lslt'")
+    if chord_error is not None:
+        from fast_stitch.lslt import segments_for_chord_error
+
+        segments = segments_for_chord_error(chord_error)
     P = _check_segments(segments)
     if not isinstance(graph, LatticeGraph):
         raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")

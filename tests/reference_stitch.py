@@ -86,19 +86,27 @@ def offsets(dirs, rad, *, shrink: bool, margin: float = 1e-2, floor_deg: float =
         return sphere
     delta = margin * math.sqrt(rho2)
     out = ideal.copy()
-    for _ in range(200):
-        changed = False
-        for i in range(d):
-            for j in range(d):
-                if i == j:
-                    continue
-                dj = out[j] if cos[i, j] > 0 else ideal[j]
-                need = dj * cos[i, j] + rad[j] * sin[i, j] + delta
-                if need > out[i] * (1 + 1e-12):
-                    out[i] = need
-                    changed = True
-        if not changed:
+    for _ in range(200):  # Jacobi sweeps: order independent
+        prev = out.copy()
+        need = np.array(
+            [
+                max(
+                    (
+                        (prev[j] if cos[i, j] > 0 else ideal[j]) * cos[i, j]
+                        + rad[j] * sin[i, j]
+                        + delta
+                        for j in range(d)
+                        if j != i
+                    ),
+                    default=-np.inf,
+                )
+                for i in range(d)
+            ]
+        )
+        raised = need > prev * (1 + 1e-9)
+        if not raised.any():
             return np.minimum(out, sphere)
+        out = np.where(raised, np.maximum(out, need + 0.1 * delta), out)
     return sphere
 
 

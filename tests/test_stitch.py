@@ -359,3 +359,20 @@ def test_independent_checker_catches_a_broken_mesh():
     flipped = mesh.faces.copy()
     flipped[0] = flipped[0, ::-1]
     assert not independent_check(type(mesh)(mesh.vertices, flipped))["winding_consistent"]
+
+
+def test_method_dispatch_and_chord_error():
+    from fast_stitch.lslt import segments_for_chord_error
+
+    g = block("bcc", 2, cell_size=5.0, radius=0.3)
+    P = segments_for_chord_error(0.05)
+    assert 1 - math.cos(math.pi / P) <= 0.05 < 1 - math.cos(math.pi / (P - 1))
+    by_error = fast_stitch.stitch(g, chord_error=0.05)
+    assert len(by_error.faces) == fast_stitch.estimate(g, P).triangles
+    lslt = fast_stitch.stitch(g, method="lslt", chord_error=0.05)
+    assert_valid(lslt)
+    assert len(lslt.faces) < len(by_error.faces)
+    with pytest.raises(ValueError, match="method"):
+        fast_stitch.stitch(g, method="marching-cubes")
+    with pytest.raises(ValueError, match="sections"):
+        fast_stitch.stitch(g, sections=2)
