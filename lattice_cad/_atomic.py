@@ -37,6 +37,9 @@ def atomic_write(path: str | os.PathLike[str], mode: Literal["wb", "w"] = "wb") 
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; honour the umask instead
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

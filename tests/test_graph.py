@@ -120,3 +120,14 @@ def test_load_errors_name_the_file(tmp_path):
         LatticeGraph.load(broken)
     with pytest.raises(ValueError, match=".txt"):
         LatticeGraph(TRI, [[0, 1], [1, 2]], 0.1).save(tmp_path / "g.txt")
+
+
+def test_saved_files_honour_the_umask(tmp_path):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        path = LatticeGraph(TRI, [[0, 1], [1, 2]], 0.1).save(tmp_path / "g.npz")
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o644
