@@ -9,9 +9,12 @@ A *radius spec* is one of
   midpoints (graded lattices; see :func:`graded_by_distance`).
 
 :func:`check_fit` lists the struts that :func:`fast_stitch.stitch` would
-reject because their end profiles (whose offsets from the node are set by the
-angles and radii of all struts at that node) would meet; :func:`fit_radii`
-thins the struts at the offending nodes until every strut fits.
+reject: because their end profiles (whose offsets from the node are set by the
+angles and radii of all struts at that node) would meet, or because struts and
+joints that share no node would overlap (:func:`fast_stitch.fit.clashes`, e.g.
+opposite edges of a flat tetrahedron). :func:`fit_radii` thins the offending
+struts until every strut fits and clears the others; :func:`fit_problems`
+describes what is left, for a :class:`FitError`.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from typing import TYPE_CHECKING, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fast_stitch.fit import misfits
+from fast_stitch.fit import CLEARANCE_MARGIN, clashes, misfits
 from lattice_cad.errors import LatticeError
 from lattice_cad.graph import LatticeGraph
 
@@ -35,6 +38,8 @@ __all__ = [
     "resolve_radii",
     "graded_by_distance",
     "StrutMisfit",
+    "StrutClash",
+    "fit_problems",
     "check_fit",
     "fit_radii",
     "FitError",
@@ -132,21 +137,83 @@ class StrutMisfit:
         )
 
 
-def check_fit(graph: LatticeGraph, segments: int = 6, *, shrink: bool = True) -> list[StrutMisfit]:
-    """The struts of ``graph`` that :func:`fast_stitch.stitch` would reject as too short.
+@dataclass(frozen=True)
+class StrutClash:
+    """Two elements that share no node but would overlap: stitching would fail on them.
+
+    An element is a strut (``joint`` False: ``index`` is the strut) or the
+    joint at a node (``joint`` True: ``index`` is the node).
+    """
+
+    first: int
+    second: int
+    first_joint: bool
+    second_joint: bool
+    distance: float  #: between the two axes (a joint's axis is its node)
+    needed: float  #: sum of the two radii, with the clearance margin
+    names: tuple[str, str] = ("", "")
+
+    def __str__(self) -> str:
+        return (
+            f"{self.names[0]} and {self.names[1]} share no node but are {self.distance:.4g} "
+            f"apart, less than the {self.needed:.4g} their radii need; use thinner struts "
+            "or fit='shrink'"
+        )
+
+
+def _clash_list(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    *,
+    shrink: bool = True,
+    margin: float = CLEARANCE_MARGIN,
+) -> list[StrutClash]:
+    pairs, dist, need = clashes(nodes, edges, radii, shrink=shrink, margin=margin)
+    m = len(edges)
+
+    def name(el: int) -> str:
+        if el < m:
+            return f"strut {el} (nodes {int(edges[el, 0])}, {int(edges[el, 1])})"
+        return f"the joint at node {el - m}"
+
+    return [
+        StrutClash(
+            a if a < m else a - m,
+            b if b < m else b - m,
+            a >= m,
+            b >= m,
+            float(d),
+            float(r),
+            (name(a), name(b)),
+        )
+        for (a, b), d, r in zip(pairs.tolist(), dist.tolist(), need.tolist(), strict=True)
+    ]
+
+
+def check_fit(
+    graph: LatticeGraph, segments: int = 6, *, shrink: bool = True, clearance: bool = True
+) -> list[StrutMisfit | StrutClash]:
+    """What :func:`fast_stitch.stitch` would reject in ``graph``.
 
     Uses the stitcher's own offset rule (:mod:`fast_stitch.fit`); the result
-    does not depend on ``segments`` (kept for symmetry with ``stitch``). Does
-    not check clearance between struts that share no node.
+    does not depend on ``segments`` (kept for symmetry with ``stitch``): the
+    P-gon profiles are inscribed in the circles checked here.
+
+    Parameters
+    ----------
+    clearance : bool
+        Also list struts and joints that share no node but would overlap
+        (:func:`fast_stitch.fit.clashes`, with its 2 % margin).
 
     Returns
     -------
-    list of StrutMisfit
-        Empty when every strut fits.
+    list of StrutMisfit (too-short struts) then StrutClash (overlapping pairs)
+        Empty when the graph will stitch.
     """
     del segments  # offsets do not depend on the number of segments
     bad, need, length = misfits(graph.nodes, graph.edges, graph.radii, shrink=shrink)
-    return [
+    out: list[StrutMisfit | StrutClash] = [
         StrutMisfit(
             int(e),
             (int(graph.edges[e, 0]), int(graph.edges[e, 1])),
@@ -155,6 +222,56 @@ def check_fit(graph: LatticeGraph, segments: int = 6, *, shrink: bool = True) ->
         )
         for e in bad
     ]
+    if clearance and not out:  # clearance is only meaningful once every strut has a cylinder
+        out.extend(_clash_list(graph.nodes, graph.edges, graph.radii, shrink=shrink))
+    return out
+
+
+def fit_problems(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    *,
+    shrink: bool = True,
+    limit: int = 5,
+) -> str:
+    """A message naming the struts that will not stitch with ``radii`` ("" when all do).
+
+    For ``fit="raise"``: too-short or too-fat struts, then pairs of struts (or
+    a strut and a joint) that share no node but would overlap, with their
+    distance, at most ``limit`` of each kind.
+    """
+    nodes = np.asarray(nodes, dtype=np.float64)
+    edges = np.asarray(edges, dtype=np.int64)
+    radii = np.asarray(radii, dtype=np.float64)
+    length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+    bad, need, _ = misfits(nodes, edges, radii, shrink=shrink)
+    bad = np.union1d(bad, np.flatnonzero(radii.max(axis=1) >= 0.5 * length))
+    parts = []
+    if len(bad):
+        shown = "; ".join(
+            f"strut {int(e)} (nodes {int(edges[e, 0])}, {int(edges[e, 1])}): length "
+            f"{length[e]:.4g}, needs {max(need[e], 2 * radii[e].max()):.4g}"
+            for e in bad[:limit]
+        )
+        parts.append(
+            f"{len(bad)} of {len(edges)} struts are too short for their radii: {shown}"
+            f"{' ...' if len(bad) > limit else ''}"
+        )
+    else:
+        cl = _clash_list(nodes, edges, radii, shrink=shrink)
+        if cl:
+            shown = "; ".join(
+                f"{c.names[0]} and {c.names[1]}: {c.distance:.4g} apart, need {c.needed:.4g}"
+                for c in cl[:limit]
+            )
+            parts.append(
+                f"{len(cl)} pair(s) of struts or joints that share no node would overlap: "
+                f"{shown}{' ...' if len(cl) > limit else ''}"
+            )
+    if not parts:
+        return ""
+    return "; ".join(parts) + "; use thinner struts or fit='shrink'"
 
 
 def fit_radii(
@@ -164,15 +281,22 @@ def fit_radii(
     *,
     min_radius: float = 0.0,
     shrink: bool = True,
+    clearance: bool = True,
     max_rounds: int = 60,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Thin the struts at crowded nodes until every strut fits.
+    """Thin the struts at crowded nodes, and struts that pass too close, until all fit.
 
     A strut fits when its end offsets leave ``FIT_SLACK`` of its length free
     and its radius is below 0.45 of its length. Offsets at a node scale
     linearly with the radii there, so the radii at both ends of a misfit
     strut's nodes are scaled down by the missing factor (which may taper
     neighbouring struts), and the check is repeated.
+
+    With ``clearance``, once every strut fits, struts and joints that share no
+    node but come closer than their radii allow (:func:`fast_stitch.fit.clashes`,
+    with twice its margin as a target) are thinned too: a clashing strut is
+    scaled as a whole (its taper is kept), a clashing joint by scaling the
+    radii of the strut ends at its node; then everything is checked again.
 
     Parameters
     ----------
@@ -187,7 +311,7 @@ def fit_radii(
     radii : (M, 2) float64
         The fitted radii.
     unfit : (K,) int64
-        Struts that still do not fit (radius at ``min_radius``).
+        Struts that still do not fit or clear (radius at ``min_radius``).
     """
     r = np.array(radii, dtype=np.float64, copy=True)
     length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
@@ -195,18 +319,44 @@ def fit_radii(
     too_fat = r > cap[:, None]
     r[too_fat] = np.broadcast_to(cap[:, None], r.shape)[too_fat]
     bad = np.zeros(0, dtype=np.int64)
-    n_nodes = len(nodes)
+    n_nodes, m = len(nodes), len(edges)
     for _ in range(max_rounds):
         bad, need, length = misfits(nodes, edges, r, shrink=shrink, slack=FIT_SLACK)
-        if not len(bad):
-            return r, bad
-        factor = np.clip((1.0 - 1.5 * FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
         node_f = np.ones(n_nodes)
-        np.minimum.at(node_f, edges[bad, 0], factor)
-        np.minimum.at(node_f, edges[bad, 1], factor)
-        new = r * node_f[edges]
+        edge_f = np.ones(m)
+        if len(bad):
+            factor = np.clip((1.0 - 1.5 * FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
+            np.minimum.at(node_f, edges[bad, 0], factor)
+            np.minimum.at(node_f, edges[bad, 1], factor)
+        elif clearance:
+            # aim past the check's own margin so that one round usually clears a pair
+            pairs, dist, reach = clashes(
+                nodes, edges, r, shrink=shrink, margin=2 * CLEARANCE_MARGIN
+            )
+            bad = _clash_struts(pairs, edges, m, n_nodes)
+            if not len(pairs):
+                return r, bad
+            factor = np.repeat(np.clip(0.98 * dist / reach, 0.2, 0.97), 2)
+            el = pairs.ravel()
+            strut = el < m
+            np.minimum.at(edge_f, el[strut], factor[strut])
+            np.minimum.at(node_f, el[~strut] - m, factor[~strut])
+        else:
+            return r, bad
+        new = r * node_f[edges] * edge_f[:, None]
         new = np.maximum(new, min_radius)
         if np.array_equal(new, r):
             break
         r = new
     return r, bad
+
+
+def _clash_struts(
+    pairs: NDArray[np.int64], edges: NDArray[np.int64], m: int, n_nodes: int
+) -> NDArray[np.int64]:
+    """The struts involved in clashes: clashing struts, and the struts at clashing joints."""
+    el = np.unique(pairs.ravel())
+    joint = np.zeros(n_nodes, dtype=np.bool_)
+    joint[el[el >= m] - m] = True
+    at_joint = np.flatnonzero(joint[edges].any(axis=1))
+    return np.union1d(el[el < m], at_joint).astype(np.int64)

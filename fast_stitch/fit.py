@@ -7,6 +7,14 @@ A strut fits when the offsets of its two ends leave some open cylinder:
 ``offset[e, 0] + offset[e, 1] < length[e] * (1 - MIN_CYLINDER_FRACTION)``;
 :func:`misfits` lists the struts that do not. Offsets do not depend on the
 number of segments.
+
+:func:`clashes` lists the elements that share no node but whose bounding
+capsules would overlap (:func:`fast_stitch.stitch`'s ``check_clearance``):
+struts passing close to each other away from their nodes, or a strut through
+another node's joint. A strut's capsule runs between its two profile centres
+with its larger end radius; a joint's ball has the largest distance from the
+node to one of its profile vertices. P-gon profiles are inscribed in these, so
+elements whose capsules keep apart never overlap in the stitched mesh.
 """
 
 from __future__ import annotations
@@ -20,7 +28,10 @@ from numpy.typing import ArrayLike, NDArray
 from fast_stitch import _kernels
 from fast_stitch.stitch import FLOOR_ANGLE_DEG, MIN_CYLINDER_FRACTION, OFFSET_MARGIN
 
-__all__ = ["end_offsets", "misfits", "MIN_CYLINDER_FRACTION"]
+__all__ = ["end_offsets", "misfits", "clashes", "MIN_CYLINDER_FRACTION", "CLEARANCE_MARGIN"]
+
+#: Relative margin of :func:`clashes`: elements must be ``(1 + margin) (r_a + r_b)`` apart.
+CLEARANCE_MARGIN = 0.02
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -51,6 +62,19 @@ def _node_offsets(nodes, edges, radii, offsets, inc_edge, inc_side, shrink, marg
             out[inc_edge[lo + t], inc_side[lo + t]] = od[t]
 
 
+def _incidence(
+    edges: NDArray[np.int64], n: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """CSR node -> (strut, side) incidence: ``offsets`` (n + 1,), ``inc_edge``, ``inc_side``."""
+    flat = edges.ravel()
+    order = np.argsort(flat, kind="stable")
+    inc_edge = (order // 2).astype(np.int64)
+    inc_side = (order % 2).astype(np.int64)
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
+    return offsets, inc_edge, inc_side
+
+
 def end_offsets(
     nodes: ArrayLike, edges: ArrayLike, radii: ArrayLike, *, shrink: bool = True
 ) -> NDArray[np.float64]:
@@ -75,12 +99,7 @@ def end_offsets(
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
     radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
     n, m = len(nodes_a), len(edges_a)
-    flat = edges_a.ravel()
-    order = np.argsort(flat, kind="stable")
-    inc_edge = (order // 2).astype(np.int64)
-    inc_side = (order % 2).astype(np.int64)
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
+    offsets, inc_edge, inc_side = _incidence(edges_a, n)
     out = np.zeros((m, 2))
     floor_tan = math.tan(math.radians(90.0 - FLOOR_ANGLE_DEG))
     _node_offsets(
@@ -121,3 +140,176 @@ def misfits(
     length = np.linalg.norm(nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]], axis=1)
     bad = np.flatnonzero(need >= length * (1.0 - MIN_CYLINDER_FRACTION - slack))
     return bad.astype(np.int64), need, length
+
+
+@njit(cache=True, error_model="numpy")
+def _grid(lo, hi, rad, cell, origin, dims):
+    """Counting sort of the elements (``rad >= 0``) into the grid cells their boxes touch."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    n_cells = nx * ny * nz
+    count = np.zeros(n_cells + 1, dtype=np.int64)
+    for rnd in range(2):
+        if rnd == 1:
+            for c in range(n_cells):
+                count[c + 1] += count[c]
+            members = np.empty(count[n_cells], dtype=np.int64)
+            fill = count[:-1].copy()
+        else:
+            members = np.empty(0, dtype=np.int64)
+            fill = np.empty(0, dtype=np.int64)
+        for i in range(lo.shape[0]):
+            if rad[i] < 0.0:
+                continue
+            x0 = min(nx - 1, max(0, int((lo[i, 0] - origin[0]) / cell)))
+            x1 = min(nx - 1, max(0, int((hi[i, 0] - origin[0]) / cell)))
+            y0 = min(ny - 1, max(0, int((lo[i, 1] - origin[1]) / cell)))
+            y1 = min(ny - 1, max(0, int((hi[i, 1] - origin[1]) / cell)))
+            z0 = min(nz - 1, max(0, int((lo[i, 2] - origin[2]) / cell)))
+            z1 = min(nz - 1, max(0, int((hi[i, 2] - origin[2]) / cell)))
+            for x in range(x0, x1 + 1):
+                for y in range(y0, y1 + 1):
+                    for z in range(z0, z1 + 1):
+                        c = (x * ny + y) * nz + z
+                        if rnd == 0:
+                            count[c + 1] += 1
+                        else:
+                            members[fill[c]] = i
+                            fill[c] += 1
+    return count, members
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _clash_pairs(
+    seg_a, seg_b, rad, lo, hi, cell, origin, dims, count, members, edges, offsets, inc_edge,
+    scale, n_found, start, out_pairs, out_dist, write,
+):  # fmt: skip
+    """Pairs of non-incident elements closer than ``scale * (rad_i + rad_j)``.
+
+    ``write=False``: count them per cell into ``n_found``; ``write=True``:
+    store them from ``start[cell]`` on.
+    """
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    m = edges.shape[0]
+    for c in prange(nx * ny * nz):
+        cx = c // (ny * nz)
+        cy = (c // nz) % ny
+        cz = c % nz
+        k = 0
+        for u in range(count[c], count[c + 1]):
+            i = members[u]
+            for w in range(u + 1, count[c + 1]):
+                j = members[w]
+                if (
+                    lo[i, 0] > hi[j, 0] or lo[j, 0] > hi[i, 0]
+                    or lo[i, 1] > hi[j, 1] or lo[j, 1] > hi[i, 1]
+                    or lo[i, 2] > hi[j, 2] or lo[j, 2] > hi[i, 2]
+                ):  # fmt: skip
+                    continue
+                # each pair once: in the cell holding the low corner of the boxes' overlap
+                ox = min(nx - 1, max(0, int((max(lo[i, 0], lo[j, 0]) - origin[0]) / cell)))
+                oy = min(ny - 1, max(0, int((max(lo[i, 1], lo[j, 1]) - origin[1]) / cell)))
+                oz = min(nz - 1, max(0, int((max(lo[i, 2], lo[j, 2]) - origin[2]) / cell)))
+                if ox != cx or oy != cy or oz != cz:
+                    continue
+                a = min(i, j)
+                b = max(i, j)
+                if _kernels._excluded(a, b, m, edges, offsets, inc_edge):
+                    continue
+                reach = scale * (rad[a] + rad[b])
+                d2 = _kernels._seg_seg_dist2(seg_a, seg_b, a, b)
+                if d2 >= reach * reach:
+                    continue
+                if write:
+                    out_pairs[start[c] + k, 0] = a
+                    out_pairs[start[c] + k, 1] = b
+                    out_dist[start[c] + k] = np.sqrt(d2)
+                k += 1
+        if not write:
+            n_found[c] = k
+
+
+def clashes(
+    nodes: ArrayLike,
+    edges: ArrayLike,
+    radii: ArrayLike,
+    *,
+    shrink: bool = True,
+    margin: float = CLEARANCE_MARGIN,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Struts and joints that share no node but would come too close.
+
+    Elements ``0 .. M-1`` are the struts, ``M + n`` the joint at node ``n``
+    (nodes of degree >= 2). Two elements clash when they share no node (two
+    joints: no strut joins their nodes) and the distance between their
+    capsules' axes is below ``(1 + margin) * (r_a + r_b)`` (see the module
+    docstring). Uses a uniform grid: linear in the number of struts.
+
+    Returns
+    -------
+    pairs : (K, 2) int64
+        Clashing element pairs, ``pairs[:, 0] < pairs[:, 1]``, sorted.
+    distance : (K,) float64
+        Distance between the two axes (segments; a joint's is its node).
+    needed : (K,) float64
+        ``(1 + margin) * (r_a + r_b)``.
+    """
+    nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
+    edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
+    radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
+    n, m = len(nodes_a), len(edges_a)
+    empty = (np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0))
+    if m == 0:
+        return empty
+    offsets, inc_edge, inc_side = _incidence(edges_a, n)
+    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink)
+    vec = nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]]
+    length = np.linalg.norm(vec, axis=1)
+    unit = vec / np.where(length > 0, length, 1.0)[:, None]
+    seg_a = np.empty((m + n, 3))
+    seg_b = np.empty((m + n, 3))
+    rad = np.full(m + n, -1.0)
+    seg_a[:m] = nodes_a[edges_a[:, 0]] + off[:, :1] * unit
+    seg_b[:m] = nodes_a[edges_a[:, 1]] - off[:, 1:] * unit
+    rad[:m] = radii_a.max(axis=1)
+    seg_a[m:] = nodes_a
+    seg_b[m:] = nodes_a
+    degree = np.diff(offsets)
+    reach = np.sqrt(off**2 + radii_a**2)
+    hub_r = np.full(n, -1.0)
+    used = np.flatnonzero(degree >= 1)
+    if len(used):
+        hub_r[used] = np.maximum.reduceat(reach[inc_edge, inc_side], offsets[used])
+    hub_r[degree < 2] = -1.0
+    rad[m:] = hub_r
+    active = rad >= 0
+    pad = (1.0 + margin) * rad
+    lo = np.minimum(seg_a, seg_b) - pad[:, None]
+    hi = np.maximum(seg_a, seg_b) + pad[:, None]
+    extent = (hi - lo)[active].max(axis=1)
+    origin = lo[active].min(axis=0)
+    span = hi[active].max(axis=0) - origin
+    cell = max(float(np.median(extent)), 1e-300)
+    n_el = int(active.sum())
+    while True:
+        dims = np.maximum(1, np.ceil(span / cell).astype(np.int64))
+        if int(np.prod(dims)) <= 4 * n_el + 64:
+            break
+        cell *= 1.5
+    count, members = _grid(lo, hi, rad, cell, origin, dims)
+    n_cells = int(np.prod(dims))
+    n_found = np.zeros(n_cells, dtype=np.int64)
+    start = np.zeros(n_cells + 1, dtype=np.int64)
+    no_pairs = np.zeros((0, 2), dtype=np.int64)
+    args = (seg_a, seg_b, rad, lo, hi, cell, origin, dims, count, members, edges_a, offsets,
+            inc_edge, 1.0 + margin)  # fmt: skip
+    _clash_pairs(*args, n_found, start, no_pairs, np.zeros(0), False)
+    np.cumsum(n_found, out=start[1:])
+    k = int(start[-1])
+    if k == 0:
+        return empty
+    pairs = np.empty((k, 2), dtype=np.int64)
+    dist = np.empty(k)
+    _clash_pairs(*args, n_found, start, pairs, dist, True)
+    order = np.lexsort((pairs[:, 1], pairs[:, 0]))
+    pairs, dist = pairs[order], dist[order]
+    return pairs, dist, (1.0 + margin) * rad[pairs].sum(axis=1)

@@ -9,8 +9,9 @@ import pytest
 
 import fast_stitch
 from conformal.part import Part, PartError, load_part
-from conformal.radius import check_fit
+from conformal.radius import StrutClash, check_fit, fit_radii
 from conformal.tet import tet_edges, tet_lattice, tet_mesh
+from lattice_cad import LatticeGraph
 from lattice_cad.errors import LatticeWarning
 from tests.conftest import assert_valid
 
@@ -48,6 +49,25 @@ def test_graph_is_unique_edges_of_tets(cyl):
 def test_tet_stitches(cyl):
     g = tet_lattice(cyl, 6.0, 0.15)
     assert check_fit(g) == []
+    assert_valid(fast_stitch.stitch(g))
+
+
+def test_tet_realistic_radius_stitches(cyl):
+    # 6 mm tets at radius 0.4: flat tets put opposite edges closer than 0.8, which
+    # used to pass the fit check and then fail in stitch's clearance check
+    raw = tet_lattice(cyl, 6.0, 0.4, fit="off")
+    old, unfit = fit_radii(raw.nodes, raw.edges, raw.radii, min_radius=0.04, clearance=False)
+    assert len(unfit) == 0
+    g0 = LatticeGraph(raw.nodes, raw.edges, old)  # what the node-only fit check gave
+    probs = check_fit(g0)
+    assert probs and all(isinstance(p, StrutClash) for p in probs)
+    with pytest.raises(fast_stitch.StitchError, match="share no node"):
+        fast_stitch.stitch(g0)
+    with pytest.warns(LatticeWarning, match="thinned"):
+        g = tet_lattice(cyl, 6.0, 0.4)
+    assert check_fit(g) == []
+    assert g.radii.max() == pytest.approx(0.4)
+    assert np.median(g.radii) == pytest.approx(0.4)  # only the crowded struts are thinned
     assert_valid(fast_stitch.stitch(g))
 
 

@@ -2,14 +2,24 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
 import fast_stitch
 from conformal.cells import CELLS, block, cell_counts
 from conformal.part import Part, load_part
-from conformal.radius import FitError, check_fit, graded_by_distance
+from conformal.radius import (
+    FitError,
+    StrutClash,
+    check_fit,
+    fit_problems,
+    fit_radii,
+    graded_by_distance,
+)
 from conformal.voxel import voxel_lattice, voxelize
+from fast_stitch.fit import clashes
 from lattice_cad import LatticeGraph
 from lattice_cad.errors import LatticeWarning
 from tests.conftest import assert_valid
@@ -126,6 +136,65 @@ def test_fit_raise_and_check_fit():
     assert probs and "strut" in str(probs[0])
     with pytest.raises(fast_stitch.StitchError):
         fast_stitch.stitch(g)
+
+
+def _crossing() -> tuple[np.ndarray, np.ndarray]:
+    """Struts 0 and 1 cross 0.1 apart without a shared node; strut 2 is far away."""
+    nodes = np.array(
+        [[-1, 0, 0], [1, 0, 0], [0, -1, 0.1], [0, 1, 0.1], [5, 0, 0], [6, 0, 0]], dtype=float
+    )
+    return nodes, np.array([[0, 1], [2, 3], [4, 5]])
+
+
+def test_clearance_check_and_fit():
+    nodes, edges = _crossing()
+    g = LatticeGraph(nodes, edges, 0.08)
+    probs = check_fit(g)
+    assert len(probs) == 1 and isinstance(probs[0], StrutClash)
+    c = probs[0]
+    assert (c.first, c.second, c.first_joint, c.second_joint) == (0, 1, False, False)
+    assert c.distance == pytest.approx(0.1) and c.needed == pytest.approx(0.16 * 1.02)
+    assert "strut 0 (nodes 0, 1) and strut 1 (nodes 2, 3)" in str(c)
+    with pytest.raises(fast_stitch.StitchError, match="share no node"):
+        fast_stitch.stitch(g)
+    msg = fit_problems(nodes, edges, g.radii)
+    assert "strut 0 (nodes 0, 1) and strut 1 (nodes 2, 3): 0.1 apart" in msg
+    r, unfit = fit_radii(nodes, edges, g.radii)
+    assert len(unfit) == 0
+    assert r[:2].max() < 0.05 and np.allclose(r[2:], 0.08)  # only the crossing pair thinned
+    assert np.allclose(r[:, 0], r[:, 1])  # untapered struts stay untapered
+    g2 = LatticeGraph(nodes, edges, r)
+    assert check_fit(g2) == []
+    assert_valid(fast_stitch.stitch(g2))
+    # a floor they cannot go below: reported, naming the struts
+    _, unfit = fit_radii(nodes, edges, g.radii, min_radius=0.07)
+    assert set(unfit.tolist()) == {0, 1}
+
+
+def test_clearance_strut_through_joint():
+    # strut 2 passes 0.15 from node 1, a joint of two struts; a ball check catches it
+    nodes = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [1.15, 0, -1], [1.15, 0, 1]], dtype=float)
+    edges = np.array([[0, 1], [1, 2], [3, 4]])
+    g = LatticeGraph(nodes, edges, 0.1)
+    pairs, dist, need = clashes(g.nodes, g.edges, g.radii)
+    assert [2, 3 + 1] in pairs.tolist()  # strut 2 vs the joint at node 1
+    r, unfit = fit_radii(nodes, edges, g.radii)
+    assert len(unfit) == 0 and check_fit(LatticeGraph(nodes, edges, r)) == []
+    assert_valid(fast_stitch.stitch(LatticeGraph(nodes, edges, r)))
+
+
+def test_clearance_check_is_fast(rng):
+    from tests.conftest import cubic_grid
+
+    nodes, edges = cubic_grid(33)  # 104,544 struts
+    nodes = nodes + rng.normal(0.0, 0.05, nodes.shape)
+    clashes(*cubic_grid(3), 0.1)  # compile
+    t0 = time.perf_counter()
+    pairs, _, _ = clashes(nodes, edges, 0.1)
+    assert time.perf_counter() - t0 < 1.5
+    assert len(pairs) == 0
+    pairs, dist, need = clashes(nodes, edges, 0.3)
+    assert len(pairs) and np.all(dist < need)
 
 
 def test_fit_raise_mode(sphere):
