@@ -33,7 +33,12 @@ import numpy as np
 _EPS = 2.0**-53
 _SPLITTER = 134217729.0  # 2**27 + 1
 _O3D_ERRBOUND = (7.0 + 56.0 * _EPS) * _EPS
+_O3D_ERRBOUND_B = (3.0 + 28.0 * _EPS) * _EPS
+_O3D_ERRBOUND_C = (26.0 + 288.0 * _EPS) * _EPS * _EPS
 _CCW_ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
+_CCW_ERRBOUND_B = (2.0 + 12.0 * _EPS) * _EPS
+_CCW_ERRBOUND_C = (9.0 + 64.0 * _EPS) * _EPS * _EPS
+_RESULT_ERRBOUND = (3.0 + 8.0 * _EPS) * _EPS
 _EXP_BUF = 256  # long enough for every expansion built below (orient3d needs <= 192)
 
 # --------------------------------------------------------------------------------------
@@ -77,6 +82,16 @@ def _two_product(a, b):
     err2 = err1 - alo * bhi
     err3 = err2 - ahi * blo
     return x, alo * blo - err3
+
+
+@numba.njit(cache=True)
+def _two_two_diff(a1, a0, b1, b0):
+    """Exact ``(a1 + a0) - (b1 + b0) = x3 + x2 + x1 + x0`` (Shewchuk's Two_Two_Diff)."""
+    i, x0 = _two_diff(a0, b0)
+    j, z0 = _two_sum(a1, i)
+    i, x1 = _two_diff(z0, b1)
+    x3, x2 = _two_sum(j, i)
+    return x3, x2, x1, x0
 
 
 @numba.njit(cache=True)
@@ -245,6 +260,104 @@ def _orient3d_filter(vertices, a, b, c, d):
 
 
 @numba.njit(cache=True)
+def _orient3d_adapt(vertices, a, b, c, d):
+    """Stages B and C of Shewchuk's adaptive orient3d, then the exact evaluation."""
+    pa0 = vertices[a, 0]
+    pa1 = vertices[a, 1]
+    pa2 = vertices[a, 2]
+    pb0 = vertices[b, 0]
+    pb1 = vertices[b, 1]
+    pb2 = vertices[b, 2]
+    pc0 = vertices[c, 0]
+    pc1 = vertices[c, 1]
+    pc2 = vertices[c, 2]
+    pd0 = vertices[d, 0]
+    pd1 = vertices[d, 1]
+    pd2 = vertices[d, 2]
+    adx = pa0 - pd0
+    bdx = pb0 - pd0
+    cdx = pc0 - pd0
+    ady = pa1 - pd1
+    bdy = pb1 - pd1
+    cdy = pc1 - pd1
+    adz = pa2 - pd2
+    bdz = pb2 - pd2
+    cdz = pc2 - pd2
+    permanent = (
+        (abs(bdx * cdy) + abs(cdx * bdy)) * abs(adz)
+        + (abs(cdx * ady) + abs(adx * cdy)) * abs(bdz)
+        + (abs(adx * bdy) + abs(bdx * ady)) * abs(cdz)
+    )
+    ws = np.empty(72)
+    m = ws[64:68]
+    # stage B: exact determinant of the rounded differences
+    p1, p0 = _two_product(bdx, cdy)
+    q1, q0 = _two_product(cdx, bdy)
+    m[3], m[2], m[1], m[0] = _two_two_diff(p1, p0, q1, q0)
+    alen = _exp_scale(m, 4, adz, ws[0:8])
+    p1, p0 = _two_product(cdx, ady)
+    q1, q0 = _two_product(adx, cdy)
+    m[3], m[2], m[1], m[0] = _two_two_diff(p1, p0, q1, q0)
+    blen = _exp_scale(m, 4, bdz, ws[8:16])
+    p1, p0 = _two_product(adx, bdy)
+    q1, q0 = _two_product(bdx, ady)
+    m[3], m[2], m[1], m[0] = _two_two_diff(p1, p0, q1, q0)
+    clen = _exp_scale(m, 4, cdz, ws[16:24])
+    ablen = _exp_sum(ws[0:8], alen, ws[8:16], blen, ws[24:40])
+    flen = _exp_sum(ws[24:40], ablen, ws[16:24], clen, ws[40:64])
+    det = 0.0
+    for i in range(flen):
+        det += ws[40 + i]
+    bound = _O3D_ERRBOUND_B * permanent
+    if det >= bound and det != 0.0:
+        return 1
+    if -det >= bound and det != 0.0:
+        return -1
+    # stage C: first-order correction with the tails of the differences
+    adxt = _two_diff(pa0, pd0)[1]
+    bdxt = _two_diff(pb0, pd0)[1]
+    cdxt = _two_diff(pc0, pd0)[1]
+    adyt = _two_diff(pa1, pd1)[1]
+    bdyt = _two_diff(pb1, pd1)[1]
+    cdyt = _two_diff(pc1, pd1)[1]
+    adzt = _two_diff(pa2, pd2)[1]
+    bdzt = _two_diff(pb2, pd2)[1]
+    cdzt = _two_diff(pc2, pd2)[1]
+    if (
+        adxt == 0.0
+        and bdxt == 0.0
+        and cdxt == 0.0
+        and adyt == 0.0
+        and bdyt == 0.0
+        and cdyt == 0.0
+        and adzt == 0.0
+        and bdzt == 0.0
+        and cdzt == 0.0
+    ):
+        return _exp_sign(ws[40:64], flen)  # the differences were exact
+    bound = _O3D_ERRBOUND_C * permanent + _RESULT_ERRBOUND * abs(det)
+    det += (
+        (
+            adz * ((bdx * cdyt + cdy * bdxt) - (bdy * cdxt + cdx * bdyt))
+            + adzt * (bdx * cdy - bdy * cdx)
+        )
+        + (
+            bdz * ((cdx * adyt + ady * cdxt) - (cdy * adxt + adx * cdyt))
+            + bdzt * (cdx * ady - cdy * adx)
+        )
+        + (
+            cdz * ((adx * bdyt + bdy * adxt) - (ady * bdxt + bdx * adyt))
+            + cdzt * (adx * bdy - ady * bdx)
+        )
+    )
+    if det >= bound and det != 0.0:
+        return 1
+    if -det >= bound and det != 0.0:
+        return -1
+    return _orient3d_exact(vertices, a, b, c, d)
+
+
+@numba.njit(cache=True)
 def _orient3d(vertices, a, b, c, d):
     """Exact sign of ``det[a - d; b - d; c - d]`` for vertex indices ``a, b, c, d``.
 
@@ -253,7 +366,7 @@ def _orient3d(vertices, a, b, c, d):
     s = _orient3d_filter(vertices, a, b, c, d)
     if s != 2:
         return s
-    return _orient3d_exact(vertices, a, b, c, d)
+    return _orient3d_adapt(vertices, a, b, c, d)
 
 
 @numba.njit(cache=True)
@@ -290,12 +403,56 @@ def _orient2d_filter(vertices, a, b, c, i, j):
 
 
 @numba.njit(cache=True)
+def _orient2d_adapt(vertices, a, b, c, i, j):
+    """Stages B and C of Shewchuk's adaptive orient2d, then the exact evaluation."""
+    pa0 = vertices[a, i]
+    pa1 = vertices[a, j]
+    pb0 = vertices[b, i]
+    pb1 = vertices[b, j]
+    pc0 = vertices[c, i]
+    pc1 = vertices[c, j]
+    acx = pa0 - pc0
+    bcx = pb0 - pc0
+    acy = pa1 - pc1
+    bcy = pb1 - pc1
+    left1, left0 = _two_product(acx, bcy)
+    right1, right0 = _two_product(acy, bcx)
+    detsum = abs(left1) + abs(right1)
+    x3, x2, x1, x0 = _two_two_diff(left1, left0, right1, right0)
+    det = x0 + x1 + x2 + x3
+    bound = _CCW_ERRBOUND_B * detsum
+    if det >= bound and det != 0.0:
+        return 1
+    if -det >= bound and det != 0.0:
+        return -1
+    acxt = _two_diff(pa0, pc0)[1]
+    bcxt = _two_diff(pb0, pc0)[1]
+    acyt = _two_diff(pa1, pc1)[1]
+    bcyt = _two_diff(pb1, pc1)[1]
+    if acxt == 0.0 and acyt == 0.0 and bcxt == 0.0 and bcyt == 0.0:
+        # exact differences: the sign of the exact expansion x3 + x2 + x1 + x0
+        for x in (x3, x2, x1, x0):
+            if x > 0.0:
+                return 1
+            if x < 0.0:
+                return -1
+        return 0
+    bound = _CCW_ERRBOUND_C * detsum + _RESULT_ERRBOUND * abs(det)
+    det += (acx * bcyt + bcy * acxt) - (acy * bcxt + bcx * acyt)
+    if det >= bound and det != 0.0:
+        return 1
+    if -det >= bound and det != 0.0:
+        return -1
+    return _orient2d_exact(vertices, a, b, c, i, j)
+
+
+@numba.njit(cache=True)
 def _orient2d(vertices, a, b, c, i, j):
     """Exact sign of the 2D orientation of vertices ``a, b, c`` projected on axes ``(i, j)``."""
     s = _orient2d_filter(vertices, a, b, c, i, j)
     if s != 2:
         return s
-    return _orient2d_exact(vertices, a, b, c, i, j)
+    return _orient2d_adapt(vertices, a, b, c, i, j)
 
 
 @numba.njit(cache=True)
@@ -484,50 +641,133 @@ def _fan_separated_2d(vertices, p, a, b, c, d):
 
 
 @numba.njit(cache=True)
+def _gd_check(vertices, p1, q1, r1, p2, q2, r2):
+    """Guigue-Devillers ``CHECK_MIN_MAX``: do the two intervals on the planes' line overlap?"""
+    if _orient3d(vertices, p2, p1, q2, q1) > 0:
+        return False
+    return _orient3d(vertices, p2, r1, r2, p1) <= 0
+
+
+@numba.njit(cache=True)
+def _gd_tri2(vertices, p1, q1, r1, p2, q2, r2, dp2, dq2, dr2):
+    """Guigue-Devillers ``TRI_TRI_3D``: ``p1`` is alone on its side of the other plane."""
+    if dp2 > 0:
+        if dq2 > 0:
+            return _gd_check(vertices, p1, r1, q1, r2, p2, q2)
+        if dr2 > 0:
+            return _gd_check(vertices, p1, r1, q1, q2, r2, p2)
+        return _gd_check(vertices, p1, q1, r1, p2, q2, r2)
+    if dp2 < 0:
+        if dq2 < 0:
+            return _gd_check(vertices, p1, q1, r1, r2, p2, q2)
+        if dr2 < 0:
+            return _gd_check(vertices, p1, q1, r1, q2, r2, p2)
+        return _gd_check(vertices, p1, r1, q1, p2, q2, r2)
+    if dq2 < 0:
+        if dr2 >= 0:
+            return _gd_check(vertices, p1, r1, q1, q2, r2, p2)
+        return _gd_check(vertices, p1, q1, r1, p2, q2, r2)
+    if dq2 > 0:
+        if dr2 > 0:
+            return _gd_check(vertices, p1, r1, q1, p2, q2, r2)
+        return _gd_check(vertices, p1, q1, r1, q2, r2, p2)
+    if dr2 > 0:
+        return _gd_check(vertices, p1, q1, r1, r2, p2, q2)
+    if dr2 < 0:
+        return _gd_check(vertices, p1, r1, q1, r2, p2, q2)
+    return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
+
+
+@numba.njit(cache=True)
+def _gd_main(vertices, p1, q1, r1, p2, q2, r2, dp1, dq1, dr1, dp2, dq2, dr2):
+    """Guigue & Devillers (2003), "Fast and robust triangle-triangle overlap test using
+    orientation predicates", with exact signs: do the closed triangles overlap?
+
+    ``d*1`` are the (exact) sides of the first triangle's vertices w.r.t. the second
+    triangle's oriented plane and ``d*2`` conversely, where the side of ``X`` w.r.t.
+    ``(a, b, c)`` is the sign of ``((b - a) x (c - a)) . (X - a)`` = ``orient3d(b, c, X, a)``
+    = ``-orient3d(a, b, c, X)``.
+    """
+    if (dp1 > 0 and dq1 > 0 and dr1 > 0) or (dp1 < 0 and dq1 < 0 and dr1 < 0):
+        return False
+    if (dp2 > 0 and dq2 > 0 and dr2 > 0) or (dp2 < 0 and dq2 < 0 and dr2 < 0):
+        return False
+    if dp1 > 0:
+        if dq1 > 0:
+            return _gd_tri2(vertices, r1, p1, q1, p2, r2, q2, dp2, dr2, dq2)
+        if dr1 > 0:
+            return _gd_tri2(vertices, q1, r1, p1, p2, r2, q2, dp2, dr2, dq2)
+        return _gd_tri2(vertices, p1, q1, r1, p2, q2, r2, dp2, dq2, dr2)
+    if dp1 < 0:
+        if dq1 < 0:
+            return _gd_tri2(vertices, r1, p1, q1, p2, q2, r2, dp2, dq2, dr2)
+        if dr1 < 0:
+            return _gd_tri2(vertices, q1, r1, p1, p2, q2, r2, dp2, dq2, dr2)
+        return _gd_tri2(vertices, p1, q1, r1, p2, r2, q2, dp2, dr2, dq2)
+    if dq1 < 0:
+        if dr1 >= 0:
+            return _gd_tri2(vertices, q1, r1, p1, p2, r2, q2, dp2, dr2, dq2)
+        return _gd_tri2(vertices, p1, q1, r1, p2, q2, r2, dp2, dq2, dr2)
+    if dq1 > 0:
+        if dr1 > 0:
+            return _gd_tri2(vertices, p1, q1, r1, p2, r2, q2, dp2, dr2, dq2)
+        return _gd_tri2(vertices, q1, r1, p1, p2, q2, r2, dp2, dq2, dr2)
+    if dr1 > 0:
+        return _gd_tri2(vertices, r1, p1, q1, p2, q2, r2, dp2, dq2, dr2)
+    if dr1 < 0:
+        return _gd_tri2(vertices, r1, p1, q1, p2, r2, q2, dp2, dr2, dq2)
+    return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
+
+
+@numba.njit(cache=True)
+def _tri_tri_exact(vertices, a, b, c, d, e, f):
+    """Exact closed triangle/triangle overlap (no shortcut; see :func:`_gd_main`)."""
+    return _gd_main(
+        vertices, a, b, c, d, e, f,
+        -_orient3d(vertices, d, e, f, a),
+        -_orient3d(vertices, d, e, f, b),
+        -_orient3d(vertices, d, e, f, c),
+        -_orient3d(vertices, a, b, c, d),
+        -_orient3d(vertices, a, b, c, e),
+        -_orient3d(vertices, a, b, c, f),
+    )  # fmt: skip
+
+
+@numba.njit(cache=True)
 def _tri_tri(vertices, a, b, c, d, e, f):
     """Exact closed triangle/triangle intersection for triangles without common vertices.
 
     Also used by the stitcher's clearance check (:mod:`fast_stitch._kernels`): keep the
     signature ``(vertices, a, b, c, d, e, f)`` with vertex indices.
     """
-    # quick rejections with certain float signs only
-    if _same_side_certain(
-        _orient3d_filter(vertices, a, b, c, d),
-        _orient3d_filter(vertices, a, b, c, e),
-        _orient3d_filter(vertices, a, b, c, f),
-    ):
+    # signs of each triangle's vertices w.r.t. the other's plane: certain float ones first
+    s1 = _orient3d_filter(vertices, a, b, c, d)
+    s2 = _orient3d_filter(vertices, a, b, c, e)
+    s3 = _orient3d_filter(vertices, a, b, c, f)
+    if _same_side_certain(s1, s2, s3):
         return False
-    if _same_side_certain(
-        _orient3d_filter(vertices, d, e, f, a),
-        _orient3d_filter(vertices, d, e, f, b),
-        _orient3d_filter(vertices, d, e, f, c),
-    ):
+    t1 = _orient3d_filter(vertices, d, e, f, a)
+    t2 = _orient3d_filter(vertices, d, e, f, b)
+    t3 = _orient3d_filter(vertices, d, e, f, c)
+    if _same_side_certain(t1, t2, t3):
         return False
-    if _separated_2d(vertices, a, b, c, d, e, f):
-        return False
-    # exact decision
-    od = _orient3d(vertices, a, b, c, d)
-    oe = _orient3d(vertices, a, b, c, e)
-    of = _orient3d(vertices, a, b, c, f)
-    if (od > 0 and oe > 0 and of > 0) or (od < 0 and oe < 0 and of < 0):
-        return False
-    oa = _orient3d(vertices, d, e, f, a)
-    ob = _orient3d(vertices, d, e, f, b)
-    oc = _orient3d(vertices, d, e, f, c)
-    if (oa > 0 and ob > 0 and oc > 0) or (oa < 0 and ob < 0 and oc < 0):
-        return False
-    if od == 0 and oe == 0 and of == 0:
-        return _tri_tri_coplanar(vertices, a, b, c, d, e, f)
-    # Not coplanar: the intersection (if any) is a segment of the planes' common line
-    # whose end points lie on an edge of one triangle inside the other one.
-    return (
-        _seg_tri(vertices, d, e, a, b, c, od, oe)
-        or _seg_tri(vertices, e, f, a, b, c, oe, of)
-        or _seg_tri(vertices, f, d, a, b, c, of, od)
-        or _seg_tri(vertices, a, b, d, e, f, oa, ob)
-        or _seg_tri(vertices, b, c, d, e, f, ob, oc)
-        or _seg_tri(vertices, c, a, d, e, f, oc, oa)
-    )
+    if s1 == 2 or s2 == 2 or s3 == 2 or t1 == 2 or t2 == 2 or t3 == 2:
+        # nearly coplanar: try a cheap 2D separation before exact arithmetic
+        if _separated_2d(vertices, a, b, c, d, e, f):
+            return False
+        if s1 == 2:
+            s1 = _orient3d_exact(vertices, a, b, c, d)
+        if s2 == 2:
+            s2 = _orient3d_exact(vertices, a, b, c, e)
+        if s3 == 2:
+            s3 = _orient3d_exact(vertices, a, b, c, f)
+        if t1 == 2:
+            t1 = _orient3d_exact(vertices, d, e, f, a)
+        if t2 == 2:
+            t2 = _orient3d_exact(vertices, d, e, f, b)
+        if t3 == 2:
+            t3 = _orient3d_exact(vertices, d, e, f, c)
+    return _gd_main(vertices, a, b, c, d, e, f, -t1, -t2, -t3, -s1, -s2, -s3)
 
 
 @numba.njit(cache=True)
@@ -541,17 +781,22 @@ def _shared_vertex_intersect(vertices, p, a, b, c, d):
     fd = _orient3d_filter(vertices, p, a, b, d)
     if (fc == 1 and fd == 1) or (fc == -1 and fd == -1):
         return False
-    if _fan_separated_2d(vertices, p, a, b, c, d):
+    fa = _orient3d_filter(vertices, p, c, d, a)
+    fb = _orient3d_filter(vertices, p, c, d, b)
+    if (fa == 1 and fb == 1) or (fa == -1 and fb == -1):
         return False
-    oc = _orient3d(vertices, p, a, b, c)
-    od = _orient3d(vertices, p, a, b, d)
-    if oc * od > 0:
-        return False
-    oa = _orient3d(vertices, p, c, d, a)
-    ob = _orient3d(vertices, p, c, d, b)
-    if oa * ob > 0:
-        return False
-    return _seg_tri(vertices, c, d, p, a, b, oc, od) or _seg_tri(vertices, a, b, p, c, d, oa, ob)
+    if fc == 2 or fd == 2 or fa == 2 or fb == 2:
+        if _fan_separated_2d(vertices, p, a, b, c, d):
+            return False
+        fc = _orient3d(vertices, p, a, b, c)
+        fd = _orient3d(vertices, p, a, b, d)
+        if fc * fd > 0:
+            return False
+        fa = _orient3d(vertices, p, c, d, a)
+        fb = _orient3d(vertices, p, c, d, b)
+        if fa * fb > 0:
+            return False
+    return _seg_tri(vertices, c, d, p, a, b, fc, fd) or _seg_tri(vertices, a, b, p, c, d, fa, fb)
 
 
 @numba.njit(cache=True)
@@ -610,12 +855,98 @@ def _match(faces, f, v):
 
 
 @numba.njit(cache=True)
+def _point_on_segment_2d(vertices, p, a, b, i, j):
+    """Closed test: point ``p`` on segment ``ab`` (coordinates ``i, j``; exact)."""
+    if _orient2d(vertices, a, b, p, i, j) != 0:
+        return False
+    for ax in (i, j):
+        if vertices[p, ax] < min(vertices[a, ax], vertices[b, ax]):
+            return False
+        if vertices[p, ax] > max(vertices[a, ax], vertices[b, ax]):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _touching_boxes(vertices, faces, fi, fj, p):
+    """Exact shortcut when the boxes of two faces only touch along a plane ``x_k = c``.
+
+    Then the faces can only meet in that plane, where each one reduces to its vertices
+    with ``x_k = c`` (a vertex or an edge). Returns 1 if these meet (beyond the shared
+    vertex ``p`` if ``p >= 0``), 0 if not, -1 if the shortcut does not apply (no touching
+    plane, or a whole face lies in it).
+    """
+    for k in range(3):
+        amin = min(vertices[faces[fi, 0], k], vertices[faces[fi, 1], k], vertices[faces[fi, 2], k])
+        amax = max(vertices[faces[fi, 0], k], vertices[faces[fi, 1], k], vertices[faces[fi, 2], k])
+        bmin = min(vertices[faces[fj, 0], k], vertices[faces[fj, 1], k], vertices[faces[fj, 2], k])
+        bmax = max(vertices[faces[fj, 0], k], vertices[faces[fj, 1], k], vertices[faces[fj, 2], k])
+        if amax == bmin:
+            c = amax
+        elif bmax == amin:
+            c = bmax
+        else:
+            continue
+        na = 0
+        a0 = -1
+        a1 = -1
+        for m in range(3):
+            if vertices[faces[fi, m], k] == c:
+                if na == 0:
+                    a0 = faces[fi, m]
+                else:
+                    a1 = faces[fi, m]
+                na += 1
+        nb = 0
+        b0 = -1
+        b1 = -1
+        for m in range(3):
+            if vertices[faces[fj, m], k] == c:
+                if nb == 0:
+                    b0 = faces[fj, m]
+                else:
+                    b1 = faces[fj, m]
+                nb += 1
+        if na == 3 or nb == 3:
+            return -1
+        i = (k + 1) % 3
+        j = (k + 2) % 3
+        if p >= 0:
+            # both parts contain p: {p}, or a segment from p
+            if na == 1 or nb == 1:
+                return 0
+            x = a1 if a0 == p else a0
+            y = b1 if b0 == p else b0
+            if _orient2d(vertices, p, x, y, i, j) != 0:
+                return 0
+            for ax in (i, j):
+                dx = vertices[x, ax] - vertices[p, ax]
+                if dx != 0.0:
+                    dy = vertices[y, ax] - vertices[p, ax]
+                    return 1 if (dx > 0.0) == (dy > 0.0) else 0
+            return -1
+        if na == 1 and nb == 1:
+            same = vertices[a0, i] == vertices[b0, i] and vertices[a0, j] == vertices[b0, j]
+            return 1 if same else 0
+        if na == 1:
+            return 1 if _point_on_segment_2d(vertices, a0, b0, b1, i, j) else 0
+        if nb == 1:
+            return 1 if _point_on_segment_2d(vertices, b0, a0, a1, i, j) else 0
+        return 1 if _seg_seg_2d(vertices, a0, a1, b0, b1, i, j) else 0
+    return -1
+
+
+@numba.njit(cache=True)
 def _faces_intersect(vertices, faces, fi, fj, tol):
     """Do faces ``fi`` and ``fj`` (both non-degenerate) intersect beyond their shared part?"""
     s0 = _match(faces, fj, faces[fi, 0])
     s1 = _match(faces, fj, faces[fi, 1])
     s2 = _match(faces, fj, faces[fi, 2])
     ns = (s0 >= 0) + (s1 >= 0) + (s2 >= 0)
+    if ns == 0:
+        touch = _touching_boxes(vertices, faces, fi, fj, -1)
+        if touch >= 0:
+            return touch == 1
     if ns == 0:
         return _tri_tri(
             vertices,
@@ -638,6 +969,9 @@ def _faces_intersect(vertices, faces, fi, fj, tol):
         else:
             m = 2
             n = s2
+        touch = _touching_boxes(vertices, faces, fi, fj, faces[fi, m])
+        if touch >= 0:
+            return touch == 1
         return _shared_vertex_intersect(
             vertices,
             faces[fi, m],
@@ -1059,6 +1393,16 @@ def winding_numbers(vertices, faces, labels, queries, query_labels):
 
 # --------------------------------------------------------------------------------------
 # Self-intersections: hashed uniform grid broadphase + exact narrowphase
+#
+# Long faces (struts of a lattice, slivers) would make box-based broadphases scan far too
+# many candidates, so every face is cut along the longest axis of its box into ``k``
+# slabs ("pieces") of length <= h, h being the cell size; each piece gets the box of the
+# part of the triangle inside its slab (conservatively enlarged by ``margin``), and the
+# face is entered in the buckets of the grid cells overlapped by any of its pieces (a
+# thin diagonal face then only occupies the cells along it, not all those of its box).
+# A face ``f`` scans its own buckets for faces ``g > f`` whose box overlaps its box; the
+# candidates of ``f`` are deduplicated before the exact test, so each pair is examined
+# once.
 # --------------------------------------------------------------------------------------
 
 
@@ -1080,119 +1424,266 @@ def _cell_hash(ix, iy, iz, mask):
 
 
 @numba.njit(cache=True)
+def _n_pieces(boxes, f, h, max_pieces):
+    ext = max(boxes[f, 3] - boxes[f, 0], boxes[f, 4] - boxes[f, 1], boxes[f, 5] - boxes[f, 2])
+    k = np.int64(np.ceil(ext / h)) if ext > 0.0 else 1
+    return max(1, min(k, max_pieces))
+
+
+@numba.njit(cache=True)
+def _piece_box(vertices, faces, boxes, f, i, k, margin, out):
+    """Box of the part of face ``f`` inside slab ``i`` of ``k`` along its box's longest
+    axis, enlarged by ``margin`` across that axis (it covers the exact part).
+
+    ``out`` : (6,) float64, written ``(xmin, ymin, zmin, xmax, ymax, zmax)``.
+    """
+    ax = 0
+    ext = boxes[f, 3] - boxes[f, 0]
+    for kk in (1, 2):
+        if boxes[f, 3 + kk] - boxes[f, kk] > ext:
+            ext = boxes[f, 3 + kk] - boxes[f, kk]
+            ax = kk
+    if k == 1:
+        for kk in range(6):
+            out[kk] = boxes[f, kk]
+        return
+    lo = boxes[f, ax]
+    s0 = lo if i == 0 else lo + ext * i / k
+    s1 = boxes[f, 3 + ax] if i == k - 1 else lo + ext * (i + 1) / k
+    for kk in range(3):
+        out[kk] = np.inf
+        out[3 + kk] = -np.inf
+    for m in range(3):
+        p = faces[f, m]
+        x = vertices[p, ax]
+        if s0 <= x <= s1:
+            for kk in range(3):
+                out[kk] = min(out[kk], vertices[p, kk])
+                out[3 + kk] = max(out[3 + kk], vertices[p, kk])
+        q = faces[f, (m + 1) % 3]
+        y = vertices[q, ax]
+        if x == y:
+            continue
+        for s in (s0, s1):
+            if min(x, y) < s < max(x, y):
+                t = (s - x) / (y - x)
+                for kk in range(3):
+                    c = vertices[p, kk] + t * (vertices[q, kk] - vertices[p, kk])
+                    out[kk] = min(out[kk], c)
+                    out[3 + kk] = max(out[3 + kk], c)
+    for kk in range(3):
+        if kk == ax:
+            out[kk] = s0
+            out[3 + kk] = s1
+        else:
+            out[kk] = max(out[kk] - margin, boxes[f, kk])
+            out[3 + kk] = min(out[3 + kk] + margin, boxes[f, 3 + kk])
+
+
+@numba.njit(cache=True)
 def _cell(x, o, h):
     return np.int64(np.floor((x - o) / h))
 
 
-@numba.njit(parallel=True, cache=True)
-def cell_ranges(boxes, origin, h):
-    """Grid cells overlapped by each box.
-
-    Parameters
-    ----------
-    boxes : (F, 6) float64
-    origin : (3,) float64
-        Lower corner of cell ``(0, 0, 0)``; every box lies above it.
-    h : float
-        Cell size.
-
-    Returns
-    -------
-    ranges : (F, 6) int64
-        ``(x0, y0, z0, x1, y1, z1)``, inclusive.
-    total : int
-        Number of (face, cell) pairs.
-    """
-    n = boxes.shape[0]
-    ranges = np.empty((n, 6), np.int64)
-    total = 0
-    for f in numba.prange(n):
-        for k in range(3):
-            ranges[f, k] = _cell(boxes[f, k], origin[k], h)
-            ranges[f, 3 + k] = _cell(boxes[f, 3 + k], origin[k], h)
-        total += (
-            (ranges[f, 3] - ranges[f, 0] + 1)
-            * (ranges[f, 4] - ranges[f, 1] + 1)
-            * (ranges[f, 5] - ranges[f, 2] + 1)
-        )
-    return ranges, total
+@numba.njit(cache=True)
+def _grow(buf):
+    """A copy of ``buf`` (int64) with twice the length."""
+    bigger = np.empty(2 * buf.shape[0], np.int64)
+    for i in range(buf.shape[0]):
+        bigger[i] = buf[i]
+    return bigger
 
 
 @numba.njit(cache=True)
-def grid_fill(ranges, n_buckets):
-    """Bucket the faces by the hashed grid cells their boxes overlap.
+def _sort_unique(buf, n):
+    """Sort ``buf[:n]`` (int64) in place and drop duplicates; returns the new length."""
+    if n > 96:
+        buf[:n] = np.sort(buf[:n])
+    else:
+        for i in range(1, n):
+            x = buf[i]
+            j = i - 1
+            while j >= 0 and buf[j] > x:
+                buf[j + 1] = buf[j]
+                j -= 1
+            buf[j + 1] = x
+    m = 0
+    for i in range(n):
+        if m == 0 or buf[i] != buf[m - 1]:
+            buf[m] = buf[i]
+            m += 1
+    return m
 
-    Parameters
-    ----------
-    ranges : (F, 6) int64
-        From :func:`cell_ranges`.
-    n_buckets : int
-        A power of two >= 64.
 
-    Returns
-    -------
-    bucket_start : (n_buckets + 1,) int64
-    entries : (N,) int32
-        Face indices; ascending inside each bucket (a face may repeat, consecutively).
+@numba.njit(cache=True)
+def _face_buckets(vertices, faces, boxes, f, origin, h, max_pieces, margin, mask, out, buf):
+    """Distinct buckets (sorted) of the cells overlapped by the pieces of face ``f``.
+
+    ``out`` : (6,) float64 work array; ``buf`` : (m,) int64 work array, returned (it is
+    replaced by a longer one when needed) with the count.
     """
-    mask = n_buckets - 1
-    bucket_start = np.zeros(n_buckets + 1, np.int64)
-    nf = ranges.shape[0]
-    for f in range(nf):
-        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
-            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
-                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
-                    bucket_start[_cell_hash(ix, iy, iz, mask) + 1] += 1
-    for b in range(n_buckets):
-        bucket_start[b + 1] += bucket_start[b]
-    entries = np.empty(bucket_start[n_buckets], np.int32)
-    pos = bucket_start[:n_buckets].copy()
-    for f in range(nf):
-        for ix in range(ranges[f, 0], ranges[f, 3] + 1):
-            for iy in range(ranges[f, 1], ranges[f, 4] + 1):
-                for iz in range(ranges[f, 2], ranges[f, 5] + 1):
-                    b = _cell_hash(ix, iy, iz, mask)
-                    entries[pos[b]] = f
-                    pos[b] += 1
-    return bucket_start, entries
+    n = 0
+    k = _n_pieces(boxes, f, h, max_pieces)
+    for i in range(k):
+        _piece_box(vertices, faces, boxes, f, i, k, margin, out)
+        for ix in range(_cell(out[0], origin[0], h), _cell(out[3], origin[0], h) + 1):
+            for iy in range(_cell(out[1], origin[1], h), _cell(out[4], origin[1], h) + 1):
+                for iz in range(_cell(out[2], origin[2], h), _cell(out[5], origin[2], h) + 1):
+                    if n == buf.shape[0]:
+                        buf = _grow(buf)
+                    buf[n] = _cell_hash(ix, iy, iz, mask)
+                    n += 1
+    return _sort_unique(buf, n), buf
 
 
 @numba.njit(parallel=True, cache=True)
-def grid_pairs(
-    vertices, faces, boxes, ranges, bucket_start, entries, tol,
-    mode, orig, max_first, prev_counts, offsets, face_hit, pairs,
-):  # fmt: skip
-    """Count (or collect) the intersecting face pairs found through the grid.
-
-    Face-major: each face ``f`` scans the buckets of the cells its box overlaps for faces
-    ``g > f``. A pair is examined only at the grid cell holding the lower corner of the
-    intersection of the two boxes, hence exactly once. Every face given must be
-    non-degenerate; for speed they should be in a spatially coherent order.
+def grid_face_buckets(
+    vertices, faces, boxes, origin, h, max_pieces, margin, n_buckets, offsets, out_buckets
+):
+    """Buckets of every face: count them (an upper bound), or write the distinct ones.
 
     Parameters
     ----------
     vertices : (V, 3) float64
     faces : (F, 3) int64
     boxes : (F, 6) float64
-    ranges : (F, 6) int64
-        From :func:`cell_ranges`.
+    origin : (3,) float64
+        Lower corner of cell ``(0, 0, 0)``; every box lies above it.
+    h : float
+        Cell size and largest piece length.
+    max_pieces : int
+    margin : float
+    n_buckets : int
+        A power of two >= 64.
+    offsets : (F + 1,) int64
+        Empty: only count the cells of the pieces (with repeats, an upper bound). Else
+        where to write the distinct buckets of each face (room for the upper bound).
+    out_buckets : (N,) int32
+        Output when ``offsets`` is given (sorted per face).
+
+    Returns
+    -------
+    counts : (F,) int64
+        Upper bounds, or the numbers of distinct buckets written.
+    """
+    nf = faces.shape[0]
+    mask = n_buckets - 1
+    counts = np.zeros(nf, np.int64)
+    write = offsets.shape[0] > 0
+    chunk = 256
+    for ch in numba.prange((nf + chunk - 1) // chunk):
+        out = np.empty(6)
+        buf = np.empty(64, np.int64)
+        for f in range(ch * chunk, min(nf, (ch + 1) * chunk)):
+            if not write:
+                k = _n_pieces(boxes, f, h, max_pieces)
+                total = 0
+                for i in range(k):
+                    _piece_box(vertices, faces, boxes, f, i, k, margin, out)
+                    total += (
+                        (_cell(out[3], origin[0], h) - _cell(out[0], origin[0], h) + 1)
+                        * (_cell(out[4], origin[1], h) - _cell(out[1], origin[1], h) + 1)
+                        * (_cell(out[5], origin[2], h) - _cell(out[2], origin[2], h) + 1)
+                    )
+                counts[f] = total
+                continue
+            n, buf = _face_buckets(
+                vertices, faces, boxes, f, origin, h, max_pieces, margin, mask, out, buf
+            )
+            counts[f] = n
+            for m in range(n):
+                out_buckets[offsets[f] + m] = buf[m]
+    return counts
+
+
+@numba.njit(cache=True)
+def grid_fill(face_buckets, offsets, counts, n_buckets):
+    """Bucket lists (counting sort of the faces by bucket).
+
+    Parameters
+    ----------
+    face_buckets : (N,) int32
+    offsets : (F + 1,) int64
+    counts : (F,) int64
+        From :func:`grid_face_buckets`: the buckets of face ``f`` are
+        ``face_buckets[offsets[f]:offsets[f] + counts[f]]``.
+    n_buckets : int
+
+    Returns
+    -------
+    bucket_start : (n_buckets + 1,) int64
+    entries : (M,) int32
+        Face indices, ascending and distinct inside each bucket.
+    """
+    nf = counts.shape[0]
+    bucket_start = np.zeros(n_buckets + 1, np.int64)
+    for f in range(nf):
+        for e in range(offsets[f], offsets[f] + counts[f]):
+            bucket_start[face_buckets[e] + 1] += 1
+    for b in range(n_buckets):
+        bucket_start[b + 1] += bucket_start[b]
+    entries = np.empty(bucket_start[n_buckets], np.int32)
+    pos = bucket_start[:n_buckets].copy()
+    for f in range(nf):
+        for e in range(offsets[f], offsets[f] + counts[f]):
+            b = face_buckets[e]
+            entries[pos[b]] = f
+            pos[b] += 1
+    return bucket_start, entries
+
+
+@numba.njit(cache=True)
+def _reinsert(buf, n, f, size):
+    """New dedup tables of ``size`` slots holding the ``n`` candidates of face ``f``."""
+    keys = np.empty(size, np.int64)
+    stamps = np.full(size, -1, np.int64)
+    for m in range(n):
+        g = buf[m]
+        slot = (g * 2654435761) & (size - 1)
+        while stamps[slot] == f:
+            slot = (slot + 1) & (size - 1)
+        stamps[slot] = f
+        keys[slot] = g
+    return keys, stamps
+
+
+@numba.njit(parallel=True, cache=True)
+def grid_pairs(
+    vertices, faces, boxes, face_buckets, offsets, bucket_counts, bucket_start, entries, tol,
+    mode, orig, max_first, prev_counts, pair_offsets, face_hit, pairs,
+):  # fmt: skip
+    """Count (or collect) the intersecting face pairs ``(f, g > f)`` found through the grid.
+
+    Each face scans the buckets of its pieces' cells (the distinct ones) for faces
+    ``g > f`` whose box overlaps its box; duplicates are dropped with a small hash table
+    (stamped with ``f``, so it is never cleared) before the exact test. Every face given
+    must be non-degenerate; for speed they should be in a spatially coherent order.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    boxes : (F, 6) float64
+    face_buckets : (N,) int32
+    offsets : (F + 1,) int64
+    bucket_counts : (F,) int64
+        As given to :func:`grid_fill`.
     bucket_start : (B + 1,) int64
-    entries : (N,) int32
+    entries : (M,) int32
         From :func:`grid_fill`.
     tol : float
         Absolute fold tolerance for faces that share an edge.
     mode : int
-        0: count the pairs ``(f, g > f)`` of every face ``f`` and set ``face_hit`` to 1
-        for the faces involved; 1: count only the pairs with
-        ``min(orig[f], orig[g]) <= max_first``, scanning only the faces with
-        ``prev_counts[f] > 0``; 2: like 1, and write them into
-        ``pairs[offsets[f]:offsets[f + 1]]``.
+        0: count the pairs of every face and set ``face_hit`` to 1 for the faces
+        involved; 1: count only the pairs with ``min(orig[f], orig[g]) <= max_first``,
+        scanning only the faces with ``prev_counts[f] > 0``; 2: like 1, and write them
+        into ``pairs[pair_offsets[f]:pair_offsets[f + 1]]``.
     orig : (F,) int64
         Original index of each face (for ``max_first``).
     max_first : int
     prev_counts : (F,) int64
         Counts of mode 0 (modes 1 and 2).
-    offsets : (F + 1,) int64
+    pair_offsets : (F + 1,) int64
         Write positions (mode 2).
     face_hit : (F,) uint8
         Output of mode 0.
@@ -1202,56 +1693,75 @@ def grid_pairs(
     Returns
     -------
     counts : (F,) int64
-        Pairs counted per face ``f``.
+        Pairs ``(f, g > f)`` counted per face ``f``.
     """
     nf = faces.shape[0]
-    mask = bucket_start.shape[0] - 2
     counts = np.zeros(nf, np.int64)
-    for f in numba.prange(nf):
-        if mode != 0 and prev_counts[f] == 0:
-            continue
-        x0 = ranges[f, 0]
-        y0 = ranges[f, 1]
-        z0 = ranges[f, 2]
-        cnt = 0
-        for ix in range(x0, ranges[f, 3] + 1):
-            for iy in range(y0, ranges[f, 4] + 1):
-                for iz in range(z0, ranges[f, 5] + 1):
-                    b = _cell_hash(ix, iy, iz, mask)
-                    s = bucket_start[b]
-                    e = bucket_start[b + 1]
-                    for kk in range(s, e):
-                        g = entries[kk]
-                        if g <= f or (kk > s and entries[kk - 1] == g):
-                            continue
-                        # examine the pair only in the cell of the lower corner of the
-                        # intersection of the boxes (max of the lower cells, by monotony)
-                        if (
-                            max(x0, ranges[g, 0]) != ix
-                            or max(y0, ranges[g, 1]) != iy
-                            or max(z0, ranges[g, 2]) != iz
-                        ):
-                            continue
-                        if mode != 0 and min(orig[f], orig[g]) > max_first:
-                            continue
-                        if (
-                            boxes[f, 0] > boxes[g, 3]
-                            or boxes[g, 0] > boxes[f, 3]
-                            or boxes[f, 1] > boxes[g, 4]
-                            or boxes[g, 1] > boxes[f, 4]
-                            or boxes[f, 2] > boxes[g, 5]
-                            or boxes[g, 2] > boxes[f, 5]
-                        ):
-                            continue
-                        if _faces_intersect(vertices, faces, f, g, tol):
-                            if mode == 2:
-                                pairs[offsets[f] + cnt, 0] = f
-                                pairs[offsets[f] + cnt, 1] = g
-                            elif mode == 0:
-                                face_hit[f] = 1
-                                face_hit[g] = 1
-                            cnt += 1
-        counts[f] = cnt
+    chunk = 256
+    for ch in numba.prange((nf + chunk - 1) // chunk):
+        buf = np.empty(256, np.int64)
+        size = 1024
+        keys = np.empty(size, np.int64)
+        stamps = np.full(size, -1, np.int64)
+        for f in range(ch * chunk, min(nf, (ch + 1) * chunk)):
+            if mode != 0 and prev_counts[f] == 0:
+                continue
+            fx0 = boxes[f, 0]
+            fy0 = boxes[f, 1]
+            fz0 = boxes[f, 2]
+            fx1 = boxes[f, 3]
+            fy1 = boxes[f, 4]
+            fz1 = boxes[f, 5]
+            n = 0
+            for e in range(offsets[f], offsets[f] + bucket_counts[f]):
+                b = face_buckets[e]
+                lo_k = bucket_start[b]
+                hi_k = bucket_start[b + 1]
+                while lo_k < hi_k:  # first entry > f (entries are ascending)
+                    mid = (lo_k + hi_k) >> 1
+                    if entries[mid] <= f:
+                        lo_k = mid + 1
+                    else:
+                        hi_k = mid
+                for kk in range(lo_k, bucket_start[b + 1]):
+                    g = entries[kk]
+                    if (
+                        fx0 > boxes[g, 3]
+                        or boxes[g, 0] > fx1
+                        or fy0 > boxes[g, 4]
+                        or boxes[g, 1] > fy1
+                        or fz0 > boxes[g, 5]
+                        or boxes[g, 2] > fz1
+                    ):
+                        continue
+                    if mode != 0 and min(orig[f], orig[g]) > max_first:
+                        continue
+                    slot = (g * 2654435761) & (size - 1)
+                    while stamps[slot] == f and keys[slot] != g:
+                        slot = (slot + 1) & (size - 1)
+                    if stamps[slot] == f:
+                        continue  # seen in another bucket
+                    stamps[slot] = f
+                    keys[slot] = g
+                    if n == buf.shape[0]:
+                        buf = _grow(buf)
+                    buf[n] = g
+                    n += 1
+                    if 2 * n > size:
+                        size *= 2
+                        keys, stamps = _reinsert(buf, n, f, size)
+            cnt = 0
+            for m in range(n):
+                g = buf[m]
+                if _faces_intersect(vertices, faces, f, g, tol):
+                    if mode == 2:
+                        pairs[pair_offsets[f] + cnt, 0] = f
+                        pairs[pair_offsets[f] + cnt, 1] = g
+                    elif mode == 0:
+                        face_hit[f] = 1
+                        face_hit[g] = 1
+                    cnt += 1
+            counts[f] = cnt
     return counts
 
 
@@ -1285,7 +1795,7 @@ def vertex_stats(vertices, used):
 
 @numba.njit(cache=True)
 def box_stats(boxes, active):
-    """Bounding box and mean largest extent of the active boxes.
+    """Bounding box of the active boxes.
 
     Parameters
     ----------
@@ -1295,22 +1805,15 @@ def box_stats(boxes, active):
     Returns
     -------
     lo, hi : (3,) float64
-    mean_extent : float
     """
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
-    total = 0.0
-    n = 0
     for f in range(boxes.shape[0]):
         if active[f]:
-            ext = 0.0
             for k in range(3):
                 lo[k] = min(lo[k], boxes[f, k])
                 hi[k] = max(hi[k], boxes[f, 3 + k])
-                ext = max(ext, boxes[f, 3 + k] - boxes[f, k])
-            total += ext
-            n += 1
-    return lo, hi, total / max(n, 1)
+    return lo, hi
 
 
 @numba.njit(parallel=True, cache=True)
@@ -1434,6 +1937,13 @@ def faces_intersect(vertices, faces, fi, fj, tol):
     bool
     """
     return _faces_intersect(vertices, faces, fi, fj, tol)
+
+
+@numba.njit(cache=True)
+def triangles_intersect_exact(vertices, a, b, c, d, e, f):
+    """Closed triangles ``abc`` and ``def`` intersect (exact, without any shortcut; for
+    tests). Vertex indices; the triangles must be non-degenerate."""
+    return _tri_tri_exact(vertices, a, b, c, d, e, f)
 
 
 @numba.njit(cache=True)

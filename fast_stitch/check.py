@@ -40,6 +40,15 @@ overlap its neighbour by more than ``tol``).
 
 Degenerate faces (a repeated vertex index, or three exactly collinear points)
 take no part in the self-intersection test; they are reported as zero-area.
+
+Candidate pairs come from a hashed uniform grid over the faces sorted in
+Morton order; long faces are cut into pieces along their longest axis so that
+thin diagonal faces (lattice struts, slivers) only occupy the cells they cross.
+Pairs whose bounding boxes only touch along an axis-aligned plane, faces that
+are certainly on one side of each other's plane and nearly coplanar faces
+separated in 2D are settled without exact arithmetic; the rest go to the
+Guigue-Devillers test with exact signs. Everything runs in numba kernels, in
+parallel over faces, with results independent of the number of threads.
 """
 
 from __future__ import annotations
@@ -58,10 +67,15 @@ from fast_stitch import _check_kernels as _k
 
 __all__ = ["check", "CheckReport"]
 
+#: Bound on the grid entries per face; the cell grows when it would be exceeded.
+_MAX_ENTRIES_PER_FACE = 8
+#: Mean grid entries per face aimed at when choosing the cell size (on a sample).
+_TARGET_ENTRIES_PER_FACE = 5.0
+#: Maximum number of pieces a long face is cut into for the broadphase.
+_MAX_PIECES = 256
+
 #: Budget of (query, face) solid-angle evaluations for the cavity test of inverted shells.
 _WINDING_BUDGET = 200_000_000
-#: Maximum number of grid entries per active face before the grid cell grows.
-_MAX_ENTRIES_PER_FACE = 24
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,7 +105,9 @@ class CheckReport:
         at the vertex, including non-manifold edges). Only meaningful when the edges are
         manifold.
     n_zero_area : int
-        Faces with area ``<= area_tol`` (float64 cross product) or a repeated vertex index.
+        Faces with area ``<= area_tol`` (float64 cross product), a repeated vertex index,
+        or three exactly collinear vertices (exact test: the float area of such a face may
+        be a small rounding artefact).
     n_self_intersections : int or None
         Intersecting face pairs (see the module docstring); None if not computed.
     n_self_intersecting_faces : int or None
@@ -376,12 +392,14 @@ def _self_intersections(
     boxes: NDArray[np.float64],
     active: NDArray[np.bool_],
     tol: float,
+    scale: float,
     max_report: int,
 ) -> tuple[int, int, NDArray[np.int64]]:
     """Count intersecting pairs and faces, and collect the first ``max_report`` pairs.
 
     vertices : (V, 3) float64, faces : (F, 3) int64, boxes : (F, 6) float64,
-    active : (F,) bool (the non-degenerate faces). Returns the number of pairs, the
+    active : (F,) bool (the non-degenerate faces), tol: fold tolerance, scale: coordinate
+    scale (largest absolute coordinate or more). Returns the number of pairs, the
     number of faces involved and the lexicographically smallest pairs, (K, 2) int64.
     """
     empty = np.zeros((0, 2), np.int64)
@@ -390,7 +408,7 @@ def _self_intersections(
         return 0, 0, empty
     # Work on a spatially sorted copy (Morton order of the boxes, vertices renumbered in
     # order of first use): the grid scan is then cache friendly whatever the input order.
-    lo, hi, mean_extent = _k.box_stats(boxes, active)
+    lo, hi = _k.box_stats(boxes, active)
     extent = float((hi - lo).max())
     scale = (2.0**21 - 1.0) / extent if extent > 0.0 else 0.0
     keys = _k.morton_keys(boxes, active, lo, scale)
@@ -399,24 +417,50 @@ def _self_intersections(
     sub_faces, vmap = _k.renumber_vertices(sub_faces, vertices.shape[0])
     sub_vertices = _k.gather_vertices(vertices, vmap)
 
-    origin = lo
-    h = 1.5 * float(mean_extent)  # about the best trade-off of entries vs. bucket sizes
+    # Cell size: 1.5 x the median largest extent of the boxes (long faces are cut into
+    # pieces, see _check_kernels). A strided sample keeps it cheap.
+    sample = sub_boxes[:: max(1, n // 65536)]
+    h = 1.5 * float(np.median((sample[:, 3:] - sample[:, :3]).max(axis=1)))
     if not h > 0.0:
         h = extent if extent > 0.0 else 1.0
     h = max(h, extent * 2.0**-40)  # keeps cell coordinates far from int64 overflow
+    margin = 1e-13 * max(scale, extent)  # >> rounding of the pieces' boxes
     limit = _MAX_ENTRIES_PER_FACE * n + 1024
-    ranges, total = _k.cell_ranges(sub_boxes, origin, h)
-    while total > limit:
-        h *= 1.6
-        ranges, total = _k.cell_ranges(sub_boxes, origin, h)
-    n_buckets = 1 << max(6, int(total - 1).bit_length())
-    bucket_start, entries = _k.grid_fill(ranges, n_buckets)
+    n_buckets = 1 << max(6, int(limit // 4).bit_length())  # about 4 entries per bucket
+    no_offsets = np.zeros(0, np.int64)
+    no_buckets = np.zeros(0, np.int32)
 
-    def run(mode: int, max_first: int, prev: NDArray[np.int64], offsets: NDArray[np.int64],
+    def entry_counts(fc: NDArray[np.int64], bx: NDArray[np.float64]) -> NDArray[np.int64]:
+        return _k.grid_face_buckets(
+            sub_vertices, fc, bx, lo, h, _MAX_PIECES, margin, n_buckets, no_offsets, no_buckets
+        )
+
+    # Grow the cell while a sample of the faces has too many entries per face ...
+    step = max(1, n // 20000)
+    sample_faces = np.ascontiguousarray(sub_faces[::step])
+    sample_boxes = np.ascontiguousarray(sub_boxes[::step])
+    while entry_counts(sample_faces, sample_boxes).mean() > _TARGET_ENTRIES_PER_FACE:
+        h *= 1.25
+    # ... and while all of them have more than the hard limit.
+    while True:
+        counts = entry_counts(sub_faces, sub_boxes)
+        if int(counts.sum()) <= limit:
+            break
+        h *= 1.5
+    offsets = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    face_buckets = np.empty(int(offsets[-1]), np.int32)
+    bucket_counts = _k.grid_face_buckets(
+        sub_vertices, sub_faces, sub_boxes, lo, h, _MAX_PIECES, margin, n_buckets,
+        offsets, face_buckets,
+    )  # fmt: skip
+    bucket_start, entries = _k.grid_fill(face_buckets, offsets, bucket_counts, n_buckets)
+
+    def run(mode: int, max_first: int, prev: NDArray[np.int64], pair_offsets: NDArray[np.int64],
             hit: NDArray[np.uint8], pairs: NDArray[np.int64]) -> NDArray[np.int64]:  # fmt: skip
         return _k.grid_pairs(
-            sub_vertices, sub_faces, sub_boxes, ranges, bucket_start, entries, tol,
-            mode, perm, max_first, prev, offsets, hit, pairs,
+            sub_vertices, sub_faces, sub_boxes, face_buckets, offsets, bucket_counts,
+            bucket_start, entries, tol, mode, perm, max_first, prev, pair_offsets, hit, pairs,
         )  # fmt: skip
 
     none_i = np.zeros(0, np.int64)
@@ -431,10 +475,10 @@ def _self_intersections(
     hit_orig = np.sort(perm[hit.astype(bool)])
     max_first = int(hit_orig[min(hit_orig.size, 2 * max_report) - 1])
     sel = run(1, max_first, counts, none_i, hit, empty)
-    offsets = np.zeros(n + 1, np.int64)
-    np.cumsum(sel, out=offsets[1:])
-    pairs = np.empty((int(offsets[-1]), 2), np.int64)
-    run(2, max_first, sel, offsets, hit, pairs)
+    pair_offsets = np.zeros(n + 1, np.int64)
+    np.cumsum(sel, out=pair_offsets[1:])
+    pairs = np.empty((int(pair_offsets[-1]), 2), np.int64)
+    run(2, max_first, sel, pair_offsets, hit, pairs)
     pairs = np.sort(perm[pairs], axis=1)
     order = np.lexsort((pairs[:, 1], pairs[:, 0]))[:max_report]
     return n_pairs, n_faces_hit, pairs[order]
@@ -511,10 +555,7 @@ def check(
         scale = 0.0
     area, vol, boxes, degenerate = _k.face_geometry(vertices, faces, center)
 
-    repeated = (
-        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
-    )
-    zero = (area <= area_tol) | repeated
+    zero = (area <= area_tol) | degenerate  # degenerate: repeated index or collinear
     zero_faces = np.flatnonzero(zero)
 
     comp_volume = np.bincount(labels, weights=vol, minlength=n_comp).astype(np.float64)
@@ -529,7 +570,7 @@ def check(
 
     if self_intersections:
         n_si, n_si_faces, pairs = _self_intersections(
-            vertices, faces, boxes, ~degenerate, coplanar_rtol * scale, max_report
+            vertices, faces, boxes, ~degenerate, coplanar_rtol * scale, scale, max_report
         )
     else:
         n_si, n_si_faces, pairs = None, None, np.zeros((0, 2), np.int64)

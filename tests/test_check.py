@@ -578,7 +578,7 @@ def _reference_pair(t1: list, t2: list, n_shared: int) -> bool:
 @pytest.mark.parametrize("grid, offset", [(3, 0.0), (4, 2.0**30)])
 def test_pair_predicate_matches_brute_force_on_degenerate_configurations(grid, offset):
     """Triangles on a tiny integer grid: coplanar, collinear and touching cases galore."""
-    from fast_stitch._check_kernels import faces_intersect
+    from fast_stitch._check_kernels import faces_intersect, triangles_intersect_exact
 
     rng = np.random.default_rng(grid)
     expected_true = 0
@@ -607,6 +607,8 @@ def test_pair_predicate_matches_brute_force_on_degenerate_configurations(grid, o
         tol = 1e-12 * max(1.0, offset)
         assert faces_intersect(v, f, 0, 1, tol) == expected, (pts, n_shared)
         assert faces_intersect(v, f, 1, 0, tol) == expected, (pts, n_shared)
+        if n_shared == 0:  # the exact Guigue-Devillers test alone, without shortcuts
+            assert triangles_intersect_exact(v, *f1, *f2) == expected, pts
     assert 200 < expected_true < 1300
 
 
