@@ -267,7 +267,8 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
         "--fill",
         choices=("inside", "clip", "conform"),
         default=None,
-        help="how cells meet the boundary (default: clip with --skin, else inside)",
+        help="how cells meet the boundary (default: clip with --skin, else inside); "
+        "voxel only: an error with --method tet, whose lattice always conforms",
     )
     if skin:
         g.add_argument(

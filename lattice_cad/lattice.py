@@ -216,12 +216,15 @@ class Lattice:
         fill : {"inside", "clip", "conform"}, optional
             How the voxel lattice meets the boundary (see ``conformal.voxel_lattice``);
             default ``"clip"`` with a skin (struts reach into the wall), else ``"inside"``.
+            Voxel only: a tet lattice always conforms (its surface nodes lie on the
+            part's surface), so passing ``fill`` with ``method="tet"`` is an error.
         skin : float, optional
             Hollow the part to this wall thickness and unite the wall with the lattice.
         segments : int
             Profile sides of the stitched struts.
         origin, rotation : optional
-            Placement of the cell grid (passed to ``conformal.voxel_lattice``).
+            Placement of the cell grid (passed to ``conformal.voxel_lattice``; voxel only).
+            ``cell`` is ignored by ``method="tet"``.
 
         Returns
         -------
@@ -235,6 +238,15 @@ class Lattice:
             An option out of range (named in the message).
         """
         _check_choice("method", method, ("voxel", "tet"))
+        if method == "tet":
+            given = [k for k, v in (("fill", fill), ("origin", origin), ("rotation", rotation))
+                     if v is not None]  # fmt: skip
+            if given:
+                verb = "applies" if len(given) == 1 else "apply"
+                raise ValueError(
+                    f"{' and '.join(given)} only {verb} to method='voxel'; a tet lattice "
+                    "follows the part's surface by construction (leave them out)"
+                )
         if fill is None:
             fill = "clip" if skin is not None else "inside"
         _check_choice("fill", fill, ("inside", "clip", "conform"))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -197,6 +198,26 @@ def test_fill_tet_method(capsys, box_step, tmp_path):
     )
     # without conformal.tet_lattice this is a one-line error, not a traceback
     assert code == 0 or (code == 1 and err.count("\n") == 1 and err.startswith("error: ")), err
+
+
+BRACKET = Path(__file__).parents[1] / "examples" / "bracket.step"
+
+
+def test_fill_tet_bracket_end_to_end(capsys, tmp_path):
+    out = tmp_path / "bracket_tet.stl"
+    code, _, err = run(capsys, "fill", BRACKET, "-o", out, "--method", "tet", "-q")
+    assert code == 0, err
+    code, stdout, err = run(capsys, "check", out)
+    assert code == 0 and stdout.rstrip().endswith(": valid"), stdout + err
+
+
+def test_fill_tet_rejects_fill_mode(capsys, tmp_path):
+    code, _, err = run(
+        capsys, "fill", BRACKET, "-o", tmp_path / "x.stl", "--method", "tet", "--fill", "clip"
+    )
+    assert code == 1 and err.count("\n") == 1
+    assert "fill only applies to method='voxel'" in err
+    assert not (tmp_path / "x.stl").exists()
 
 
 def test_errors_are_one_line(capsys, tmp_path):

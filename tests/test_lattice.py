@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -87,6 +88,22 @@ def test_lattice_options_checked(tmp_path):
 def test_fill_options_checked(box, kwargs, exc, match):
     with pytest.raises(exc, match=match):
         Lattice.fill(box, **kwargs)
+
+
+BRACKET = Path(__file__).parents[1] / "examples" / "bracket.step"
+
+
+def test_fill_tet_bracket_is_valid(tmp_path):
+    from lattice_cad.errors import LatticeWarning
+
+    with pytest.warns(LatticeWarning, match="thinned"):  # crowded tet edges are thinned
+        lat = Lattice.fill(BRACKET, cell_size=5.0, radius=0.4, method="tet")
+    rep = check(lat.mesh())
+    assert rep.valid, str(rep)
+    with pytest.raises(ValueError, match="fill only applies to method='voxel'"):
+        Lattice.fill(BRACKET, method="tet", fill="conform")
+    with pytest.raises(ValueError, match="origin and rotation only apply"):
+        Lattice.fill(BRACKET, method="tet", origin=(0, 0, 0), rotation=np.eye(3))
 
 
 def test_fill_bad_part(tmp_path):
