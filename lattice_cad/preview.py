@@ -25,7 +25,8 @@ from lattice_cad.graph import LatticeGraph
 __all__ = ["render", "render_png", "save_png", "load_for_preview"]
 
 #: Default caps on what is drawn (keeps a 1M-triangle mesh under a few seconds).
-MAX_TRIANGLES = 40_000
+#: Meshes with more triangles are simplified by vertex clustering (never by dropping faces).
+MAX_TRIANGLES = 300_000
 MAX_STRUTS = 60_000
 
 
@@ -34,6 +35,49 @@ def _subset(n: int, k: int) -> NDArray[np.int64]:
     if n <= k:
         return np.arange(n, dtype=np.int64)
     return np.unique(np.linspace(0, n - 1, k).astype(np.int64))
+
+
+def _cluster(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64], max_triangles: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Simplify a mesh to about ``max_triangles`` by vertex clustering (numpy only).
+
+    Vertices are snapped to the cells of a uniform grid (each cell's vertices
+    merge into their mean), faces that collapse are dropped, and so are the
+    coincident pairs of faces left where a thin slab collapsed. The surface
+    stays closed, unlike dropping faces; the grid is coarsened until the count
+    fits.
+    """
+    lo = vertices.min(axis=0)
+    ext = np.maximum(vertices.max(axis=0) - lo, 1e-12)
+    # triangles scale like 1/cell^2: start from the area-based estimate, coarsen as needed
+    cell = (
+        0.4
+        * float(np.cbrt(np.prod(ext) / max(len(vertices), 1)))
+        * np.sqrt(len(faces) / max_triangles)
+    )
+    for _ in range(40):
+        ijk = np.floor((vertices - lo) / cell).astype(np.int64)
+        dims = ijk.max(axis=0) + 1
+        key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+        uniq, inv = np.unique(key, return_inverse=True)
+        f = inv.reshape(-1)[faces]
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        # triangles on the same vertex set come from collapsed slabs (a pair of opposite
+        # faces): drop them all, which keeps the surface closed
+        _, inv_f, cnt = np.unique(
+            np.sort(f, axis=1), axis=0, return_inverse=True, return_counts=True
+        )
+        f = f[cnt[inv_f.reshape(-1)] == 1]
+        if len(f) <= max_triangles:
+            count = np.bincount(inv, minlength=len(uniq)).astype(np.float64)
+            v = np.stack(
+                [np.bincount(inv, weights=vertices[:, k], minlength=len(uniq)) for k in range(3)],
+                axis=1,
+            )
+            return v / count[:, None], f
+        cell *= 1.2
+    raise AssertionError("unreachable: a coarse enough grid always fits")  # pragma: no cover
 
 
 def _axes_limits(ax: Any, lo: NDArray[np.float64], hi: NDArray[np.float64]) -> None:
@@ -75,12 +119,14 @@ def _draw_mesh(
 ) -> str:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    tri = vertices[faces]
+    drawn = faces
+    if len(faces) > max_triangles:
+        v_s, drawn = _cluster(vertices, faces, max_triangles // 2)
+        tri = v_s[drawn]
+    else:
+        tri = vertices[faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area = np.linalg.norm(n, axis=1)
-    if len(faces) > max_triangles:
-        keep = _subset(len(faces), max_triangles)
-        tri, n, area = tri[keep], n[keep], area[keep]
     unit = n / np.maximum(area, 1e-300)[:, None]
     light = np.array([0.4, -0.5, 0.75])
     light /= np.linalg.norm(light)
@@ -89,7 +135,7 @@ def _draw_mesh(
     colors = np.clip(shade[:, None] * base[None, :], 0, 1)
     ax.add_collection3d(Poly3DCollection(tri, facecolors=colors, edgecolors="none"))
     _axes_limits(ax, vertices.min(axis=0), vertices.max(axis=0))
-    shown = "" if len(tri) == len(faces) else f" ({len(tri):,} shown)"
+    shown = "" if drawn is faces else f" (simplified to {len(tri):,})"
     return f"{len(faces):,} triangles{shown}"
 
 

@@ -253,6 +253,30 @@ def test_preview_of_a_million_triangles_is_fast(tmp_path):
     assert t_mesh < 5.0 and t_graph < 5.0, (t_mesh, t_graph)
 
 
+def test_preview_simplifies_without_holes(monkeypatch):
+    from lattice_cad import preview
+
+    m = fast_stitch.stitch(block("bcc", (4, 4, 3), cell_size=5.0, radius=0.4), 6)
+    n = len(m.faces)
+    v, f = preview._cluster(m.vertices, m.faces, n // 4)
+    assert 0 < len(f) <= n // 4
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, count = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(count >= 2)  # closed: no boundary edges, i.e. no holes
+    assert len(v) <= len(m.vertices)
+    # all triangles are drawn up to the cap; the title says when it simplified
+    import matplotlib.pyplot as plt
+
+    for cap, expect in [(n, f"{n:,} triangles"), (n // 2, "simplified to")]:
+        fig = plt.figure()
+        ax = fig.add_subplot(projection="3d")
+        try:
+            what = preview._draw_mesh(ax, m.vertices, m.faces, cap)
+        finally:
+            plt.close(fig)
+        assert expect in what and (cap < n or "simplified" not in what)
+
+
 # ---------------------------------------------------------------------- B-rep
 @pytest.mark.slow
 def test_to_workplane_and_to_part():
