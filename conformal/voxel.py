@@ -315,21 +315,13 @@ def _finish(
         rep.radii_reduced = changed
         r = new
     elif fit == "raise":
-        from fast_stitch.fit import misfits
+        from conformal.radius import fit_problems
 
-        length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
-        bad, need, _ = misfits(nodes, edges, r)
-        fat = np.flatnonzero(r.max(axis=1) >= 0.5 * length)
-        bad = np.union1d(bad, fat)
-        if len(bad):
-            shown = "; ".join(
-                f"strut {int(e)} (nodes {int(edges[e, 0])}, {int(edges[e, 1])}): length "
-                f"{length[e]:.4g}, needs {max(need[e], 2 * r[e].max()):.4g}"
-                for e in bad[:5]
-            )
+        msg = fit_problems(nodes, edges, r)
+        if msg:
             raise FitError(
-                f"{len(bad)} of {len(edges)} struts would not stitch with these radii: {shown}"
-                f"{' ...' if len(bad) > 5 else ''}; use thinner struts or fit='shrink'"
+                f"struts would not stitch with these radii: {msg}; "
+                "use thinner struts or fit='shrink'"
             )
     rep.min_radius = float(r.min())
     return LatticeGraph(nodes, edges, r)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -74,9 +75,13 @@ def test_tet_realistic_radius_stitches(cyl):
 @pytest.mark.skipif(not DATA.exists(), reason="shared/data not available")
 def test_mesh_part_tet():
     part = load_part(DATA / "meshes" / "bunny_closed_odedstein.obj", units=100)
-    with pytest.warns(LatticeWarning, match="thinned"):
+    with warnings.catch_warnings():
+        # crowded struts may or may not need thinning, depending on gmsh's mesh
+        warnings.filterwarnings("ignore", "thinned", LatticeWarning)
         g = tet_lattice(part, 20.0, 0.3)
     assert g.num_edges > 100
+    assert check_fit(g) == []
+    assert_valid(fast_stitch.stitch(g), self_intersections=False)
     assert np.all(part.contains(g.nodes) | (part.distance(g.nodes) < 1e-3 * part.diagonal))
 
 
