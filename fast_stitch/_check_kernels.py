@@ -641,41 +641,50 @@ def _fan_separated_2d(vertices, p, a, b, c, d):
 
 
 @numba.njit(cache=True)
-def _gd_check(vertices, p1, q1, r1, p2, q2, r2):
-    """Guigue-Devillers ``CHECK_MIN_MAX``: do the two intervals on the planes' line overlap?"""
-    if _orient3d(vertices, p2, p1, q2, q1) > 0:
-        return False
-    return _orient3d(vertices, p2, r1, r2, p1) <= 0
-
-
-@numba.njit(cache=True)
 def _gd_tri2(vertices, p1, q1, r1, p2, q2, r2, dp2, dq2, dr2):
-    """Guigue-Devillers ``TRI_TRI_3D``: ``p1`` is alone on its side of the other plane."""
+    """Guigue-Devillers ``TRI_TRI_3D`` then ``CHECK_MIN_MAX``: ``p1`` is alone on its side
+    of the second plane; do the two intervals on the planes' common line overlap?"""
+    # choose the order (a, b, c) of the first triangle and (x, y, z) of the second
+    a = p1
+    b = q1
+    c = r1
+    x = p2
+    y = q2
+    z = r2
+    swap = False
     if dp2 > 0:
         if dq2 > 0:
-            return _gd_check(vertices, p1, r1, q1, r2, p2, q2)
-        if dr2 > 0:
-            return _gd_check(vertices, p1, r1, q1, q2, r2, p2)
-        return _gd_check(vertices, p1, q1, r1, p2, q2, r2)
-    if dp2 < 0:
+            swap, x, y, z = True, r2, p2, q2
+        elif dr2 > 0:
+            swap, x, y, z = True, q2, r2, p2
+    elif dp2 < 0:
         if dq2 < 0:
-            return _gd_check(vertices, p1, q1, r1, r2, p2, q2)
-        if dr2 < 0:
-            return _gd_check(vertices, p1, q1, r1, q2, r2, p2)
-        return _gd_check(vertices, p1, r1, q1, p2, q2, r2)
-    if dq2 < 0:
+            x, y, z = r2, p2, q2
+        elif dr2 < 0:
+            x, y, z = q2, r2, p2
+        else:
+            swap = True
+    elif dq2 < 0:
         if dr2 >= 0:
-            return _gd_check(vertices, p1, r1, q1, q2, r2, p2)
-        return _gd_check(vertices, p1, q1, r1, p2, q2, r2)
-    if dq2 > 0:
+            swap, x, y, z = True, q2, r2, p2
+    elif dq2 > 0:
         if dr2 > 0:
-            return _gd_check(vertices, p1, r1, q1, p2, q2, r2)
-        return _gd_check(vertices, p1, q1, r1, q2, r2, p2)
-    if dr2 > 0:
-        return _gd_check(vertices, p1, q1, r1, r2, p2, q2)
-    if dr2 < 0:
-        return _gd_check(vertices, p1, r1, q1, r2, p2, q2)
-    return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
+            swap = True
+        else:
+            x, y, z = q2, r2, p2
+    elif dr2 > 0:
+        x, y, z = r2, p2, q2
+    elif dr2 < 0:
+        swap, x, y, z = True, r2, p2, q2
+    else:
+        return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
+    if swap:
+        b = r1
+        c = q1
+    # CHECK_MIN_MAX(a, b, c, x, y, z)
+    if _orient3d(vertices, x, a, y, b) > 0:
+        return False
+    return _orient3d(vertices, x, c, z, a) <= 0
 
 
 @numba.njit(cache=True)
@@ -692,31 +701,39 @@ def _gd_main(vertices, p1, q1, r1, p2, q2, r2, dp1, dq1, dr1, dp2, dq2, dr2):
         return False
     if (dp2 > 0 and dq2 > 0 and dr2 > 0) or (dp2 < 0 and dq2 < 0 and dr2 < 0):
         return False
+    # rotate the first triangle so that its first vertex is alone on its side, swapping
+    # the second triangle's last two vertices (and signs) where the original does
+    a, b, c = p1, q1, r1
+    swap = False
     if dp1 > 0:
         if dq1 > 0:
-            return _gd_tri2(vertices, r1, p1, q1, p2, r2, q2, dp2, dr2, dq2)
-        if dr1 > 0:
-            return _gd_tri2(vertices, q1, r1, p1, p2, r2, q2, dp2, dr2, dq2)
-        return _gd_tri2(vertices, p1, q1, r1, p2, q2, r2, dp2, dq2, dr2)
-    if dp1 < 0:
+            a, b, c, swap = r1, p1, q1, True
+        elif dr1 > 0:
+            a, b, c, swap = q1, r1, p1, True
+    elif dp1 < 0:
         if dq1 < 0:
-            return _gd_tri2(vertices, r1, p1, q1, p2, q2, r2, dp2, dq2, dr2)
-        if dr1 < 0:
-            return _gd_tri2(vertices, q1, r1, p1, p2, q2, r2, dp2, dq2, dr2)
-        return _gd_tri2(vertices, p1, q1, r1, p2, r2, q2, dp2, dr2, dq2)
-    if dq1 < 0:
+            a, b, c = r1, p1, q1
+        elif dr1 < 0:
+            a, b, c = q1, r1, p1
+        else:
+            swap = True
+    elif dq1 < 0:
         if dr1 >= 0:
-            return _gd_tri2(vertices, q1, r1, p1, p2, r2, q2, dp2, dr2, dq2)
-        return _gd_tri2(vertices, p1, q1, r1, p2, q2, r2, dp2, dq2, dr2)
-    if dq1 > 0:
+            a, b, c, swap = q1, r1, p1, True
+    elif dq1 > 0:
         if dr1 > 0:
-            return _gd_tri2(vertices, p1, q1, r1, p2, r2, q2, dp2, dr2, dq2)
-        return _gd_tri2(vertices, q1, r1, p1, p2, q2, r2, dp2, dq2, dr2)
-    if dr1 > 0:
-        return _gd_tri2(vertices, r1, p1, q1, p2, q2, r2, dp2, dq2, dr2)
-    if dr1 < 0:
-        return _gd_tri2(vertices, r1, p1, q1, p2, r2, q2, dp2, dr2, dq2)
-    return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
+            swap = True
+        else:
+            a, b, c = q1, r1, p1
+    elif dr1 > 0:
+        a, b, c = r1, p1, q1
+    elif dr1 < 0:
+        a, b, c, swap = r1, p1, q1, True
+    else:
+        return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
+    if swap:
+        return _gd_tri2(vertices, a, b, c, p2, r2, q2, dp2, dr2, dq2)
+    return _gd_tri2(vertices, a, b, c, p2, q2, r2, dp2, dq2, dr2)
 
 
 @numba.njit(cache=True)
@@ -1151,29 +1168,26 @@ def edge_topology(faces, n_vertices, max_report):
             order[pos[lo]] = h
             other[pos[lo]] = max(a, b)
             pos[lo] += 1
-    # ---- stable sort of each bucket by the higher vertex
+    # ---- sort each bucket by (higher vertex, half-edge); Shell sort with insertion-sort
+    # gaps (the pairs are distinct, so stability does not matter)
     for v in range(n_vertices):
         s = start[v]
         e = start[v + 1]
-        if e - s <= 1:
-            continue
-        if e - s <= 32:
-            for i in range(s + 1, e):
+        gap = 1
+        while 3 * gap + 1 < e - s:
+            gap = 3 * gap + 1
+        while gap >= 1:
+            for i in range(s + gap, e):
                 kh = order[i]
                 ko = other[i]
-                j = i - 1
-                while j >= s and other[j] > ko:
-                    order[j + 1] = order[j]
-                    other[j + 1] = other[j]
-                    j -= 1
-                order[j + 1] = kh
-                other[j + 1] = ko
-        else:
-            idx = np.argsort(other[s:e], kind="mergesort")
-            o2 = order[s:e][idx]
-            h2 = other[s:e][idx]
-            order[s:e] = o2
-            other[s:e] = h2
+                j = i - gap
+                while j >= s and (other[j] > ko or (other[j] == ko and order[j] > kh)):
+                    order[j + gap] = order[j]
+                    other[j + gap] = other[j]
+                    j -= gap
+                order[j + gap] = kh
+                other[j + gap] = ko
+            gap //= 3
     # ---- scan the groups of equal edges
     face_parent = np.arange(nf)
     corner_parent = np.arange(nh)
@@ -1497,16 +1511,18 @@ def _grow(buf):
 @numba.njit(cache=True)
 def _sort_unique(buf, n):
     """Sort ``buf[:n]`` (int64) in place and drop duplicates; returns the new length."""
-    if n > 96:
-        buf[:n] = np.sort(buf[:n])
-    else:
-        for i in range(1, n):
+    gap = 1
+    while 3 * gap + 1 < n:
+        gap = 3 * gap + 1
+    while gap >= 1:  # Shell sort (plain insertion sort for short lists)
+        for i in range(gap, n):
             x = buf[i]
-            j = i - 1
+            j = i - gap
             while j >= 0 and buf[j] > x:
-                buf[j + 1] = buf[j]
-                j -= 1
-            buf[j + 1] = x
+                buf[j + gap] = buf[j]
+                j -= gap
+            buf[j + gap] = x
+        gap //= 3
     m = 0
     for i in range(n):
         if m == 0 or buf[i] != buf[m - 1]:
