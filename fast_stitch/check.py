@@ -205,6 +205,9 @@ class CheckReport:
         """One human-readable line per kind of problem found (empty if none)."""
         lines = []
 
+        def count(n: int | None, noun: str, plural: str = "") -> str:
+            return f"{n} {noun if n == 1 else (plural or noun + 's')}"
+
         def edges(arr: NDArray[np.int64]) -> str:
             ex = ", ".join(f"{a}-{b} (face {f})" for a, b, f in arr[:3].tolist())
             return f" (e.g. edge {ex})" if ex else ""
@@ -214,34 +217,36 @@ class CheckReport:
             return f" (e.g. {what} {ex})" if ex else ""
 
         if self.n_boundary_edges:
-            lines.append(f"{self.n_boundary_edges} boundary edges{edges(self.boundary_edges)}")
+            lines.append(
+                f"{count(self.n_boundary_edges, 'boundary edge')}{edges(self.boundary_edges)}"
+            )
         if self.n_nonmanifold_edges:
             lines.append(
-                f"{self.n_nonmanifold_edges} non-manifold edges (used by > 2 faces)"
+                f"{count(self.n_nonmanifold_edges, 'non-manifold edge')} (used by > 2 faces)"
                 f"{edges(self.nonmanifold_edges)}"
             )
         if self.n_inconsistent_edges:
             lines.append(
-                f"{self.n_inconsistent_edges} inconsistently oriented edges"
+                f"{count(self.n_inconsistent_edges, 'inconsistently oriented edge')}"
                 f"{edges(self.inconsistent_edges)}"
             )
         if self.n_nonmanifold_vertices:
-            lines.append(
-                f"{self.n_nonmanifold_vertices} non-manifold vertices"
-                f"{items(self.nonmanifold_vertices, 'vertex')}"
-            )
+            nm = count(self.n_nonmanifold_vertices, "non-manifold vertex", "non-manifold vertices")
+            lines.append(f"{nm}{items(self.nonmanifold_vertices, 'vertex')}")
         if self.n_zero_area:
-            lines.append(f"{self.n_zero_area} zero-area faces{items(self.zero_area_faces, 'face')}")
+            lines.append(
+                f"{count(self.n_zero_area, 'zero-area face')}{items(self.zero_area_faces, 'face')}"
+            )
         if self.n_self_intersections:
             ex = ", ".join(f"{a}/{b}" for a, b in self.self_intersection_pairs[:3].tolist())
             ex = f" (e.g. faces {ex})" if ex else ""
             lines.append(
-                f"{self.n_self_intersections} self-intersecting face pairs "
-                f"({self.n_self_intersecting_faces} faces){ex}"
+                f"{count(self.n_self_intersections, 'self-intersecting face pair')} "
+                f"({count(self.n_self_intersecting_faces, 'face')}){ex}"
             )
         if self.n_inverted_components:
             lines.append(
-                f"{self.n_inverted_components} inside-out components"
+                f"{count(self.n_inverted_components, 'inside-out component')}"
                 f"{items(self.inverted_component_faces, 'the one with face')}"
             )
         if self.volume <= 0.0:
