@@ -460,7 +460,7 @@ class Similarity:
         n = self.axis
         t = self._t
         if m != 1.0:
-            f = np.linalg.solve(np.eye(3) - m * self._R, t)
+            f = np.asarray(np.linalg.solve(np.eye(3) - m * self._R, t), dtype=np.float64)
             return Canonical("swirl", m, n, alpha, f, 0.0)
         if alpha == 0.0:
             d = math.sqrt(float(t @ t))

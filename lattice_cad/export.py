@@ -531,7 +531,7 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            loaded = trimesh.load(str(p), force="mesh", process=False)
+            loaded: Any = trimesh.load(str(p), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for bad files
         raise ExportError(f"{p}: cannot read mesh: {exc}") from None
     v = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)

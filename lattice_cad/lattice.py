@@ -19,7 +19,7 @@ import math
 import os
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 
@@ -81,59 +81,22 @@ def _fill_graph(
     """Call the conformal engine (imported lazily) for ``method``."""
     import conformal
 
+    built: Any
     if method == "voxel":
-        fn = getattr(conformal, "voxel_lattice", None)
-        if fn is None:
-            try:
-                from conformal.voxel import voxel_lattice as fn
-            except ImportError:
-                fn = None
-        if fn is None:
-            return _voxel_fallback(part, cell, cell_size, radius, fill, origin)
-        return fn(
+        built = conformal.voxel_lattice(
             part,
             cell=cell,
             cell_size=cell_size,
             radius=radius,
-            fill=fill,
+            fill=cast(Any, fill),
             origin=origin,
             rotation=rotation,
         )
-    fn = getattr(conformal, "tet_lattice", None)
-    if fn is None:
-        try:
-            from conformal.tet import tet_lattice as fn
-        except ImportError as exc:
-            raise LatticeError(
-                "method='tet' needs conformal.tet_lattice, which is not available in this "
-                f"installation ({exc})"
-            ) from None
-    return fn(part, size=cell_size, radius=radius)
-
-
-def _voxel_fallback(
-    part: Any, cell: str, cell_size: float, radius: float, fill: str, origin: Any
-) -> LatticeGraph:
-    """Cells whose corners and centre are all inside the part (used only while
-    ``conformal.voxel_lattice`` is missing)."""
-    from conformal import tile
-
-    lo, hi = part.bounds
-    o = np.asarray(lo if origin is None else origin, dtype=np.float64)
-    n0 = np.floor((lo - o) / cell_size).astype(np.int64) - 1
-    n1 = np.ceil((hi - o) / cell_size).astype(np.int64) + 1
-    ijk = np.stack(
-        np.meshgrid(*[np.arange(a, b) for a, b in zip(n0, n1, strict=True)], indexing="ij"), -1
-    ).reshape(-1, 3)
-    corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)] + [[0.5] * 3])
-    pts = o + (ijk[:, None, :] + corners[None]) * cell_size
-    inside = part.contains(pts.reshape(-1, 3)).reshape(len(ijk), -1).all(axis=1)
-    if not inside.any():
-        raise LatticeError(
-            f"no {cell_size:g} mm cell fits inside {getattr(part, 'name', 'the part')}: "
-            "use a smaller cell_size"
-        )
-    return tile(cell, ijk[inside], cell_size=cell_size, origin=o, radius=radius)
+    else:
+        built = conformal.tet_lattice(part, size=cell_size, radius=radius)
+    if not isinstance(built, LatticeGraph):  # narrows the engines' report-returning overload
+        raise TypeError(f"the {method} engine returned {type(built).__name__}, not a graph")
+    return built
 
 
 class Lattice:

@@ -374,7 +374,8 @@ def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
     h = float(voxel) if voxel is not None else _grid_spacing(extent, thickness)
     pad = 2 * h
     origin = bb[0] - pad
-    shape = tuple(int(n) for n in np.ceil((extent + 2 * pad) / h).astype(np.int64) + 1)
+    sx, sy, sz = (int(n) for n in np.ceil((extent + 2 * pad) / h).astype(np.int64) + 1)
+    shape = (sx, sy, sz)
     inside = _inside_grid(man, origin, h, shape)  # (nx, ny, nz) at voxel centres
     # signed distance to the boundary, which lies half a voxel beyond the last centre
     d_in = distance_transform_edt(inside, sampling=h)
