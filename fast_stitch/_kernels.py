@@ -1011,6 +1011,15 @@ def _excluded(i, j, m, edges, offsets, inc_edge):
     return False
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _cell_span(lo, hi, i, origin, cell, dims, a):
+    """First and last grid cell along axis a covered by box i."""
+    top = dims[a] - 1
+    first = min(top, max(0, int((lo[i, a] - origin[a]) / cell)))
+    last = min(top, max(0, int((hi[i, a] - origin[a]) / cell)))
+    return first, last
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def clearance(
     vertices, faces, edges, degree, offsets, inc_edge, face_start, P,
@@ -1034,38 +1043,29 @@ def clearance(
     n_cells = nx * ny * nz
     # counting sort of (cell, element) insertions
     count = np.zeros(n_cells + 1, dtype=np.int64)
-    for i in range(n_el):
-        if rad[i] < 0.0:
-            continue
-        x0 = min(nx - 1, max(0, int((lo[i, 0] - origin[0]) / cell)))
-        x1 = min(nx - 1, max(0, int((hi[i, 0] - origin[0]) / cell)))
-        y0 = min(ny - 1, max(0, int((lo[i, 1] - origin[1]) / cell)))
-        y1 = min(ny - 1, max(0, int((hi[i, 1] - origin[1]) / cell)))
-        z0 = min(nz - 1, max(0, int((lo[i, 2] - origin[2]) / cell)))
-        z1 = min(nz - 1, max(0, int((hi[i, 2] - origin[2]) / cell)))
-        for x in range(x0, x1 + 1):
-            for y in range(y0, y1 + 1):
-                for z in range(z0, z1 + 1):
-                    count[(x * ny + y) * nz + z + 1] += 1
-    for c in range(n_cells):
-        count[c + 1] += count[c]
-    members = np.empty(count[n_cells], dtype=np.int64)
-    fill = count[:-1].copy()
-    for i in range(n_el):
-        if rad[i] < 0.0:
-            continue
-        x0 = min(nx - 1, max(0, int((lo[i, 0] - origin[0]) / cell)))
-        x1 = min(nx - 1, max(0, int((hi[i, 0] - origin[0]) / cell)))
-        y0 = min(ny - 1, max(0, int((lo[i, 1] - origin[1]) / cell)))
-        y1 = min(ny - 1, max(0, int((hi[i, 1] - origin[1]) / cell)))
-        z0 = min(nz - 1, max(0, int((lo[i, 2] - origin[2]) / cell)))
-        z1 = min(nz - 1, max(0, int((hi[i, 2] - origin[2]) / cell)))
-        for x in range(x0, x1 + 1):
-            for y in range(y0, y1 + 1):
-                for z in range(z0, z1 + 1):
-                    c = (x * ny + y) * nz + z
-                    members[fill[c]] = i
-                    fill[c] += 1
+    members = np.empty(0, dtype=np.int64)
+    fill = count[:-1]
+    for sweep in range(2):  # sweep 0 counts, sweep 1 fills
+        for i in range(n_el):
+            if rad[i] < 0.0:
+                continue
+            x0, x1 = _cell_span(lo, hi, i, origin, cell, dims, 0)
+            y0, y1 = _cell_span(lo, hi, i, origin, cell, dims, 1)
+            z0, z1 = _cell_span(lo, hi, i, origin, cell, dims, 2)
+            for x in range(x0, x1 + 1):
+                for y in range(y0, y1 + 1):
+                    for z in range(z0, z1 + 1):
+                        c = (x * ny + y) * nz + z
+                        if sweep == 0:
+                            count[c + 1] += 1
+                        else:
+                            members[fill[c]] = i
+                            fill[c] += 1
+        if sweep == 0:
+            for c in range(n_cells):
+                count[c + 1] += count[c]
+            members = np.empty(count[n_cells], dtype=np.int64)
+            fill = count[:-1].copy()
     for c in prange(n_cells):
         found[c, 0] = -1
         found[c, 1] = -1
