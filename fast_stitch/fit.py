@@ -26,7 +26,12 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from fast_stitch import _kernels
-from fast_stitch.stitch import FLOOR_ANGLE_DEG, MIN_CYLINDER_FRACTION, OFFSET_MARGIN
+from fast_stitch.stitch import (
+    FLOOR_ANGLE_DEG,
+    MIN_CYLINDER_FRACTION,
+    OFFSET_MARGIN,
+    _clearance_elements,
+)
 
 __all__ = ["end_offsets", "misfits", "clashes", "MIN_CYLINDER_FRACTION", "CLEARANCE_MARGIN"]
 
@@ -265,36 +270,9 @@ def clashes(
     vec = nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]]
     length = np.linalg.norm(vec, axis=1)
     unit = vec / np.where(length > 0, length, 1.0)[:, None]
-    seg_a = np.empty((m + n, 3))
-    seg_b = np.empty((m + n, 3))
-    rad = np.full(m + n, -1.0)
-    seg_a[:m] = nodes_a[edges_a[:, 0]] + off[:, :1] * unit
-    seg_b[:m] = nodes_a[edges_a[:, 1]] - off[:, 1:] * unit
-    rad[:m] = radii_a.max(axis=1)
-    seg_a[m:] = nodes_a
-    seg_b[m:] = nodes_a
-    degree = np.diff(offsets)
-    reach = np.sqrt(off**2 + radii_a**2)
-    hub_r = np.full(n, -1.0)
-    used = np.flatnonzero(degree >= 1)
-    if len(used):
-        hub_r[used] = np.maximum.reduceat(reach[inc_edge, inc_side], offsets[used])
-    hub_r[degree < 2] = -1.0
-    rad[m:] = hub_r
-    active = rad >= 0
-    pad = (1.0 + margin) * rad
-    lo = np.minimum(seg_a, seg_b) - pad[:, None]
-    hi = np.maximum(seg_a, seg_b) + pad[:, None]
-    extent = (hi - lo)[active].max(axis=1)
-    origin = lo[active].min(axis=0)
-    span = hi[active].max(axis=0) - origin
-    cell = max(float(np.median(extent)), 1e-300)
-    n_el = int(active.sum())
-    while True:
-        dims = np.maximum(1, np.ceil(span / cell).astype(np.int64))
-        if int(np.prod(dims)) <= 4 * n_el + 64:
-            break
-        cell *= 1.5
+    seg_a, seg_b, rad, lo, hi, cell, origin, dims = _clearance_elements(
+        nodes_a, edges_a, radii_a, off, unit, offsets, inc_edge, inc_side, pad=1.0 + margin
+    )
     count, members = _grid(lo, hi, rad, cell, origin, dims)
     n_cells = int(np.prod(dims))
     n_found = np.zeros(n_cells, dtype=np.int64)

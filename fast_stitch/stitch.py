@@ -429,20 +429,38 @@ def _check_fit(
     )
 
 
-def _check_clearance(
-    graph: LatticeGraph,
+def _clearance_elements(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
     radii: NDArray[np.float64],
-    mesh: Mesh,
     end_offset: NDArray[np.float64],
-    face_start: NDArray[np.int64],
-    P: int,
-) -> None:
-    """Raise StitchError if elements that share no node overlap (exact triangle test)."""
-    nodes, edges = graph.nodes, graph.edges
-    m, n_nodes = graph.num_edges, graph.num_nodes
-    offsets, inc_edge, inc_side = graph.incidence
-    degree = graph.degree
-    unit = graph.edge_vectors / graph.edge_lengths[:, None]
+    unit: NDArray[np.float64],
+    offsets: NDArray[np.int64],
+    inc_edge: NDArray[np.int64],
+    inc_side: NDArray[np.int64],
+    *,
+    pad: float = 1.0,
+) -> tuple[Any, ...]:
+    """Bounding shapes of struts and joints, and a grid over them, for clearance checks.
+
+    Elements ``0..M-1`` are struts: capsules between their two profile centres
+    with their larger end radius; elements ``M + n`` are joints: balls around
+    node n reaching its farthest profile vertex (``rad == -1`` for degree < 2).
+    Used by :func:`stitch` (exact confirmation on the mesh) and by
+    :mod:`fast_stitch.fit` (before building).
+
+    Returns
+    -------
+    seg_a, seg_b : (M + N, 3) float64
+    rad : (M + N,) float64
+    lo, hi : (M + N, 3) float64
+        Boxes, padded by ``pad * rad``.
+    cell : float
+    origin : (3,) float64
+    dims : (3,) int64
+    """
+    m, n_nodes = len(edges), len(nodes)
+    degree = np.diff(offsets)
     seg_a = np.empty((m + n_nodes, 3))
     seg_b = np.empty((m + n_nodes, 3))
     rad = np.full(m + n_nodes, -1.0)
@@ -453,14 +471,14 @@ def _check_clearance(
     seg_b[m:] = nodes
     reach = np.sqrt(end_offset**2 + radii**2)  # profile vertex distance from its node
     hub_r = np.full(n_nodes, -1.0)
-    per_entry = reach[inc_edge, inc_side]  # CSR order: grouped by node
-    used = np.flatnonzero(degree >= 1)  # their CSR segments are non-empty and tile per_entry
-    hub_r[used] = np.maximum.reduceat(per_entry, offsets[used])
+    used = np.flatnonzero(degree >= 1)  # their CSR segments are non-empty and tile the entries
+    if len(used):
+        hub_r[used] = np.maximum.reduceat(reach[inc_edge, inc_side], offsets[used])
     hub_r[degree < 2] = -1.0
     rad[m:] = hub_r
     active = rad >= 0
-    lo = np.minimum(seg_a, seg_b) - rad[:, None]
-    hi = np.maximum(seg_a, seg_b) + rad[:, None]
+    lo = np.minimum(seg_a, seg_b) - pad * rad[:, None]
+    hi = np.maximum(seg_a, seg_b) + pad * rad[:, None]
     extent = (hi - lo)[active].max(axis=1)
     origin = lo[active].min(axis=0)
     span = hi[active].max(axis=0) - origin
@@ -471,6 +489,25 @@ def _check_clearance(
         if int(np.prod(dims)) <= 4 * n_el + 64:
             break
         cell *= 1.5
+    return seg_a, seg_b, rad, lo, hi, cell, origin, dims
+
+
+def _check_clearance(
+    graph: LatticeGraph,
+    radii: NDArray[np.float64],
+    mesh: Mesh,
+    end_offset: NDArray[np.float64],
+    face_start: NDArray[np.int64],
+    P: int,
+) -> None:
+    """Raise StitchError if elements that share no node overlap (exact triangle test)."""
+    edges, m = graph.edges, graph.num_edges
+    offsets, inc_edge, inc_side = graph.incidence
+    degree = graph.degree
+    unit = graph.edge_vectors / graph.edge_lengths[:, None]
+    seg_a, seg_b, rad, lo, hi, cell, origin, dims = _clearance_elements(
+        graph.nodes, edges, radii, end_offset, unit, offsets, inc_edge, inc_side
+    )
     max_rows = max(4 * P, int((degree * P + 2 * degree).max()))
     found = np.empty((int(np.prod(dims)), 2), dtype=np.int64)
     _kernels.clearance(
