@@ -1020,33 +1020,23 @@ def _cell_span(lo, hi, i, origin, cell, dims, a):
     return first, last
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def clearance(
-    vertices, faces, edges, degree, offsets, inc_edge, face_start, P,
-    seg_a, seg_b, rad, lo, hi, cell, origin, dims, max_rows, found,
-):  # fmt: skip
-    """Find overlapping non-incident elements (struts, hubs) of a stitched mesh.
+@njit(cache=True, error_model="numpy")
+def element_grid(lo, hi, rad, cell, origin, dims):
+    """Counting sort of the elements (``rad >= 0``) into the grid cells their boxes touch.
 
-    Elements ``0..m-1`` are struts: capsules ``seg_a[i]``-``seg_b[i]`` of radius
-    ``rad[i]``; elements ``m + n`` are hubs: balls around ``seg_a`` of radius
-    ``rad`` (``seg_b == seg_a``); elements with ``rad < 0`` are skipped. Pairs
-    are found with a uniform grid over the boxes ``lo``/``hi``, kept when their
-    bounding capsules/balls overlap, and confirmed with an exact
-    triangle/triangle test.
-
-    found : (cells, 2) int64, out
-        For each grid cell (flattened), the first confirmed pair or -1.
+    Returns
+    -------
+    count : (cells + 1,) int64
+        Members of cell c are ``members[count[c]:count[c + 1]]``.
+    members : (K,) int64
     """
-    n_el = seg_a.shape[0]
-    m = edges.shape[0]
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    n_cells = nx * ny * nz
-    # counting sort of (cell, element) insertions
+    ny, nz = dims[1], dims[2]
+    n_cells = dims[0] * ny * nz
     count = np.zeros(n_cells + 1, dtype=np.int64)
     members = np.empty(0, dtype=np.int64)
     fill = count[:-1]
     for sweep in range(2):  # sweep 0 counts, sweep 1 fills
-        for i in range(n_el):
+        for i in range(lo.shape[0]):
             if rad[i] < 0.0:
                 continue
             x0, x1 = _cell_span(lo, hi, i, origin, cell, dims, 0)
@@ -1066,36 +1056,75 @@ def clearance(
                 count[c + 1] += count[c]
             members = np.empty(count[n_cells], dtype=np.int64)
             fill = count[:-1].copy()
+    return count, members
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _candidate_d2(
+    i, j, c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets, inc_edge, scale,
+):  # fmt: skip
+    """Squared axis distance of elements i, j met in grid cell c, or -1 to skip the pair.
+
+    Skipped: boxes apart, pairs met in another cell (each pair is tested once, in
+    the cell holding the low corner of the boxes' overlap), pairs whose
+    disjointness the construction guarantees, and pairs at least
+    ``scale * (rad_i + rad_j)`` apart.
+    """
+    for a in range(3):
+        if lo[i, a] > hi[j, a] or lo[j, a] > hi[i, a]:
+            return -1.0
+    ny, nz = dims[1], dims[2]
+    for a in range(3):
+        home = (c // (ny * nz)) if a == 0 else ((c // nz) % ny if a == 1 else c % nz)
+        o = min(dims[a] - 1, max(0, int((max(lo[i, a], lo[j, a]) - origin[a]) / cell)))
+        if o != home:
+            return -1.0
+    a = min(i, j)
+    b = max(i, j)
+    if _excluded(a, b, m, edges, offsets, inc_edge):
+        return -1.0
+    reach = scale * (rad[a] + rad[b])
+    d2 = _seg_seg_dist2(seg_a, seg_b, a, b)
+    if d2 >= reach * reach:
+        return -1.0
+    return d2
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def clearance(
+    vertices, faces, edges, degree, offsets, inc_edge, face_start, P,
+    seg_a, seg_b, rad, lo, hi, cell, origin, dims, max_rows, found,
+):  # fmt: skip
+    """Find overlapping non-incident elements (struts, hubs) of a stitched mesh.
+
+    Elements ``0..m-1`` are struts: capsules ``seg_a[i]``-``seg_b[i]`` of radius
+    ``rad[i]``; elements ``m + n`` are hubs: balls around ``seg_a`` of radius
+    ``rad`` (``seg_b == seg_a``); elements with ``rad < 0`` are skipped. Pairs
+    are found with a uniform grid over the boxes ``lo``/``hi``, kept when their
+    bounding capsules/balls overlap, and confirmed with an exact
+    triangle/triangle test.
+
+    found : (cells, 2) int64, out
+        For each grid cell (flattened), the first confirmed pair or -1.
+    """
+    m = edges.shape[0]
+    n_cells = dims[0] * dims[1] * dims[2]
+    count, members = element_grid(lo, hi, rad, cell, origin, dims)
     for c in prange(n_cells):
         found[c, 0] = -1
         found[c, 1] = -1
-        cx = c // (ny * nz)
-        cy = (c // nz) % ny
-        cz = c % nz
         for u in range(count[c], count[c + 1]):
             i = members[u]
             for w in range(u + 1, count[c + 1]):
                 j = members[w]
-                # boxes overlap?
-                if (
-                    lo[i, 0] > hi[j, 0] or lo[j, 0] > hi[i, 0]
-                    or lo[i, 1] > hi[j, 1] or lo[j, 1] > hi[i, 1]
-                    or lo[i, 2] > hi[j, 2] or lo[j, 2] > hi[i, 2]
-                ):  # fmt: skip
-                    continue
-                # test the pair only in the cell holding the low corner of the overlap
-                ox = min(nx - 1, max(0, int((max(lo[i, 0], lo[j, 0]) - origin[0]) / cell)))
-                oy = min(ny - 1, max(0, int((max(lo[i, 1], lo[j, 1]) - origin[1]) / cell)))
-                oz = min(nz - 1, max(0, int((max(lo[i, 2], lo[j, 2]) - origin[2]) / cell)))
-                if ox != cx or oy != cy or oz != cz:
+                d2 = _candidate_d2(
+                    i, j, c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets,
+                    inc_edge, 1.0,
+                )  # fmt: skip
+                if d2 < 0.0:
                     continue
                 a = min(i, j)
                 b = max(i, j)
-                if _excluded(a, b, m, edges, offsets, inc_edge):
-                    continue
-                reach = rad[a] + rad[b]
-                if _seg_seg_dist2(seg_a, seg_b, a, b) >= reach * reach:
-                    continue
                 rows_i = np.empty(max_rows, dtype=np.int64)
                 rows_j = np.empty(max_rows, dtype=np.int64)
                 na = _elem_rows(a, m, edges, degree, face_start, P, rows_i)

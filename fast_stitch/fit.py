@@ -147,42 +147,6 @@ def misfits(
     return bad.astype(np.int64), need, length
 
 
-@njit(cache=True, error_model="numpy")
-def _grid(lo, hi, rad, cell, origin, dims):
-    """Counting sort of the elements (``rad >= 0``) into the grid cells their boxes touch."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    n_cells = nx * ny * nz
-    count = np.zeros(n_cells + 1, dtype=np.int64)
-    for rnd in range(2):
-        if rnd == 1:
-            for c in range(n_cells):
-                count[c + 1] += count[c]
-            members = np.empty(count[n_cells], dtype=np.int64)
-            fill = count[:-1].copy()
-        else:
-            members = np.empty(0, dtype=np.int64)
-            fill = np.empty(0, dtype=np.int64)
-        for i in range(lo.shape[0]):
-            if rad[i] < 0.0:
-                continue
-            x0 = min(nx - 1, max(0, int((lo[i, 0] - origin[0]) / cell)))
-            x1 = min(nx - 1, max(0, int((hi[i, 0] - origin[0]) / cell)))
-            y0 = min(ny - 1, max(0, int((lo[i, 1] - origin[1]) / cell)))
-            y1 = min(ny - 1, max(0, int((hi[i, 1] - origin[1]) / cell)))
-            z0 = min(nz - 1, max(0, int((lo[i, 2] - origin[2]) / cell)))
-            z1 = min(nz - 1, max(0, int((hi[i, 2] - origin[2]) / cell)))
-            for x in range(x0, x1 + 1):
-                for y in range(y0, y1 + 1):
-                    for z in range(z0, z1 + 1):
-                        c = (x * ny + y) * nz + z
-                        if rnd == 0:
-                            count[c + 1] += 1
-                        else:
-                            members[fill[c]] = i
-                            fill[c] += 1
-    return count, members
-
-
 @njit(cache=True, parallel=True, error_model="numpy")
 def _clash_pairs(
     seg_a, seg_b, rad, lo, hi, cell, origin, dims, count, members, edges, offsets, inc_edge,
@@ -193,37 +157,21 @@ def _clash_pairs(
     ``write=False``: count them per cell into ``n_found``; ``write=True``:
     store them from ``start[cell]`` on.
     """
-    nx, ny, nz = dims[0], dims[1], dims[2]
     m = edges.shape[0]
-    for c in prange(nx * ny * nz):
-        cx = c // (ny * nz)
-        cy = (c // nz) % ny
-        cz = c % nz
+    for c in prange(dims[0] * dims[1] * dims[2]):
         k = 0
         for u in range(count[c], count[c + 1]):
             i = members[u]
             for w in range(u + 1, count[c + 1]):
                 j = members[w]
-                if (
-                    lo[i, 0] > hi[j, 0] or lo[j, 0] > hi[i, 0]
-                    or lo[i, 1] > hi[j, 1] or lo[j, 1] > hi[i, 1]
-                    or lo[i, 2] > hi[j, 2] or lo[j, 2] > hi[i, 2]
-                ):  # fmt: skip
-                    continue
-                # each pair once: in the cell holding the low corner of the boxes' overlap
-                ox = min(nx - 1, max(0, int((max(lo[i, 0], lo[j, 0]) - origin[0]) / cell)))
-                oy = min(ny - 1, max(0, int((max(lo[i, 1], lo[j, 1]) - origin[1]) / cell)))
-                oz = min(nz - 1, max(0, int((max(lo[i, 2], lo[j, 2]) - origin[2]) / cell)))
-                if ox != cx or oy != cy or oz != cz:
+                d2 = _kernels._candidate_d2(
+                    i, j, c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets,
+                    inc_edge, scale,
+                )  # fmt: skip
+                if d2 < 0.0:
                     continue
                 a = min(i, j)
                 b = max(i, j)
-                if _kernels._excluded(a, b, m, edges, offsets, inc_edge):
-                    continue
-                reach = scale * (rad[a] + rad[b])
-                d2 = _kernels._seg_seg_dist2(seg_a, seg_b, a, b)
-                if d2 >= reach * reach:
-                    continue
                 if write:
                     out_pairs[start[c] + k, 0] = a
                     out_pairs[start[c] + k, 1] = b
@@ -273,7 +221,7 @@ def clashes(
     seg_a, seg_b, rad, lo, hi, cell, origin, dims = _clearance_elements(
         nodes_a, edges_a, radii_a, off, unit, offsets, inc_edge, inc_side, pad=1.0 + margin
     )
-    count, members = _grid(lo, hi, rad, cell, origin, dims)
+    count, members = _kernels.element_grid(lo, hi, rad, cell, origin, dims)
     n_cells = int(np.prod(dims))
     n_found = np.zeros(n_cells, dtype=np.int64)
     start = np.zeros(n_cells + 1, dtype=np.int64)
