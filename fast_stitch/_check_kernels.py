@@ -640,47 +640,61 @@ def _fan_separated_2d(vertices, p, a, b, c, d):
     )
 
 
+@numba.njit(cache=True, inline="always")
+def _gd_rotation(dp, dq, dr):
+    """Guigue-Devillers case table for a triangle (p, q, r) with plane sides dp, dq, dr.
+
+    Returns ``(rot, swap)``: the rotation that puts the vertex alone on its side first
+    (0: ``(p, q, r)``, 1: ``(r, p, q)``, 2: ``(q, r, p)``; -1: all three on the plane,
+    i.e. coplanar) and whether the other triangle's last two vertices must be swapped.
+    """
+    if dp > 0:
+        if dq > 0:
+            return 1, True
+        if dr > 0:
+            return 2, True
+        return 0, False
+    if dp < 0:
+        if dq < 0:
+            return 1, False
+        if dr < 0:
+            return 2, False
+        return 0, True
+    if dq < 0:
+        if dr >= 0:
+            return 2, True
+        return 0, False
+    if dq > 0:
+        if dr > 0:
+            return 0, True
+        return 2, False
+    if dr > 0:
+        return 1, False
+    if dr < 0:
+        return 1, True
+    return -1, False
+
+
+@numba.njit(cache=True, inline="always")
+def _rot3(p, q, r, rot):
+    """``(p, q, r)`` rotated by ``rot`` (see :func:`_gd_rotation`)."""
+    if rot == 1:
+        return r, p, q
+    if rot == 2:
+        return q, r, p
+    return p, q, r
+
+
 @numba.njit(cache=True)
 def _gd_tri2(vertices, p1, q1, r1, p2, q2, r2, dp2, dq2, dr2):
     """Guigue-Devillers ``TRI_TRI_3D`` then ``CHECK_MIN_MAX``: ``p1`` is alone on its side
     of the second plane; do the two intervals on the planes' common line overlap?"""
     # choose the order (a, b, c) of the first triangle and (x, y, z) of the second
-    a = p1
-    b = q1
-    c = r1
-    x = p2
-    y = q2
-    z = r2
-    swap = False
-    if dp2 > 0:
-        if dq2 > 0:
-            swap, x, y, z = True, r2, p2, q2
-        elif dr2 > 0:
-            swap, x, y, z = True, q2, r2, p2
-    elif dp2 < 0:
-        if dq2 < 0:
-            x, y, z = r2, p2, q2
-        elif dr2 < 0:
-            x, y, z = q2, r2, p2
-        else:
-            swap = True
-    elif dq2 < 0:
-        if dr2 >= 0:
-            swap, x, y, z = True, q2, r2, p2
-    elif dq2 > 0:
-        if dr2 > 0:
-            swap = True
-        else:
-            x, y, z = q2, r2, p2
-    elif dr2 > 0:
-        x, y, z = r2, p2, q2
-    elif dr2 < 0:
-        swap, x, y, z = True, r2, p2, q2
-    else:
+    rot, swap = _gd_rotation(dp2, dq2, dr2)
+    if rot < 0:
         return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
-    if swap:
-        b = r1
-        c = q1
+    x, y, z = _rot3(p2, q2, r2, rot)
+    a, b, c = (p1, r1, q1) if swap else (p1, q1, r1)
     # CHECK_MIN_MAX(a, b, c, x, y, z)
     if _orient3d(vertices, x, a, y, b) > 0:
         return False
@@ -703,34 +717,10 @@ def _gd_main(vertices, p1, q1, r1, p2, q2, r2, dp1, dq1, dr1, dp2, dq2, dr2):
         return False
     # rotate the first triangle so that its first vertex is alone on its side, swapping
     # the second triangle's last two vertices (and signs) where the original does
-    a, b, c = p1, q1, r1
-    swap = False
-    if dp1 > 0:
-        if dq1 > 0:
-            a, b, c, swap = r1, p1, q1, True
-        elif dr1 > 0:
-            a, b, c, swap = q1, r1, p1, True
-    elif dp1 < 0:
-        if dq1 < 0:
-            a, b, c = r1, p1, q1
-        elif dr1 < 0:
-            a, b, c = q1, r1, p1
-        else:
-            swap = True
-    elif dq1 < 0:
-        if dr1 >= 0:
-            a, b, c, swap = q1, r1, p1, True
-    elif dq1 > 0:
-        if dr1 > 0:
-            swap = True
-        else:
-            a, b, c = q1, r1, p1
-    elif dr1 > 0:
-        a, b, c = r1, p1, q1
-    elif dr1 < 0:
-        a, b, c, swap = r1, p1, q1, True
-    else:
+    rot, swap = _gd_rotation(dp1, dq1, dr1)
+    if rot < 0:
         return _tri_tri_coplanar(vertices, p1, q1, r1, p2, q2, r2)
+    a, b, c = _rot3(p1, q1, r1, rot)
     if swap:
         return _gd_tri2(vertices, a, b, c, p2, r2, q2, dp2, dr2, dq2)
     return _gd_tri2(vertices, a, b, c, p2, q2, r2, dp2, dq2, dr2)
