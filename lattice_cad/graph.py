@@ -67,8 +67,6 @@ class LatticeGraph:
         Always per strut end, whatever form was passed in.
     """
 
-    __slots__ = ("nodes", "edges", "radii", "__dict__")
-
     nodes: NDArray[np.float64]
     edges: NDArray[np.int64]
     radii: NDArray[np.float64]
