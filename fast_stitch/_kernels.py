@@ -327,7 +327,7 @@ def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
 
 
 # ------------------------------------------------------------ convex hull
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _plane(pts, a, b, c, nrm, off, f):
     ux = pts[b, 0] - pts[a, 0]
     uy = pts[b, 1] - pts[a, 1]
@@ -338,12 +338,13 @@ def _plane(pts, a, b, c, nrm, off, f):
     nx = uy * vz - uz * vy
     ny = uz * vx - ux * vz
     nz = ux * vy - uy * vx
-    nn = np.sqrt(nx * nx + ny * ny + nz * nz)
-    if nn <= 1e-300:
+    nn2 = nx * nx + ny * ny + nz * nz
+    if nn2 <= 1e-280:
         return False
-    nx /= nn
-    ny /= nn
-    nz /= nn
+    inv = 1.0 / np.sqrt(nn2)
+    nx *= inv
+    ny *= inv
+    nz *= inv
     nrm[f, 0] = nx
     nrm[f, 1] = ny
     nrm[f, 2] = nz
