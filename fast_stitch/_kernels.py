@@ -328,7 +328,12 @@ def hub_offsets(dirs, rad, shrink, margin, floor_tan, out_d, out_det):
 
 # ------------------------------------------------------------ convex hull
 @njit(cache=True, inline="always", error_model="numpy")
-def _plane(pts, a, b, c, nrm, off, f):
+def _plane(pts, a, b, c, nrm, off, tol, eps, f):
+    """Plane of face f through points a, b, c: ``nrm[f] . x == off[f]``.
+
+    The normal is not normalised (no division on the hull's critical path);
+    ``tol[f] = eps * |nrm[f]|`` is the visibility threshold in the same units.
+    """
     ux = pts[b, 0] - pts[a, 0]
     uy = pts[b, 1] - pts[a, 1]
     uz = pts[b, 2] - pts[a, 2]
@@ -341,14 +346,11 @@ def _plane(pts, a, b, c, nrm, off, f):
     nn2 = nx * nx + ny * ny + nz * nz
     if nn2 <= 1e-280:
         return False
-    inv = 1.0 / np.sqrt(nn2)
-    nx *= inv
-    ny *= inv
-    nz *= inv
     nrm[f, 0] = nx
     nrm[f, 1] = ny
     nrm[f, 2] = nz
     off[f] = nx * pts[a, 0] + ny * pts[a, 1] + nz * pts[a, 2]
+    tol[f] = eps * np.sqrt(nn2)
     return True
 
 
@@ -382,6 +384,7 @@ def convex_hull(pts, order, eps, cap):
     alive = np.zeros(cap, dtype=np.bool_)
     nrm = np.empty((cap, 3))
     off = np.empty(cap)
+    tol = np.empty(cap)
     # initial simplex: i0, farthest from it, farthest from the line, farthest from the plane
     i0 = order[0]
     best = -1.0
@@ -412,7 +415,7 @@ def convex_hull(pts, order, eps, cap):
         if dd > best:
             best = dd
             i2 = q
-    if not _plane(pts, i0, i1, i2, nrm, off, 0):
+    if not _plane(pts, i0, i1, i2, nrm, off, tol, eps, 0):
         return empty, 1
     best = -1.0
     i3 = -1
@@ -422,7 +425,7 @@ def convex_hull(pts, order, eps, cap):
         if dd > best:
             best = dd
             i3 = q
-    if best <= eps:
+    if best <= tol[0]:
         return empty, 1
     if nrm[0, 0] * pts[i3, 0] + nrm[0, 1] * pts[i3, 1] + nrm[0, 2] * pts[i3, 2] - off[0] > 0.0:
         tmp = i1
@@ -435,7 +438,7 @@ def convex_hull(pts, order, eps, cap):
         fv[f, 1] = tet[f][1]
         fv[f, 2] = tet[f][2]
         alive[f] = True
-        if not _plane(pts, fv[f, 0], fv[f, 1], fv[f, 2], nrm, off, f):
+        if not _plane(pts, fv[f, 0], fv[f, 1], fv[f, 2], nrm, off, tol, eps, f):
             return empty, 1
     for f in range(4):
         for j in range(3):
@@ -468,24 +471,24 @@ def convex_hull(pts, order, eps, cap):
         py = pts[p, 1]
         pz = pts[p, 2]
         # start from the best face of the previous point's fan (consecutive
-        # points are neighbours), walk greedily on the plane distance, then
-        # flood-fill the connected visible region
+        # points are neighbours), walk greedily on the height above the
+        # visibility threshold, then flood-fill the connected visible region
         f = last
-        dist = nrm[f, 0] * px + nrm[f, 1] * py + nrm[f, 2] * pz - off[f]
+        dist = nrm[f, 0] * px + nrm[f, 1] * py + nrm[f, 2] * pz - off[f] - tol[f]
         for iv in range(1, n_last):
             g = new_list[iv]
-            dg = nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g]
+            dg = nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] - tol[g]
             if dg > dist:
                 dist = dg
                 f = g
         for _step in range(nf):
-            if dist > eps:
+            if dist > 0.0:
                 break
             best_g = -1
             best_dist = dist
             for j in range(3):
                 g = fnb[f, j]
-                dg = nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g]
+                dg = nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] - tol[g]
                 if dg > best_dist:
                     best_dist = dg
                     best_g = g
@@ -493,10 +496,10 @@ def convex_hull(pts, order, eps, cap):
                 break
             f = best_g
             dist = best_dist
-        if dist <= eps:  # stuck on a local maximum: scan every face
+        if dist <= 0.0:  # stuck on a local maximum: scan every face
             f = -1
             for g in range(nf):
-                if alive[g] and nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] > eps:
+                if alive[g] and nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] > tol[g]:
                     f = g
                     break
             if f == -1:
@@ -511,7 +514,7 @@ def convex_hull(pts, order, eps, cap):
             for j in range(3):
                 g = fnb[g0, j]
                 if not visible[g] and (
-                    nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] > eps
+                    nrm[g, 0] * px + nrm[g, 1] * py + nrm[g, 2] * pz - off[g] > tol[g]
                 ):
                     visible[g] = True
                     vis_list[nvis] = g
@@ -534,7 +537,7 @@ def convex_hull(pts, order, eps, cap):
                 fv[h, 1] = b
                 fv[h, 2] = p
                 alive[h] = True
-                if not _plane(pts, a, b, p, nrm, off, h):
+                if not _plane(pts, a, b, p, nrm, off, tol, eps, h):
                     return empty, 1
                 fnb[h, 0] = g
                 for k in range(3):
@@ -922,7 +925,7 @@ def _dot3(ax, ay, az, bx, by, bz):
     return ax * bx + ay * by + az * bz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _seg_seg_dist2(sa, sb, i, j):
     """Squared distance between segments sa[i]-sb[i] and sa[j]-sb[j] (scalar arithmetic)."""
     d1x = sb[i, 0] - sa[i, 0]
@@ -964,7 +967,7 @@ def _seg_seg_dist2(sa, sb, i, j):
     return _dot3(wx, wy, wz, wx, wy, wz)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _elem_rows(el, m, edges, degree, face_start, P, rows):
     """Face rows of element el (struts 0..m-1 incl. leaf caps; hubs m + node)."""
     c = 0
@@ -987,7 +990,7 @@ def _elem_rows(el, m, edges, degree, face_start, P, rows):
     return c
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _excluded(i, j, m, edges, offsets, inc_edge):
     """Pairs whose disjointness the construction already guarantees."""
     if i < m and j < m:
@@ -1010,6 +1013,77 @@ def _excluded(i, j, m, edges, offsets, inc_edge):
         if edges[e, 0] == b or edges[e, 1] == b:
             return True
     return False
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def clearance_elements(
+    nodes, edges, radii, end_offset, unit, offsets, inc_edge, inc_side, pad,
+    seg_a, seg_b, rad, lo, hi, extent,
+):  # fmt: skip
+    """Bounding capsules (struts) and balls (joints) of the clearance checks.
+
+    Parameters
+    ----------
+    end_offset : (M, 2) float64
+        Profile offset of each strut end.
+    unit : (M, 3) float64
+        Unit strut directions.
+    pad : float
+        Boxes are padded by ``pad * rad``.
+    seg_a, seg_b : (M + N, 3) float64, out
+        Element axes: struts ``0..M-1`` between their profile centres, joints
+        ``M + n`` degenerate at node n.
+    rad : (M + N,) float64, out
+        Larger end radius of a strut; distance from node n to its farthest
+        profile vertex for a joint, -1 when the node has degree < 2 (no joint).
+    lo, hi : (M + N, 3) float64, out
+    extent : (M + N,) float64, out
+        Largest side of each box.
+    """
+    m = edges.shape[0]
+    n_nodes = nodes.shape[0]
+    for e in prange(m):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        for c in range(3):
+            seg_a[e, c] = nodes[a, c] + end_offset[e, 0] * unit[e, c]
+            seg_b[e, c] = nodes[b, c] - end_offset[e, 1] * unit[e, c]
+        rad[e] = max(radii[e, 0], radii[e, 1])
+    for n in prange(n_nodes):
+        i = m + n
+        for c in range(3):
+            seg_a[i, c] = nodes[n, c]
+            seg_b[i, c] = nodes[n, c]
+        r = -1.0
+        if offsets[n + 1] - offsets[n] >= 2:
+            for t in range(offsets[n], offsets[n + 1]):
+                e = inc_edge[t]
+                s = inc_side[t]
+                r = max(r, np.sqrt(end_offset[e, s] ** 2 + radii[e, s] ** 2))
+        rad[i] = r
+    for i in prange(m + n_nodes):
+        w = 0.0
+        for c in range(3):
+            a = min(seg_a[i, c], seg_b[i, c]) - pad * rad[i]
+            b = max(seg_a[i, c], seg_b[i, c]) + pad * rad[i]
+            lo[i, c] = a
+            hi[i, c] = b
+            w = max(w, b - a)
+        extent[i] = w
+
+
+@njit(cache=True, error_model="numpy")
+def active_bounds(lo, hi, rad):
+    """Corner and far corner, (3,) float64 each, of the boxes with ``rad >= 0``."""
+    origin = np.full(3, np.inf)
+    top = np.full(3, -np.inf)
+    for i in range(rad.shape[0]):
+        if rad[i] < 0.0:
+            continue
+        for c in range(3):
+            origin[c] = min(origin[c], lo[i, c])
+            top[c] = max(top[c], hi[i, c])
+    return origin, top
 
 
 @njit(cache=True, inline="always", error_model="numpy")

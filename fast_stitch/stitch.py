@@ -460,29 +460,20 @@ def _clearance_elements(
     dims : (3,) int64
     """
     m, n_nodes = len(edges), len(nodes)
-    degree = np.diff(offsets)
     seg_a = np.empty((m + n_nodes, 3))
     seg_b = np.empty((m + n_nodes, 3))
-    rad = np.full(m + n_nodes, -1.0)
-    seg_a[:m] = nodes[edges[:, 0]] + end_offset[:, :1] * unit
-    seg_b[:m] = nodes[edges[:, 1]] - end_offset[:, 1:] * unit
-    rad[:m] = radii.max(axis=1)
-    seg_a[m:] = nodes
-    seg_b[m:] = nodes
-    reach = np.sqrt(end_offset**2 + radii**2)  # profile vertex distance from its node
-    hub_r = np.full(n_nodes, -1.0)
-    used = np.flatnonzero(degree >= 1)  # their CSR segments are non-empty and tile the entries
-    if len(used):
-        hub_r[used] = np.maximum.reduceat(reach[inc_edge, inc_side], offsets[used])
-    hub_r[degree < 2] = -1.0
-    rad[m:] = hub_r
+    rad = np.empty(m + n_nodes)
+    lo = np.empty((m + n_nodes, 3))
+    hi = np.empty((m + n_nodes, 3))
+    extent = np.empty(m + n_nodes)
+    _kernels.clearance_elements(
+        nodes, edges, radii, end_offset, unit, offsets, inc_edge, inc_side, float(pad),
+        seg_a, seg_b, rad, lo, hi, extent,
+    )  # fmt: skip
     active = rad >= 0
-    lo = np.minimum(seg_a, seg_b) - pad * rad[:, None]
-    hi = np.maximum(seg_a, seg_b) + pad * rad[:, None]
-    extent = (hi - lo)[active].max(axis=1)
-    origin = lo[active].min(axis=0)
-    span = hi[active].max(axis=0) - origin
-    cell = max(float(np.median(extent)), 1e-300)
+    origin, top = _kernels.active_bounds(lo, hi, rad)
+    span = top - origin
+    cell = max(float(np.median(extent[active])), 1e-300)
     n_el = int(active.sum())
     while True:
         dims = np.maximum(1, np.ceil(span / cell).astype(np.int64))
