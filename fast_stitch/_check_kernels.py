@@ -943,39 +943,6 @@ def _touching_boxes(vertices, faces, fi, fj, p):
     return -1
 
 
-@numba.njit(cache=True, inline="always")
-def _local_pair(vertices, faces, fi, fj, loc, lf):
-    """Copy faces ``fi`` and ``fj`` into a private 6-vertex mesh ``loc`` / ``lf``.
-
-    A vertex shared by the two faces stays shared (the tests only compare vertex
-    ids for equality), so ``_faces_intersect(loc, lf, 0, 1, tol)`` gives the same
-    answer as on the whole mesh. Parallel callers pass per-thread ``loc`` / ``lf``:
-    the predicates then never touch the reference count of the shared arrays,
-    an atomic that would bounce between the cores on every call.
-
-    loc : (6, 3) float64, out
-    lf : (2, 3) int64, out
-    """
-    for k in range(3):
-        v = faces[fi, k]
-        lf[0, k] = k
-        for c in range(3):
-            loc[k, c] = vertices[v, c]
-    nv = 3
-    for k in range(3):
-        v = faces[fj, k]
-        j = -1
-        for t in range(3):
-            if faces[fi, t] == v:
-                j = t
-        if j < 0:
-            j = nv
-            nv += 1
-            for c in range(3):
-                loc[j, c] = vertices[v, c]
-        lf[1, k] = j
-
-
 @numba.njit(cache=True)
 def _faces_intersect(vertices, faces, fi, fj, tol):
     """Do faces ``fi`` and ``fj`` (both non-degenerate) intersect beyond their shared part?"""
@@ -1613,36 +1580,21 @@ def grid_face_buckets(
     for ch in numba.prange((nf + chunk - 1) // chunk):
         out = np.empty(6)
         buf = np.empty(64, np.int64)
-        # per-thread copies of the face being processed: the helpers below then
-        # never touch the reference counts of the shared arrays (an atomic that
-        # would bounce between the cores on every call)
-        lv = np.empty((3, 3))
-        lface = np.empty((1, 3), np.int64)
-        lface[0, 0] = 0
-        lface[0, 1] = 1
-        lface[0, 2] = 2
-        lbox = np.empty((1, 6))
-        lorigin = origin.copy()
         for f in range(ch * chunk, min(nf, (ch + 1) * chunk)):
-            for k in range(3):
-                for c in range(3):
-                    lv[k, c] = vertices[faces[f, k], c]
-            for c in range(6):
-                lbox[0, c] = boxes[f, c]
             if not write:
-                k = _n_pieces(lbox, 0, h, max_pieces)
+                k = _n_pieces(boxes, f, h, max_pieces)
                 total = 0
                 for i in range(k):
-                    _piece_box(lv, lface, lbox, 0, i, k, margin, out)
+                    _piece_box(vertices, faces, boxes, f, i, k, margin, out)
                     total += (
-                        (_cell(out[3], lorigin[0], h) - _cell(out[0], lorigin[0], h) + 1)
-                        * (_cell(out[4], lorigin[1], h) - _cell(out[1], lorigin[1], h) + 1)
-                        * (_cell(out[5], lorigin[2], h) - _cell(out[2], lorigin[2], h) + 1)
+                        (_cell(out[3], origin[0], h) - _cell(out[0], origin[0], h) + 1)
+                        * (_cell(out[4], origin[1], h) - _cell(out[1], origin[1], h) + 1)
+                        * (_cell(out[5], origin[2], h) - _cell(out[2], origin[2], h) + 1)
                     )
                 counts[f] = total
                 continue
             n, buf = _face_buckets(
-                lv, lface, lbox, 0, lorigin, h, max_pieces, margin, mask, out, buf
+                vertices, faces, boxes, f, origin, h, max_pieces, margin, mask, out, buf
             )
             counts[f] = n
             for m in range(n):
@@ -1757,8 +1709,6 @@ def grid_pairs(
         size = 1024
         keys = np.empty(size, np.int64)
         stamps = np.full(size, -1, np.int64)
-        loc = np.empty((6, 3))
-        lf = np.empty((2, 3), np.int64)
         for f in range(ch * chunk, min(nf, (ch + 1) * chunk)):
             if mode != 0 and prev_counts[f] == 0:
                 continue
@@ -1809,8 +1759,7 @@ def grid_pairs(
             cnt = 0
             for m in range(n):
                 g = buf[m]
-                _local_pair(vertices, faces, f, g, loc, lf)
-                if _faces_intersect(loc, lf, 0, 1, tol):
+                if _faces_intersect(vertices, faces, f, g, tol):
                     if mode == 2:
                         pairs[pair_offsets[f] + cnt, 0] = f
                         pairs[pair_offsets[f] + cnt, 1] = g

@@ -1202,7 +1202,6 @@ def clearance(
                 b = max(i, j)
                 rows_i = np.empty(max_rows, dtype=np.int64)
                 rows_j = np.empty(max_rows, dtype=np.int64)
-                loc = np.empty((6, 3))
                 na = _elem_rows(a, m, edges, degree, face_start, P, rows_i)
                 nb = _elem_rows(b, m, edges, degree, face_start, P, rows_j)
                 hit = False
@@ -1210,13 +1209,10 @@ def clearance(
                     fa = rows_i[p]
                     for q in range(nb):
                         fb = rows_j[q]
-                        # a private copy of the two triangles: the exact test then
-                        # never touches the shared array's reference count
-                        for k in range(3):
-                            for t in range(3):
-                                loc[k, t] = vertices[faces[fa, k], t]
-                                loc[3 + k, t] = vertices[faces[fb, k], t]
-                        if _tri_tri(loc, 0, 1, 2, 3, 4, 5):
+                        if _tri_tri(
+                            vertices, faces[fa, 0], faces[fa, 1], faces[fa, 2],
+                            faces[fb, 0], faces[fb, 1], faces[fb, 2],
+                        ):  # fmt: skip
                             hit = True
                             break
                     if hit:
