@@ -1800,26 +1800,27 @@ def vertex_stats(vertices, used):
 
 
 @numba.njit(cache=True)
-def box_stats(boxes, active):
+def box_stats(lo, hi, active):
     """Bounding box of the active boxes.
 
     Parameters
     ----------
-    boxes : (F, 6) float64
+    lo, hi : (F, 3) float64
+        Lower and upper corners of the boxes.
     active : (F,) bool
 
     Returns
     -------
     lo, hi : (3,) float64
     """
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    for f in range(boxes.shape[0]):
+    out_lo = np.full(3, np.inf)
+    out_hi = np.full(3, -np.inf)
+    for f in range(lo.shape[0]):
         if active[f]:
             for k in range(3):
-                lo[k] = min(lo[k], boxes[f, k])
-                hi[k] = max(hi[k], boxes[f, 3 + k])
-    return lo, hi
+                out_lo[k] = min(out_lo[k], lo[f, k])
+                out_hi[k] = max(out_hi[k], hi[f, k])
+    return out_lo, out_hi
 
 
 @numba.njit(parallel=True, cache=True)

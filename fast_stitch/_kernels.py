@@ -1072,20 +1072,6 @@ def clearance_elements(
         extent[i] = w
 
 
-@njit(cache=True, error_model="numpy")
-def active_bounds(lo, hi, rad):
-    """Corner and far corner, (3,) float64 each, of the boxes with ``rad >= 0``."""
-    origin = np.full(3, np.inf)
-    top = np.full(3, -np.inf)
-    for i in range(rad.shape[0]):
-        if rad[i] < 0.0:
-            continue
-        for c in range(3):
-            origin[c] = min(origin[c], lo[i, c])
-            top[c] = max(top[c], hi[i, c])
-    return origin, top
-
-
 @njit(cache=True, inline="always", error_model="numpy")
 def _cell_span(lo, hi, i, origin, cell, dims, a):
     """First and last grid cell along axis a covered by box i."""

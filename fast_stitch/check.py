@@ -413,7 +413,7 @@ def _self_intersections(
         return 0, 0, empty
     # Work on a spatially sorted copy (Morton order of the boxes, vertices renumbered in
     # order of first use): the grid scan is then cache friendly whatever the input order.
-    lo, hi = _k.box_stats(boxes, active)
+    lo, hi = _k.box_stats(boxes[:, :3], boxes[:, 3:], active)
     extent = float((hi - lo).max())
     scale = (2.0**21 - 1.0) / extent if extent > 0.0 else 0.0
     keys = _k.morton_keys(boxes, active, lo, scale)

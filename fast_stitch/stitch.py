@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fast_stitch import _kernels
+from fast_stitch._check_kernels import box_stats
 from fast_stitch.mesh import Mesh, stl_size
 from lattice_cad.errors import StitchError
 from lattice_cad.graph import LatticeGraph
@@ -471,7 +472,7 @@ def _clearance_elements(
         seg_a, seg_b, rad, lo, hi, extent,
     )  # fmt: skip
     active = rad >= 0
-    origin, top = _kernels.active_bounds(lo, hi, rad)
+    origin, top = box_stats(lo, hi, active)
     span = top - origin
     cell = max(float(np.median(extent[active])), 1e-300)
     n_el = int(active.sum())
