@@ -9,7 +9,7 @@
 """
 
 from conformal.cells import CELLS, UnitCell, block, cell_counts, tile, tile_arrays
-from conformal.part import Part, PartError, load_part
+from conformal.part import Part, PartError, StepUnitsError, load_part
 from conformal.radius import FitError, check_fit, fit_radii, graded_by_distance
 from conformal.similarity import Canonical, Similarity, SimilarityError
 from conformal.steady import SteadyLattice, SteadyLatticeError
@@ -25,6 +25,7 @@ __all__ = [
     "cell_counts",
     "Part",
     "PartError",
+    "StepUnitsError",
     "load_part",
     "voxel_lattice",
     "voxelize",

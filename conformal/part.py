@@ -52,6 +52,10 @@ class PartError(LatticeError, ValueError):
     """A part cannot be used: unreadable, empty, not a closed solid (the message says which)."""
 
 
+class StepUnitsError(PartError):
+    """A STEP file's declared length unit disagrees with OCCT's reading of it."""
+
+
 class Part:
     """A closed solid as an outward-oriented triangle mesh, with inside and distance queries.
 

@@ -12,6 +12,7 @@ __all__ = [
     "InvalidGraphError",
     "StitchError",
     "LatticeWarning",
+    "CADStackWarning",
 ]
 
 
@@ -29,3 +30,7 @@ class StitchError(LatticeError, ValueError):
 
 class LatticeWarning(UserWarning):
     """Something was accepted but deserves the user's attention (e.g. isolated nodes)."""
+
+
+class CADStackWarning(LatticeWarning):
+    """The installed cadquery/build123d/OCP set is not the supported one (see ``_stack``)."""

@@ -2,10 +2,22 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from lattice_cad import LatticeGraph
+
+#: The repository root, and the shared test data beside it (``../shared/data``).
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # real parts are part of the suite: a missing ../shared is a failure, never a skip
+    if not DATA.is_dir():
+        raise pytest.UsageError(f"the shared test data is missing: expected {DATA}")
 
 
 @pytest.fixture

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import manifold3d
 import numpy as np
@@ -11,8 +10,9 @@ import pytest
 import trimesh
 
 from fast_stitch.check import CheckReport, check
+from tests.conftest import DATA
 
-BROKEN = Path("/work/shared/data/broken")
+BROKEN = DATA / "broken"
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -343,7 +343,6 @@ def _reference_meshes():
             yield f"{path.name}-{process}", np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
-@pytest.mark.skipif(not BROKEN.is_dir(), reason="shared test data not available")
 def test_agrees_with_trimesh_and_manifold3d():
     seen = 0
     for name, v, f in _reference_meshes():
@@ -367,7 +366,6 @@ def test_agrees_with_trimesh_and_manifold3d():
     assert seen > 20
 
 
-@pytest.mark.skipif(not BROKEN.is_dir(), reason="shared test data not available")
 def test_broken_files_expected_defects():
     def load(name, process=False):
         return trimesh.load(BROKEN / name, process=process, force="mesh")
@@ -382,7 +380,6 @@ def test_broken_files_expected_defects():
     assert rep.n_boundary_edges == 300 and rep.n_components == 100 and not rep.valid
 
 
-@pytest.mark.skipif(not BROKEN.is_dir(), reason="shared test data not available")
 @pytest.mark.parametrize("name", ["newell_teapot_open.obj", "trimesh_teapot_open.stl"])
 def test_self_intersections_of_merged_files_match_pymeshlab(name):
     mesh = trimesh.load(BROKEN / name, process=True, force="mesh")

@@ -17,7 +17,8 @@ COMMANDS = ["fill", "stitch", "reference", "validate", "cells", "check", "previe
 
 @pytest.fixture(scope="module")
 def box_step(tmp_path_factory):
-    cq = pytest.importorskip("cadquery")
+    import cadquery as cq
+
     p = tmp_path_factory.mktemp("parts") / "box.step"
     cq.exporters.export(cq.Workplane("XY").box(20, 16, 12), str(p))
     return p

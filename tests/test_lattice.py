@@ -19,7 +19,8 @@ from lattice_cad.lattice import Lattice
 
 @pytest.fixture(scope="module")
 def box():
-    cq = pytest.importorskip("cadquery")
+    import cadquery as cq
+
     return cq.Workplane("XY").box(20, 16, 12)
 
 
@@ -141,7 +142,8 @@ def test_plugin_needs_a_solid():
 
 
 def test_fill_build123d_and_path(tmp_path, box_lattice):
-    bd = pytest.importorskip("build123d")
+    import build123d as bd
+
     part = bd.Box(20, 16, 12)
     lat = Lattice.fill(part, "bcc", 4.0, 0.4)
     assert lat.graph == box_lattice.graph

@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from conformal.part import Part, PartError, load_part
 from lattice_cad.errors import LatticeError, LatticeWarning
-
-DATA = Path(__file__).parents[2] / "shared" / "data"
-needs_data = pytest.mark.skipif(not DATA.exists(), reason="shared/data not available")
+from tests.conftest import DATA
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +44,6 @@ BROKEN = {
 }
 
 
-@needs_data
 @pytest.mark.parametrize("name", sorted(BROKEN))
 def test_broken_files_raise_clear_error(name):
     path = DATA / "broken" / name
@@ -57,7 +52,6 @@ def test_broken_files_raise_clear_error(name):
     assert name in str(info.value)
 
 
-@needs_data
 def test_overlapping_solids_are_united_with_warning():
     path = DATA / "broken" / "kcl_food-service-spatula_overlapping_solids.step"
     with pytest.warns(LatticeWarning, match=r"3 solids were united .*overlapping by 9000"):
@@ -66,7 +60,6 @@ def test_overlapping_solids_are_united_with_warning():
     assert Part.__name__ in repr(type(part))
 
 
-@needs_data
 def test_flipped_body_is_reoriented_with_warning():
     path = DATA / "broken" / "trimesh_multibody_flipped_body.stl"
     with pytest.warns(LatticeWarning) as rec:
@@ -126,14 +119,12 @@ def test_step_in_inches_comes_out_in_mm(tmp_path):
     np.testing.assert_allclose(part.volume, 25.4 * 50.8 * 12.7, rtol=1e-6)
 
 
-@needs_data
 def test_inch_step_file_from_the_wild():
     part = load_part(DATA / "step" / "trimesh_featuretype.STEP")
     # a 5 x 2.5 x 1.375 inch block
     np.testing.assert_allclose(part.size, [127.0, 63.5, 34.925], atol=0.02)
 
 
-@needs_data
 def test_mesh_units_override():
     path = DATA / "meshes" / "bunny_closed_odedstein.obj"
     a = load_part(path)
@@ -218,7 +209,6 @@ def test_grid_contains_matches_points(sphere):
     np.testing.assert_array_equal(grid.reshape(-1), sphere.contains(pts))
 
 
-@needs_data
 def test_real_mesh_contains_agrees_with_trimesh(rng):
     import trimesh
 
@@ -229,3 +219,57 @@ def test_real_mesh_contains_agrees_with_trimesh(rng):
     d = part.distance(pts)
     ok = d > 1e-6
     np.testing.assert_array_equal(part.contains(pts)[ok], tm.contains(pts)[ok])
+
+
+def test_declared_length_unit_is_read_from_the_step_text():
+    from conformal import _occ
+
+    si = "#5=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) );"
+    metre = "#5=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT($,.METRE.) );"
+    inch = (
+        "#4=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT($,.METRE.) );"
+        "#6=( CONVERSION_BASED_UNIT('INCH',#7) LENGTH_UNIT() NAMED_UNIT(#8) );"
+        "#9=( CONVERSION_BASED_UNIT('DEGREE',#10) NAMED_UNIT(#8) PLANE_ANGLE_UNIT() );"
+    )
+    assert _occ.declared_length_unit(si) == ("MILLIMETRE", 1.0)
+    assert _occ.declared_length_unit(metre) == ("METRE", 1000.0)
+    assert _occ.declared_length_unit(inch) == ("INCH", 25.4)
+    assert _occ.declared_length_unit("#1=CARTESIAN_POINT('',(0.,0.,0.));") is None
+
+
+def _inch_box_step(tmp_path):
+    import cadquery as cq
+
+    from conformal import _occ
+
+    shape = cq.Workplane().box(25.4, 50.8, 12.7, centered=False).val().wrapped
+    path = tmp_path / "inch.step"
+    _occ.write_step(shape, path, unit="IN")
+    return path, float(np.linalg.norm([25.4, 50.8, 12.7]))
+
+
+def test_step_units_check_refuses_a_part_loaded_at_the_wrong_scale(tmp_path):
+    from conformal import StepUnitsError, _occ
+
+    path, diagonal = _inch_box_step(tmp_path)
+    _occ.check_step_units(path, ["INCH"], diagonal)  # the right size passes
+    # what an OCP install that converts twice produced: 25.4 times too large
+    with pytest.raises(
+        StepUnitsError, match=r"inch\.step: declared unit INCH .*\(25\.4 times as large\)"
+    ):
+        _occ.check_step_units(path, ["INCH"], diagonal * 25.4)
+    with pytest.raises(StepUnitsError, match="inch.step"):
+        _occ.check_step_units(path, ["INCH"], diagonal / 25.4)
+    # OCCT naming another unit than the file declares is refused too
+    with pytest.raises(StepUnitsError, match="declares its lengths in INCH, but OCCT reads"):
+        _occ.check_step_units(path, ["millimetre"], diagonal)
+
+
+def test_every_step_part_in_shared_data_passes_the_units_check():
+    from conformal import _occ
+
+    seen = 0
+    for path in sorted((DATA / "step").glob("*")):
+        if _occ.read_step(path) is not None:  # read_step runs check_step_units
+            seen += 1
+    assert seen == len(list((DATA / "step").glob("*")))

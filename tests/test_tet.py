@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,9 +13,7 @@ from conformal.radius import StrutClash, check_fit, fit_radii
 from conformal.tet import tet_edges, tet_lattice, tet_mesh
 from lattice_cad import LatticeGraph
 from lattice_cad.errors import LatticeWarning
-from tests.conftest import assert_valid
-
-DATA = Path(__file__).parents[2] / "shared" / "data"
+from tests.conftest import DATA, assert_valid
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +69,6 @@ def test_tet_realistic_radius_stitches(cyl):
     assert_valid(fast_stitch.stitch(g))
 
 
-@pytest.mark.skipif(not DATA.exists(), reason="shared/data not available")
 def test_mesh_part_tet():
     part = load_part(DATA / "meshes" / "bunny_closed_odedstein.obj", units=100)
     with warnings.catch_warnings():
