@@ -416,7 +416,10 @@ class Lattice:
         import build123d as bd
 
         shape = self._brep_compound(max_struts)
-        return bd.Shape.cast(shape) if hasattr(bd.Shape, "cast") else bd.Compound(shape)
+        # build123d 0.10's Shape.cast gives None for a plain TopoDS_Shape: wrap by type
+        if shape.ShapeType().name.endswith("COMPOUND"):
+            return bd.Compound(shape)
+        return bd.Solid(shape)
 
     # ----------------------------------------------------------------- info
     def strut_volume(self) -> float:
