@@ -168,9 +168,9 @@ def main() -> None:
     )
     a = ap.parse_args()
     if a.no_trim:
-        from reference_boolean import _occ
+        from lattice_cad.core import config
 
-        _occ.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump
+        config.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump (forked workers)
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
     for name, fn in (
         ("periodic", bench_periodic),

@@ -37,8 +37,8 @@ from numpy.typing import NDArray
 
 import fast_stitch
 from conformal.cells import block, cell_counts, tile
-from lattice_cad.errors import InvalidGraphError, StitchError
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core.errors import InvalidGraphError, StitchError
+from lattice_cad.core.graph import LatticeGraph
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"

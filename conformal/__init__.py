@@ -1,20 +1,35 @@
-"""conformal: lattice graphs from unit cells and from real parts.
+"""conformal: lattice graphs from unit cells and from real parts, skins, steady lattices.
+
+Everything that turns geometry into a lattice graph lives here: the unit-cell library and
+its exact tiling, parts (STEP, meshes, CAD shapes) with exact inside and distance queries,
+voxel and tetrahedral fills, radius specifications and the fit check, skins (hollowing a
+part), and also the *steady* (programmed) lattices of Gupta et al., which are graphs too:
+balls and racks placed by a similarity transformation, with closed-form integral
+properties.
 
 - :mod:`conformal.cells`: the unit-cell library and exact tiling.
 - :func:`load_part`: STEP/STP, STL/OBJ/PLY/3MF or CAD shapes -> :class:`Part`.
 - :func:`voxel_lattice`, :func:`tet_lattice`: parts -> :class:`lattice_cad.LatticeGraph`.
 - :mod:`conformal.radius`: radius specifications and the stitch-fit check.
+- :mod:`conformal.skin`: hollow a part to a wall and unite it with a lattice.
 - :class:`Similarity`, :class:`SteadyLattice`: steady (programmed) lattices with
   closed-form integral properties (Gupta et al.).
 """
 
 from conformal.cells import CELLS, UnitCell, block, cell_counts, tile, tile_arrays
-from conformal.part import Part, PartError, StepUnitsError, load_part
-from conformal.radius import FitError, check_fit, fit_radii, graded_by_distance
-from conformal.similarity import Canonical, Similarity, SimilarityError
-from conformal.steady import SteadyLattice, SteadyLatticeError
+from conformal.part import Part, load_part
+from conformal.radius import check_fit, fit_radii, graded_by_distance
+from conformal.similarity import Canonical, Similarity
+from conformal.steady import SteadyLattice
 from conformal.tet import tet_lattice, tet_mesh
 from conformal.voxel import BuildReport, voxel_lattice, voxelize
+from lattice_cad.core.errors import (
+    FitError,
+    PartError,
+    SimilarityError,
+    SteadyLatticeError,
+    StepUnitsError,
+)
 
 __all__ = [
     "CELLS",

@@ -43,7 +43,8 @@ from itertools import combinations, permutations, product
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["UnitCell", "CELLS", "tile", "tile_arrays", "block", "cell_counts"]
 
@@ -824,7 +825,7 @@ def tile(
     *,
     cell_size: float | ArrayLike = 1.0,
     origin: ArrayLike = (0.0, 0.0, 0.0),
-    radius: float | ArrayLike = 0.4,
+    radius: float | ArrayLike = config.DEFAULT_RADIUS,
 ) -> LatticeGraph:
     """Tile ``cell`` over the occupied cells as a :class:`LatticeGraph`.
 
@@ -857,7 +858,7 @@ def block(
     *,
     cell_size: float | ArrayLike = 1.0,
     origin: ArrayLike = (0.0, 0.0, 0.0),
-    radius: float | ArrayLike = 0.4,
+    radius: float | ArrayLike = config.DEFAULT_RADIUS,
 ) -> LatticeGraph:
     """A full ``nx x ny x nz`` block of cells (cells ``0..nx-1`` etc.); see :func:`tile`."""
     return tile(cell, _block_cells(counts), cell_size=cell_size, origin=origin, radius=radius)

@@ -29,7 +29,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
-from lattice_cad.errors import LatticeError, LatticeWarning
+from lattice_cad.core.errors import LatticeWarning, PartError
+from lattice_cad.core.mesh import weld
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
 
@@ -46,14 +47,6 @@ UNITS: dict[str, float] = {
 
 _STEP_SUFFIXES = {".step", ".stp"}
 _MESH_SUFFIXES = {".stl", ".obj", ".ply", ".3mf", ".off"}
-
-
-class PartError(LatticeError, ValueError):
-    """A part cannot be used: unreadable, empty, not a closed solid (the message says which)."""
-
-
-class StepUnitsError(PartError):
-    """A STEP file's declared length unit disagrees with OCCT's reading of it."""
 
 
 class Part:
@@ -317,9 +310,9 @@ def load_part(
                 )
             if path.stat().st_size == 0:
                 raise PartError(f"{path}: the file is empty")
-            from conformal import _occ
+            from lattice_cad.occ_impl.step import read_step
 
-            shape = _occ.read_step(path)
+            shape = read_step(path)
             if shape is None:
                 raise PartError(f"{path}: not a readable STEP file (OCCT could not read it)")
             return _from_shape(shape, str(path), deflection, angular_deflection)
@@ -331,7 +324,7 @@ def load_part(
         )
     if units is not None:
         raise ValueError("units= applies to mesh files only; CAD shapes are in millimetres")
-    from conformal import _occ
+    from lattice_cad.occ_impl import shapes as _occ
 
     shape = _occ.as_topods(source)
     if shape is None:
@@ -357,7 +350,7 @@ def _unit_scale(units: str | float | None) -> float:
 
 
 def _from_shape(shape: Any, name: str, deflection: float | None, angular: float) -> Part:
-    from conformal import _occ
+    from lattice_cad.occ_impl import shapes as _occ
 
     solids = _occ.solids(shape)
     if not solids:
@@ -414,16 +407,9 @@ def _weld(
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Merge vertices of the per-face triangulations (exactly, else within 1e-9 diag)."""
     for tol in (0.0, 1e-9 * diag, 1e-7 * diag, 1e-5 * diag):
-        key = v if tol == 0 else np.round(v / tol)
-        uniq, inv = np.unique(key, axis=0, return_inverse=True)
-        inv = inv.reshape(-1)
-        ff = inv[f]
-        ok = (ff[:, 0] != ff[:, 1]) & (ff[:, 1] != ff[:, 2]) & (ff[:, 0] != ff[:, 2])
-        ff = ff[ok]
-        vv = np.zeros((len(uniq), 3))
-        vv[inv] = v
+        vv, ff = weld(v, f, tol=tol)
         if not _closed_problem(ff):
-            return vv, ff
+            break
     return vv, ff
 
 

@@ -26,9 +26,10 @@ from typing import TYPE_CHECKING, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fast_stitch.fit import CLEARANCE_MARGIN, clashes, misfits
-from lattice_cad.errors import LatticeError
-from lattice_cad.graph import LatticeGraph
+from fast_stitch.fit import clashes, misfits
+from lattice_cad.core import config
+from lattice_cad.core.errors import FitError
+from lattice_cad.core.graph import LatticeGraph
 
 if TYPE_CHECKING:
     from conformal.part import Part
@@ -46,13 +47,6 @@ __all__ = [
 ]
 
 RadiusSpec = Union[float, ArrayLike, Callable[[NDArray[np.float64]], ArrayLike]]  # noqa: UP007
-
-#: Fraction of its length every strut keeps as open cylinder after :func:`fit_radii`.
-FIT_SLACK = 0.05
-
-
-class FitError(LatticeError, ValueError):
-    """Some struts cannot be made to fit (the message lists them)."""
 
 
 def resolve_radii(
@@ -167,7 +161,7 @@ def _clash_list(
     radii: NDArray[np.float64],
     *,
     shrink: bool = True,
-    margin: float = CLEARANCE_MARGIN,
+    margin: float = config.CLEARANCE_MARGIN,
 ) -> list[StrutClash]:
     pairs, dist, need = clashes(nodes, edges, radii, shrink=shrink, margin=margin)
     m = len(edges)
@@ -192,7 +186,11 @@ def _clash_list(
 
 
 def check_fit(
-    graph: LatticeGraph, segments: int = 6, *, shrink: bool = True, clearance: bool = True
+    graph: LatticeGraph,
+    segments: int = config.DEFAULT_SEGMENTS,
+    *,
+    shrink: bool = True,
+    clearance: bool = True,
 ) -> list[StrutMisfit | StrutClash]:
     """What :func:`fast_stitch.stitch` would reject in ``graph``.
 
@@ -286,7 +284,7 @@ def fit_radii(
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Thin the struts at crowded nodes, and struts that pass too close, until all fit.
 
-    A strut fits when its end offsets leave ``FIT_SLACK`` of its length free
+    A strut fits when its end offsets leave ``config.FIT_SLACK`` of its length free
     and its radius is below 0.45 of its length. Offsets at a node scale
     linearly with the radii there, so the radii at both ends of a misfit
     strut's nodes are scaled down by the missing factor (which may taper
@@ -321,17 +319,17 @@ def fit_radii(
     bad = np.zeros(0, dtype=np.int64)
     n_nodes, m = len(nodes), len(edges)
     for _ in range(max_rounds):
-        bad, need, length = misfits(nodes, edges, r, shrink=shrink, slack=FIT_SLACK)
+        bad, need, length = misfits(nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK)
         node_f = np.ones(n_nodes)
         edge_f = np.ones(m)
         if len(bad):
-            factor = np.clip((1.0 - 1.5 * FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
+            factor = np.clip((1.0 - 1.5 * config.FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
             np.minimum.at(node_f, edges[bad, 0], factor)
             np.minimum.at(node_f, edges[bad, 1], factor)
         elif clearance:
             # aim past the check's own margin so that one round usually clears a pair
             pairs, dist, reach = clashes(
-                nodes, edges, r, shrink=shrink, margin=2 * CLEARANCE_MARGIN
+                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN
             )
             bad = _clash_struts(pairs, edges, m, n_nodes)
             if not len(pairs):

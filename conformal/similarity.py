@@ -43,16 +43,12 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lattice_cad.errors import LatticeError
+from lattice_cad.core.errors import SimilarityError
 
 __all__ = ["Similarity", "Canonical", "SimilarityError"]
 
 #: Below this |log| the generator is treated as exactly zero (identity limits).
 _TINY = 1e-150
-
-
-class SimilarityError(LatticeError, ValueError):
-    """Invalid similarity parameters (non-positive scale, zero axis, non-finite values)."""
 
 
 # ----------------------------------------------------------------- helpers

@@ -79,18 +79,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from conformal import _steady_kernels as _k
 from conformal.similarity import Similarity, _ratio, as_similarity, powers
-from lattice_cad.errors import LatticeError
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core.errors import SteadyLatticeError
+from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["SteadyLattice", "SteadyLatticeError"]
 
 RegionLike = Sequence[Sequence[int] | slice | int] | None
 #: When the transfer to the centroid would amplify rounding more than this, use splitting.
 _MAX_AMPLIFICATION = 1e4
-
-
-class SteadyLatticeError(LatticeError, ValueError):
-    """Invalid steady-lattice input; the message names the ball, rack or index at fault."""
 
 
 # Moments of a set of solids about a common reference point P:

@@ -1,4 +1,6 @@
-"""Tetrahedral lattices: the vertices and edges of a tet mesh of the part (seed Fig. 6).
+"""Tetrahedral lattices: the vertices and edges of a tet mesh of the part.
+
+As in Verma, Rankouhi & Suresh (2019), Fig. 6.
 
 The part is meshed with gmsh (target edge length ``size``): a CAD part
 through its exact B-rep (OCCT kernel; several solids are fused first), a mesh
@@ -22,7 +24,8 @@ from numpy.typing import NDArray
 from conformal.part import Part, PartError
 from conformal.radius import RadiusSpec
 from conformal.voxel import BuildReport, FitMode, _finish
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["tet_lattice", "tet_mesh"]
 
@@ -32,7 +35,7 @@ _ALGO = {"delaunay": 1, "hxt": 10}
 
 def tet_mesh(
     part: Part,
-    size: float = 5.0,
+    size: float = config.DEFAULT_CELL_SIZE,
     *,
     algorithm: Algorithm = "hxt",
     surface_angle: float = 40.0,
@@ -139,11 +142,13 @@ def _brep_file(part: Part, tmp: Path) -> Path | None:
     """The part's exact B-rep as a .brep file (None for mesh parts or a failed fuse)."""
     if part.shape is None:
         return None
-    from conformal import _occ
+    from lattice_cad.core.errors import OCCTFailure
+    from lattice_cad.occ_impl import shapes as _occ
 
     solids = list(part.shape)
-    shape = solids[0] if len(solids) == 1 else _occ.fuse(solids)
-    if shape is None:
+    try:
+        shape = solids[0] if len(solids) == 1 else _occ.fuse(solids, simplify=True)
+    except OCCTFailure:
         return None
     path = tmp / "part.brep"
     _occ.write_brep(shape, path)
@@ -165,8 +170,8 @@ def tet_edges(tets: NDArray[np.int64]) -> NDArray[np.int64]:
 
 def tet_lattice(
     part: Part,
-    size: float = 5.0,
-    radius: RadiusSpec = 0.4,
+    size: float = config.DEFAULT_CELL_SIZE,
+    radius: RadiusSpec = config.DEFAULT_RADIUS,
     *,
     algorithm: Algorithm = "hxt",
     min_radius: float | None = None,

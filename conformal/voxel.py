@@ -1,4 +1,6 @@
-"""Voxel lattices: unit cells tiled over the cells of a grid that fill a part (seed Fig. 5).
+"""Voxel lattices: unit cells tiled over the grid cells that fill a part.
+
+As in Verma, Rankouhi & Suresh (2019), Fig. 5.
 
 The part is voxelised on a grid of cells of size ``(hx, hy, hz)``: the corners
 of every cell are classified inside/outside (one vertical ray per grid
@@ -42,8 +44,9 @@ from conformal import _kernels
 from conformal.cells import UnitCell, _resolve, tile_arrays
 from conformal.part import Part
 from conformal.radius import FitError, RadiusSpec, fit_radii, resolve_radii
-from lattice_cad.errors import LatticeWarning
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.errors import LatticeWarning
+from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["voxel_lattice", "voxelize", "BuildReport", "Voxels"]
 
@@ -167,9 +170,9 @@ def _rotation(rotation: ArrayLike | None) -> NDArray[np.float64] | None:
 
 def voxel_lattice(
     part: Part,
-    cell: str | UnitCell = "bcc",
-    cell_size: float | ArrayLike = 5.0,
-    radius: RadiusSpec = 0.4,
+    cell: str | UnitCell = config.DEFAULT_CELL,
+    cell_size: float | ArrayLike = config.DEFAULT_CELL_SIZE,
+    radius: RadiusSpec = config.DEFAULT_RADIUS,
     *,
     fill: FillMode = "inside",
     origin: ArrayLike | None = None,

@@ -2,7 +2,7 @@
 
 Run: python examples/cadquery_lattice.py [OUT_DIR]   (default: the current directory)
 
-``import lattice_cad`` adds ``Workplane.lattice`` to CadQuery.
+``import lattice_cad.plugin`` adds ``Workplane.lattice`` to CadQuery (its plugin convention).
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ from pathlib import Path
 
 import cadquery as cq
 
-import lattice_cad.plugin  # noqa: F401  (``import lattice_cad`` does this too)
+import fast_stitch
+import lattice_cad.plugin  # noqa: F401  (adds cq.Workplane.lattice)
 
 
 def main(out_dir: str = ".") -> None:
@@ -28,7 +29,7 @@ def main(out_dir: str = ".") -> None:
     lat.save(out / "block_skin.stl")  # skin + lattice, one watertight solid
     lat.save(out / "block_lattice.3mf", beam_lattice=True)  # beams + clipping mesh
     lat.save(out / "block_graph.json")  # the graph, exactly
-    print(lat.mesh().check(self_intersections=False))
+    print(fast_stitch.check(lat.mesh(), self_intersections=False))
 
     # a small lattice as an exact B-rep, used in a further CadQuery boolean
     small = cq.Workplane("XY").box(10, 10, 10).lattice("bcc", 5.0, 0.6, fill="clip")

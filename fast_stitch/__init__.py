@@ -1,5 +1,11 @@
 """fast_stitch: the combinatorial lattice stitcher (Verma, Rankouhi & Suresh 2019).
 
+A lattice graph becomes a watertight, 2-manifold, outward-oriented triangle mesh without any
+boolean: each node gets a convex hub, each strut a prism between two profiles, stitched by
+index. :func:`stitch` (also ``method="lslt"``: Chougrani et al. 2017), :func:`estimate`
+(exact counts before building), and :func:`check`, the validity checker (see its module for
+what it shares with the stitcher). The :class:`Mesh` type is the core's, re-exported.
+
 >>> import fast_stitch
 >>> from lattice_cad import LatticeGraph
 >>> g = LatticeGraph([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1], [0, 2]], 0.1)
@@ -9,9 +15,9 @@ True
 """
 
 from fast_stitch.check import CheckReport, check
-from fast_stitch.mesh import ExportError, Mesh
 from fast_stitch.stitch import Estimate, estimate, stitch
-from lattice_cad.errors import StitchError
+from lattice_cad.core.errors import ExportError, StitchError
+from lattice_cad.core.mesh import Mesh
 
 __all__ = [
     "stitch",

@@ -4,7 +4,7 @@
 to the strut's end profile with exactly the rule of :func:`fast_stitch.stitch`
 (``fast_stitch._kernels.hub_offsets`` with the same margin and floor angle).
 A strut fits when the offsets of its two ends leave some open cylinder:
-``offset[e, 0] + offset[e, 1] < length[e] * (1 - MIN_CYLINDER_FRACTION)``;
+``offset[e, 0] + offset[e, 1] < length[e] * (1 - config.MIN_CYLINDER_FRACTION)``;
 :func:`misfits` lists the struts that do not. Offsets do not depend on the
 number of segments.
 
@@ -26,17 +26,10 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from fast_stitch import _kernels
-from fast_stitch.stitch import (
-    FLOOR_ANGLE_DEG,
-    MIN_CYLINDER_FRACTION,
-    OFFSET_MARGIN,
-    _clearance_elements,
-)
+from fast_stitch.stitch import _clearance_elements
+from lattice_cad.core import config
 
-__all__ = ["end_offsets", "misfits", "clashes", "MIN_CYLINDER_FRACTION", "CLEARANCE_MARGIN"]
-
-#: Relative margin of :func:`clashes`: elements must be ``(1 + margin) (r_a + r_b)`` apart.
-CLEARANCE_MARGIN = 0.02
+__all__ = ["end_offsets", "misfits", "clashes"]
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -106,10 +99,10 @@ def end_offsets(
     n, m = len(nodes_a), len(edges_a)
     offsets, inc_edge, inc_side = _incidence(edges_a, n)
     out = np.zeros((m, 2))
-    floor_tan = math.tan(math.radians(90.0 - FLOOR_ANGLE_DEG))
+    floor_tan = math.tan(math.radians(90.0 - config.FLOOR_ANGLE_DEG))
     _node_offsets(
         nodes_a, edges_a, radii_a, offsets, inc_edge, inc_side, bool(shrink),
-        OFFSET_MARGIN, floor_tan, out,
+        config.OFFSET_MARGIN, floor_tan, out,
     )  # fmt: skip
     return out
 
@@ -143,7 +136,7 @@ def misfits(
     off = end_offsets(nodes_a, edges_a, radii, shrink=shrink)
     need = off.sum(axis=1)
     length = np.linalg.norm(nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]], axis=1)
-    bad = np.flatnonzero(need >= length * (1.0 - MIN_CYLINDER_FRACTION - slack))
+    bad = np.flatnonzero(need >= length * (1.0 - config.MIN_CYLINDER_FRACTION - slack))
     return bad.astype(np.int64), need, length
 
 
@@ -187,7 +180,7 @@ def clashes(
     radii: ArrayLike,
     *,
     shrink: bool = True,
-    margin: float = CLEARANCE_MARGIN,
+    margin: float = config.CLEARANCE_MARGIN,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Struts and joints that share no node but would come too close.
 

@@ -87,7 +87,6 @@ Engineering choices (where the paper is ambiguous or not robust)
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any, Literal
 
 import numba
@@ -95,28 +94,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fast_stitch import _lslt_kernels as _k
-from fast_stitch.mesh import Mesh
-from lattice_cad.errors import StitchError
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.checks import ProgressCallback, check_seed, check_workers
+from lattice_cad.core.errors import StitchError
+from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.mesh import Mesh
 
 __all__ = ["stitch_lslt", "segments_for_chord_error", "triangle_quality"]
-
-#: Coplanarity tolerance of the node structure (unit directions).
-COPLANAR_EPS = 1e-9
-#: Tolerances tried in turn when a node's structure has slivers (near-degenerate nodes).
-COPLANAR_EPS_RETRY = (COPLANAR_EPS, 1e-7, 1e-5, 1e-3)
-#: Smallest distance between consecutive section vertices, relative to the radius.
-MIN_STEP = 1e-5
-#: Struts within this (radians) of one plane through their node are projected onto it.
-FLAT_EPS = 1e-5
-#: Tube vertices must lie this far (relative) inside their cone at each node.
-CONE_MARGIN = 1e-7
-#: Largest supported node degree (bit masks of 64 points incl. the origin).
-MAX_DEGREE = 62
-#: Largest polygon size ``segments_for_chord_error`` may return.
-MAX_SEGMENTS = 100_000
-
-ProgressCallback = Callable[[str, int, int], Any]
 
 
 def segments_for_chord_error(chord_error: float) -> int:
@@ -151,9 +135,9 @@ def segments_for_chord_error(chord_error: float) -> int:
         p -= 1
     while 1.0 - math.cos(math.pi / p) > e:
         p += 1
-    if p > MAX_SEGMENTS:
+    if p > config.MAX_SEGMENTS:
         raise ValueError(
-            f"chord_error {e:g} needs {p} segments per section (more than {MAX_SEGMENTS})"
+            f"chord_error {e:g} needs {p} segments per section (more than {config.MAX_SEGMENTS})"
         )
     return p
 
@@ -247,8 +231,8 @@ def stitch_lslt(
     if not isinstance(graph, LatticeGraph):
         raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
     P = segments_for_chord_error(chord_error)
-    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    seed = check_seed(seed)
+    workers = check_workers(workers)
     if sections is not None and not (isinstance(sections, str) and sections == "auto"):
         _inter_counts(
             sections, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
@@ -257,9 +241,7 @@ def stitch_lslt(
         raise StitchError("the graph has no struts: nothing to stitch")
     prev = numba.get_num_threads()
     if workers is not None:
-        if workers < 1:
-            raise ValueError(f"workers must be >= 1, got {workers}")
-        numba.set_num_threads(min(int(workers), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
+        numba.set_num_threads(min(workers, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
     cb = progress if callable(progress) else None
     try:
         return _stitch(graph, P, float(chord_error), sections, int(seed), cb)
@@ -280,11 +262,11 @@ def _stitch(
     offsets, inc_edge, inc_side = graph.incidence
     degree = graph.degree
     axis, fu, fv = _frames(graph, seed)
-    too_big = np.flatnonzero(degree > MAX_DEGREE)
+    too_big = np.flatnonzero(degree > config.MAX_DEGREE)
     if len(too_big):
         n = int(too_big[0])
         raise StitchError(
-            f"node {n} has {int(degree[n])} struts; LSLT supports at most {MAX_DEGREE}"
+            f"node {n} has {int(degree[n])} struts; LSLT supports at most {config.MAX_DEGREE}"
         )
     mitre_sin = 1.0 / (1.0 + chord_error)  # mitre when sin(alpha / 2) >= this
 
@@ -339,12 +321,12 @@ def _stitch(
             if d >= 3:  # nearly planar node: make it exactly planar (no sliver of a hole)
                 nrm = np.linalg.svd(dirs)[2][-1]
                 h = dirs @ nrm
-                if np.abs(h).max() < FLAT_EPS:
+                if np.abs(h).max() < config.FLAT_EPS:
                     dirs = dirs - h[:, None] * nrm
                     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
             mitre = d == 2 and math.sqrt(max(0.0, 0.5 * (1.0 - float(cosm[0, 1])))) >= mitre_sin
             status = _k.ST_DEGENERATE
-            for eps in COPLANAR_EPS_RETRY:  # near-degenerate nodes: merge more generously
+            for eps in config.COPLANAR_EPS_RETRY:  # near-degenerate nodes: merge more generously
                 lv, sp, sid, fan, status = _k.node_structure(
                     np.ascontiguousarray(dirs), np.ascontiguousarray(rad), P, eps, mitre
                 )
@@ -443,7 +425,7 @@ def _node_ok(
     for t in range(len(sp) - 1):
         ring = lv[sid[sp[t] : sp[t + 1]]]
         step = np.linalg.norm(ring - np.roll(ring, -1, axis=0), axis=1)
-        if step.min() <= MIN_STEP * rad[t]:
+        if step.min() <= config.MIN_STEP * rad[t]:
             return False
     if len(fan):
         a, b, c = lv[fan[:, 0]], lv[fan[:, 1]], lv[fan[:, 2]]
@@ -474,7 +456,7 @@ def _check_local(
     bad_kind = np.empty(m, dtype=np.int64)
     _k.check_tubes(
         graph.nodes, graph.edges, axis, offsets, inc_edge, inc_side, sec_ptr, sec_ids,
-        face_start, face_stop, vertices, faces, CONE_MARGIN, bad_node, bad_other, bad_kind,
+        face_start, face_stop, vertices, faces, config.CONE_MARGIN, bad_node, bad_other, bad_kind,
     )  # fmt: skip
     bad = np.flatnonzero(bad_kind != 0)
     if len(bad):

@@ -22,7 +22,6 @@ each other are identical and are computed once (periodic lattices).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -32,21 +31,21 @@ from numpy.typing import NDArray
 
 from fast_stitch import _kernels
 from fast_stitch._check_kernels import box_stats
-from fast_stitch.mesh import Mesh, stl_size
-from lattice_cad.errors import StitchError
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.checks import (
+    Progress,
+    ProgressCallback,
+    check_seed,
+    check_segments,
+    check_workers,
+)
+from lattice_cad.core.errors import StitchError
+from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.mesh import Mesh, stl_size
 
 __all__ = ["stitch", "estimate", "Estimate", "ProgressCallback"]
 
-#: Relative safety margin on profile offsets (keeps hull triangles away from slivers).
-OFFSET_MARGIN = 1e-2
-#: Profiles are never closer to their node than ``r * tan(FLOOR_ANGLE)``.
-FLOOR_ANGLE_DEG = 10.0
-#: Struts must keep at least this fraction of their length as open cylinder.
-MIN_CYLINDER_FRACTION = 1e-6
 _CHUNK = 1 << 15
-
-ProgressCallback = Callable[[str, int, int], Any]
 
 
 @dataclass(frozen=True)
@@ -58,14 +57,6 @@ class Estimate:
     stl_bytes: int
 
 
-def _check_segments(segments: int | None) -> int:
-    if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)):
-        raise TypeError(f"segments must be an integer >= 3, got {segments!r}")
-    if segments < 3:
-        raise ValueError(f"segments must be >= 3, got {segments}")
-    return int(segments)
-
-
 def _face_counts(degree: NDArray[np.int64], P: int) -> NDArray[np.int64]:
     """(N,) int64: hub (d >= 2) or cap (d == 1) triangles of each node."""
     counts = np.where(degree >= 2, degree * P + 2 * degree - 4, 0)
@@ -73,12 +64,12 @@ def _face_counts(degree: NDArray[np.int64], P: int) -> NDArray[np.int64]:
     return counts.astype(np.int64)
 
 
-def estimate(graph: LatticeGraph, segments: int = 6) -> Estimate:
+def estimate(graph: LatticeGraph, segments: int = config.DEFAULT_SEGMENTS) -> Estimate:
     """Exact vertex and triangle counts, and binary STL size, of ``stitch(graph, segments)``.
 
     ``V = 2 M P`` and ``F = 2 M P + sum_{d >= 2} (d P + 2 d - 4) + (P - 2) * #leaves``.
     """
-    P = _check_segments(segments)
+    P = check_segments(segments)
     if not isinstance(graph, LatticeGraph):
         raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
     m = graph.num_edges
@@ -86,34 +77,9 @@ def estimate(graph: LatticeGraph, segments: int = 6) -> Estimate:
     return Estimate(vertices=2 * m * P, triangles=tri, stl_bytes=stl_size(tri))
 
 
-class _Progress:
-    def __init__(self, progress: bool | ProgressCallback | None, total: int) -> None:
-        self._cb: ProgressCallback | None = None
-        self._bar = None
-        if callable(progress):
-            self._cb = progress
-        elif progress:
-            from tqdm.auto import tqdm
-
-            self._bar = tqdm(total=total, desc="stitch", unit="hub", leave=False)
-
-    def __call__(self, stage: str, done: int, total: int) -> None:
-        if self._cb is not None:
-            self._cb(stage, done, total)
-        if self._bar is not None:
-            self._bar.set_description(f"stitch: {stage}")
-            self._bar.n = done
-            self._bar.total = total
-            self._bar.refresh()
-
-    def close(self) -> None:
-        if self._bar is not None:
-            self._bar.close()
-
-
 def stitch(
     graph: LatticeGraph,
-    segments: int | None = 6,
+    segments: int | None = config.DEFAULT_SEGMENTS,
     *,
     method: Literal["verma", "lslt"] = "verma",
     chord_error: float | None = None,
@@ -201,20 +167,18 @@ def stitch(
         from fast_stitch.lslt import segments_for_chord_error
 
         segments = segments_for_chord_error(chord_error)
-    P = _check_segments(segments)
+    P = check_segments(segments)
     if not isinstance(graph, LatticeGraph):
         raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
-    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    seed = check_seed(seed)
+    workers = check_workers(workers)
     m = graph.num_edges
     if m == 0:
         raise StitchError("the graph has no struts: nothing to stitch")
     prev_threads = numba.get_num_threads()
     if workers is not None:
-        if workers < 1:
-            raise ValueError(f"workers must be >= 1, got {workers}")
-        numba.set_num_threads(min(int(workers), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
-    bar = _Progress(progress, graph.num_nodes)
+        numba.set_num_threads(min(workers, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
+    bar = Progress(progress, graph.num_nodes, desc="stitch", unit="hub")
     try:
         radii = graph.radii * area_factor(P) if volume_preserving else graph.radii
         mesh, end_offset, face_start = _stitch(
@@ -241,7 +205,7 @@ def _stitch(
     P: int,
     shrink: bool,
     seed: int,
-    progress: _Progress,
+    progress: Progress,
 ) -> tuple[Mesh, NDArray[np.float64], NDArray[np.int64]]:
     nodes, edges = graph.nodes, graph.edges
     n_nodes, m = graph.num_nodes, graph.num_edges
@@ -292,13 +256,13 @@ def _stitch(
     rep_det = np.empty(int(rep_slot_start[-1]), dtype=np.int64)
     rep_tris = np.empty((int(rep_tri_start[-1]), 3), dtype=np.int64)
     rep_status = np.empty(n_rep, dtype=np.int64)
-    floor_tan = math.tan(math.radians(90.0 - FLOOR_ANGLE_DEG))  # r / d_floor
+    floor_tan = math.tan(math.radians(90.0 - config.FLOOR_ANGLE_DEG))  # r / d_floor
     # chunks keep Ctrl-C responsive and drive the progress report
     for lo in range(0, n_rep, _CHUNK):
         hi = min(n_rep, lo + _CHUNK)
         _kernels.build_hubs(
             rep_nodes[lo:hi], offsets, slots, axis, sign, fu, fv, radii, P, shrink,
-            OFFSET_MARGIN, floor_tan,
+            config.OFFSET_MARGIN, floor_tan,
             rep_slot_start[lo : hi + 1] - rep_slot_start[lo],
             rep_tri_start[lo : hi + 1] - rep_tri_start[lo],
             rep_d[rep_slot_start[lo] : rep_slot_start[hi]],
@@ -395,7 +359,7 @@ def _check_fit(
 ) -> None:
     """Raise StitchError if the two profiles of some strut would meet or cross."""
     need = end_offset.sum(axis=1)
-    over = need >= length * (1.0 - MIN_CYLINDER_FRACTION)
+    over = need >= length * (1.0 - config.MIN_CYLINDER_FRACTION)
     if not over.any():
         return
     e = int(np.flatnonzero(over)[np.argmax((need / length)[over])])

@@ -1,38 +1,51 @@
 """lattice-cad: lattice structures for additive manufacturing.
 
-The core types live here; the engines are separate top-level packages:
+The project stands on three floors (see docs/ARCHITECTURE.md):
 
-- :mod:`fast_stitch`: graph -> watertight triangle mesh (Verma et al.; LSLT).
-- :mod:`conformal`: parts and unit cells -> lattice graphs; steady lattices.
-- :mod:`reference_boolean`: exact B-rep reference and accuracy reports.
+- the core, :mod:`lattice_cad.core`: :class:`LatticeGraph`, :class:`Mesh`, the errors, the
+  shared settings (numpy only); :mod:`lattice_cad.occ_impl` (every OpenCascade call) and
+  :mod:`lattice_cad.io` (every file format) beside it;
+- the engines, separate top-level packages: :mod:`fast_stitch` (graph -> watertight mesh),
+  :mod:`conformal` (parts and unit cells -> graphs; skins; steady lattices) and
+  :mod:`reference_boolean` (the exact B-rep reference and the comparisons);
+- the front, here: :class:`Lattice`, :func:`validate`, the reports, the CLI
+  (:mod:`lattice_cad.cli`), previews, and the CadQuery plugin (``import lattice_cad.plugin``
+  adds ``cadquery.Workplane.lattice``).
 
-The user-facing layer (:class:`Lattice`, :func:`validate`, file export, the
-CLI) is loaded on first use, so ``import lattice_cad`` stays light. Importing
-it also arranges for ``cadquery.Workplane.lattice`` to exist as soon as
-cadquery is imported (without importing cadquery itself).
+``import lattice_cad`` loads the core only; the front loads on first use and importing it
+has no side effects.
 """
 
 from typing import Any
 
-from lattice_cad.errors import InvalidGraphError, LatticeError, LatticeWarning, StitchError
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core.errors import (
+    ExportError,
+    ExportWarning,
+    InvalidGraphError,
+    LatticeError,
+    LatticeWarning,
+    StitchError,
+)
+from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.mesh import Mesh
 
 __all__ = [
     "LatticeGraph",
+    "Mesh",
     "LatticeError",
     "InvalidGraphError",
     "StitchError",
     "LatticeWarning",
-    "Lattice",
-    "validate",
     "ExportError",
     "ExportWarning",
+    "Lattice",
+    "validate",
 ]
 
 __version__ = "0.1.0"
 
 
-def __getattr__(name: str) -> Any:  # PEP 562: the upper layers load on first use
+def __getattr__(name: str) -> Any:  # PEP 562: the front loads on first use
     if name == "Lattice":
         from lattice_cad.lattice import Lattice
 
@@ -41,14 +54,4 @@ def __getattr__(name: str) -> Any:  # PEP 562: the upper layers load on first us
         from lattice_cad.validate import validate
 
         return validate
-    if name in ("ExportError", "ExportWarning"):
-        from lattice_cad import export
-
-        return getattr(export, name)
     raise AttributeError(f"module 'lattice_cad' has no attribute {name!r}")
-
-
-try:  # adds cq.Workplane.lattice when cadquery is imported; does not import cadquery here
-    from lattice_cad import plugin as _plugin  # noqa: F401
-except ImportError:  # pragma: no cover
-    pass

@@ -27,9 +27,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from lattice_cad.core import config
+from lattice_cad.core.formats import Kind, resolve, suffixes
+
 __all__ = ["main", "build_parser"]
 
-_GRAPH_SUFFIXES = (".json", ".npz")
 _OUTPUT_HELP = (
     "output file; the format follows the suffix: .stl .3mf .ply .obj (mesh), "
     ".json .npz (graph), .step (exact B-rep)"
@@ -93,12 +95,9 @@ def _segments(text: str) -> int:
 
 # ------------------------------------------------------------------ commands
 def _load_graph(path: str) -> Any:
-    from lattice_cad.graph import LatticeGraph
+    from lattice_cad.core.graph import LatticeGraph
 
-    p = Path(path)
-    if p.suffix.lower() not in _GRAPH_SUFFIXES:
-        raise ValueError(f"{p}: a graph file must end in .json or .npz")
-    return LatticeGraph.load(p)
+    return LatticeGraph.load(path)
 
 
 def _write_report(con: _Console, lat: Any, directory: str) -> None:
@@ -138,7 +137,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             else ""
         )
     )
-    if out.suffix.lower() in (".stl", ".3mf", ".ply", ".obj") and not args.beam_lattice:
+    if out.suffix.lower() in suffixes(Kind.MESH) and not args.beam_lattice:
         with con.step("mesh" + (" + skin" if args.skin else "")):
             mesh = lat.mesh()
         con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3")
@@ -170,8 +169,7 @@ def _cmd_reference(args: argparse.Namespace, con: _Console) -> int:
 
     graph = _load_graph(args.graph)
     out = Path(args.output)
-    if out.suffix.lower() not in (".step", ".stp", ".stl"):
-        raise ValueError(f"{out.name}: the reference is written as .step, .stp or .stl")
+    resolve(out, (Kind.SOLIDS, Kind.MESH))  # refuse a bad suffix before the long build
     with con.step("reference") as progress:
         ref = build_reference(graph, progress=progress)
     with con.step(f"write {out.suffix.lstrip('.')}"):
@@ -188,7 +186,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
     from lattice_cad.lattice import Lattice
 
     src = Path(args.input)
-    if src.suffix.lower() in _GRAPH_SUFFIXES:
+    if src.suffix.lower() in suffixes(Kind.GRAPH, action="read"):
         lat = Lattice(_load_graph(args.input), segments=args.segments)
     else:
         with con.step("load + lattice"):
@@ -216,7 +214,7 @@ def _cmd_cells(args: argparse.Namespace, con: _Console) -> int:
 
 def _cmd_check(args: argparse.Namespace, con: _Console) -> int:
     from fast_stitch.check import check
-    from lattice_cad.export import read_mesh
+    from lattice_cad.io import read_mesh
 
     with con.step("read"):
         v, f = read_mesh(args.mesh)
@@ -242,18 +240,22 @@ def _cmd_preview(args: argparse.Namespace, con: _Console) -> int:
 # -------------------------------------------------------------------- parser
 def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> None:
     g = p.add_argument_group("lattice")
-    g.add_argument("--cell", default="bcc", help="unit cell (see `lattice-cad cells`; default bcc)")
+    g.add_argument(
+        "--cell",
+        default=config.DEFAULT_CELL,
+        help="unit cell (see `lattice-cad cells`; default bcc)",
+    )
     g.add_argument(
         "--cell-size",
         type=_positive_float,
-        default=5.0,
+        default=config.DEFAULT_CELL_SIZE,
         metavar="MM",
         help="cell edge length, or tet element size (default 5)",
     )
     g.add_argument(
         "--radius",
         type=_positive_float,
-        default=0.4,
+        default=config.DEFAULT_RADIUS,
         metavar="MM",
         help="strut radius (default 0.4)",
     )
@@ -281,7 +283,7 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
     g.add_argument(
         "--segments",
         type=_segments,
-        default=6,
+        default=config.DEFAULT_SEGMENTS,
         metavar="P",
         help="sides of each strut's polygon profile (default 6)",
     )
@@ -331,7 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--segments",
         type=_segments,
-        default=6,
+        default=config.DEFAULT_SEGMENTS,
         metavar="P",
         help="sides of each strut's polygon profile (default 6)",
     )

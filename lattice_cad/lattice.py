@@ -23,20 +23,20 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 
-from lattice_cad.errors import LatticeError
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.errors import LatticeError, OCCTFailure
+from lattice_cad.core.formats import Kind, resolve
+from lattice_cad.core.graph import LatticeGraph
 
 if TYPE_CHECKING:
     import cadquery as cq
 
-    from fast_stitch.mesh import Mesh
+    from lattice_cad.core.mesh import Mesh
 
 __all__ = ["Lattice", "Method", "Fill", "load_graph"]
 
 Method = Literal["voxel", "tet"]
 Fill = Literal["inside", "clip", "conform"]
-#: Largest lattice for which :meth:`Lattice.to_workplane` builds B-rep solids by default.
-MAX_BREP_STRUTS = 2_000
 
 
 def _check_choice(name: str, value: Any, allowed: tuple[str, ...]) -> str:
@@ -109,7 +109,7 @@ class Lattice:
         The filled part (needed for ``skin`` and for a beam lattice's clipping mesh).
     skin : float, optional
         Wall thickness of the part's skin; the printable solid is then the skin
-        united with the lattice (see :mod:`lattice_cad.skin`).
+        united with the lattice (see :mod:`conformal.skin`).
     segments : int
         Sides of every strut's polygonal profile in the stitched mesh (>= 3).
 
@@ -127,7 +127,7 @@ class Lattice:
         *,
         part: Any = None,
         skin: float | None = None,
-        segments: int = 6,
+        segments: int = config.DEFAULT_SEGMENTS,
     ) -> None:
         if not isinstance(graph, LatticeGraph):
             raise TypeError(f"graph must be a LatticeGraph, got {type(graph).__name__}")
@@ -150,14 +150,14 @@ class Lattice:
     def fill(
         cls,
         part: Any,
-        cell: str = "bcc",
-        cell_size: float = 5.0,
-        radius: float = 0.4,
+        cell: str = config.DEFAULT_CELL,
+        cell_size: float = config.DEFAULT_CELL_SIZE,
+        radius: float = config.DEFAULT_RADIUS,
         *,
         method: Method = "voxel",
         fill: Fill | None = None,
         skin: float | None = None,
-        segments: int = 6,
+        segments: int = config.DEFAULT_SEGMENTS,
         origin: Any = None,
         rotation: Any = None,
     ) -> Lattice:
@@ -255,8 +255,8 @@ class Lattice:
     def _solid_mesh(self) -> Mesh:
         if self.skin is None:
             return self._lattice_mesh
-        from fast_stitch.mesh import Mesh
-        from lattice_cad import skin as _skin
+        from conformal import skin as _skin
+        from lattice_cad.core.mesh import Mesh
 
         solid = _skin.add_skin(self._lattice_mesh, self.part, self.skin)
         v, f = _skin.to_arrays(solid)
@@ -295,28 +295,21 @@ class Lattice:
         -------
         Path
         """
-        from lattice_cad import export
+        from lattice_cad import io
 
         p = Path(path)
-        suffix = p.suffix.lower()
         if beam_lattice:
-            if suffix != ".3mf":
-                raise ValueError(f"beam_lattice=True writes .3mf files, not {p.name!r}")
+            io.format_for(p, Kind.BEAM_LATTICE)
             clip = None
             if self.part is not None:
                 clip = (self.part.vertices, self.part.faces)
-            return export.save_beam_lattice(self.graph, p, clip=clip)
-        if suffix in export.GRAPH_SUFFIXES:
-            return export.save_graph(self.graph, p)
-        if suffix in (".step", ".stp"):
+            return io.save_beam_lattice(self.graph, p, clip=clip)
+        _, kind = resolve(p, (Kind.MESH, Kind.GRAPH, Kind.SOLIDS))
+        if kind is Kind.GRAPH:
+            return io.save_graph(self.graph, p)
+        if kind is Kind.SOLIDS:
             return self.reference().save(p)
-        if suffix in export.MESH_SUFFIXES:
-            return export.save_mesh(self.mesh(), p)
-        raise ValueError(
-            f"cannot save a lattice as {suffix or 'a file without suffix'} ({p.name}): use "
-            f"{', '.join(export.MESH_SUFFIXES + export.GRAPH_SUFFIXES)}, .step or .3mf with "
-            "beam_lattice=True"
-        )
+        return io.save_mesh(self.mesh(), p)
 
     # ------------------------------------------------------------ reference
     def reference(self, **options: Any) -> Any:
@@ -354,12 +347,7 @@ class Lattice:
                 f"the lattice has {self.graph.num_edges} struts; B-rep solids are built for at "
                 f"most {max_struts} (pass max_struts= to go further, or use mesh())"
             )
-        from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
-        from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
-        from OCP.gp import gp_Trsf, gp_Vec
-        from OCP.TopTools import TopTools_ListOfShape
-
-        from reference_boolean import _occ as ref_occ
+        from lattice_cad.occ_impl import shapes as occ
 
         ref = self.reference()
         if ref.failed:
@@ -372,28 +360,16 @@ class Lattice:
             if t < 0:
                 continue
             if t not in cache:
-                cache[t] = ref_occ._from_bytes(ref.breps[t])
-            trsf = gp_Trsf()
-            x, y, z = (float(c) for c in self.graph.nodes[n])
-            trsf.SetTranslation(gp_Vec(x, y, z))
-            shapes.append(BRepBuilderAPI_Transform(cache[t], trsf, True).Shape())
+                cache[t] = occ.from_bytes(ref.breps[t])
+            shapes.append(occ.translated(cache[t], self.graph.nodes[n]))
         if len(shapes) == 1:
             return shapes[0]
-        args, tools = TopTools_ListOfShape(), TopTools_ListOfShape()
-        args.Append(shapes[0])
-        for s in shapes[1:]:
-            tools.Append(s)
-        fuse = BRepAlgoAPI_Fuse()
-        fuse.SetArguments(args)
-        fuse.SetTools(tools)
-        fuse.SetRunParallel(True)
-        fuse.Build()
-        if not fuse.IsDone():
-            raise LatticeError("OCCT could not fuse the hub solids of the lattice")
-        fuse.SimplifyResult()
-        return fuse.Shape()
+        try:
+            return occ.fuse(shapes, simplify=True)
+        except OCCTFailure as exc:
+            raise LatticeError(f"OCCT could not fuse the hub solids of the lattice: {exc}") from exc
 
-    def to_workplane(self, *, max_struts: int = MAX_BREP_STRUTS) -> cq.Workplane:
+    def to_workplane(self, *, max_struts: int = config.MAX_BREP_STRUTS) -> cq.Workplane:
         """The exact lattice solid as a CadQuery Workplane (small lattices only).
 
         The hub solids of the exact reference are fused into one B-rep, usable
@@ -408,7 +384,7 @@ class Lattice:
 
         return cq.Workplane("XY").newObject([cq.Shape.cast(self._brep_compound(max_struts))])
 
-    def to_part(self, *, max_struts: int = MAX_BREP_STRUTS) -> Any:
+    def to_part(self, *, max_struts: int = config.MAX_BREP_STRUTS) -> Any:
         """The exact lattice solid as a build123d shape (small lattices only).
 
         See :meth:`to_workplane`.
@@ -416,8 +392,10 @@ class Lattice:
         import build123d as bd
 
         shape = self._brep_compound(max_struts)
+        from lattice_cad.occ_impl.shapes import is_compound
+
         # build123d 0.10's Shape.cast gives None for a plain TopoDS_Shape: wrap by type
-        if shape.ShapeType().name.endswith("COMPOUND"):
+        if is_compound(shape):
             return bd.Compound(shape)
         return bd.Solid(shape)
 
@@ -442,7 +420,7 @@ class Lattice:
             and ``3mf_beam`` files of the lattice (without skin).
         """
         import fast_stitch
-        from lattice_cad import export
+        from lattice_cad import io as export
 
         g = self.graph
         est = fast_stitch.estimate(g, self.segments)

@@ -1,43 +1,38 @@
-"""The CadQuery plugin: ``cq.Workplane.lattice``.
+"""The CadQuery plugin: ``cq.Workplane.lattice``, registered as CadQuery documents plugins.
 
-Importing this module registers :func:`lattice` as a method of
-``cadquery.Workplane`` without importing cadquery itself (which takes seconds):
-if cadquery is already imported the method is added at once, otherwise a
-one-shot import hook adds it right after ``import cadquery`` runs. So
-``import lattice_cad`` stays light and ``cq.Workplane.lattice`` is always there.
-CadQuery's plugin contract: the function takes the workplane as ``self`` and
-works in global coordinates.
+A CadQuery plugin is a module that adds a method to ``cadquery.Workplane`` when it is
+imported; the method takes the workplane as ``self`` and works in global coordinates. So:
 
 >>> import cadquery as cq
->>> import lattice_cad.plugin  # noqa: F401  (done by ``import lattice_cad``)
+>>> import lattice_cad.plugin  # adds Workplane.lattice
 >>> lat = cq.Workplane().box(20, 20, 20).lattice("bcc", 5.0, 0.4)  # doctest: +SKIP
+
+Importing this module imports cadquery; nothing else in lattice-cad does (``import
+lattice_cad`` and the engines stay light and free of side effects).
 """
 
 from __future__ import annotations
 
-import importlib.abc
-import importlib.util
-import sys
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    import cadquery as cq
+import cadquery as cq
 
-    from lattice_cad.lattice import Fill, Lattice, Method
+from lattice_cad.core import config
+from lattice_cad.lattice import Fill, Lattice, Method
 
-__all__ = ["lattice", "register", "install"]
+__all__ = ["lattice", "register"]
 
 
 def lattice(
     self: cq.Workplane,
-    cell: str = "bcc",
-    cell_size: float = 5.0,
-    radius: float = 0.4,
+    cell: str = config.DEFAULT_CELL,
+    cell_size: float = config.DEFAULT_CELL_SIZE,
+    radius: float = config.DEFAULT_RADIUS,
     *,
     method: Method = "voxel",
     fill: Fill | None = None,
     skin: float | None = None,
-    segments: int = 6,
+    segments: int = config.DEFAULT_SEGMENTS,
     origin: Any = None,
     rotation: Any = None,
 ) -> Lattice:
@@ -59,10 +54,6 @@ def lattice(
     ValueError
         The stack holds no solid.
     """
-    import cadquery as cq
-
-    from lattice_cad.lattice import Lattice
-
     solids = [s for v in self.vals() if isinstance(v, cq.Shape) for s in v.Solids()]
     if not solids:
         # the usual CadQuery chain leaves faces or edges selected: use their solid
@@ -87,53 +78,9 @@ def lattice(
     )
 
 
-def register(module: Any = None) -> None:
-    """Add :func:`lattice` to ``cadquery.Workplane`` (idempotent; imports cadquery)."""
-    if module is None:
-        import cadquery as module
-    module.Workplane.lattice = lattice
+def register() -> None:
+    """Add :func:`lattice` to ``cadquery.Workplane`` (idempotent; done on import)."""
+    cq.Workplane.lattice = lattice
 
 
-class _CadQueryHook(importlib.abc.MetaPathFinder):
-    """Registers the plugin right after ``cadquery`` is first imported, then removes itself."""
-
-    def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
-        if name != "cadquery":
-            return None
-        uninstall()
-        spec = importlib.util.find_spec(name)
-        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
-            return spec
-        loader = spec.loader
-        original = loader.exec_module
-
-        def exec_module(module: Any) -> None:
-            original(module)
-            register(module)
-
-        loader.exec_module = exec_module  # type: ignore[method-assign]
-        return spec
-
-
-_HOOK = _CadQueryHook()
-
-
-def uninstall() -> None:
-    """Remove the import hook (if still waiting for cadquery)."""
-    if _HOOK in sys.meta_path:
-        sys.meta_path.remove(_HOOK)
-
-
-def install() -> bool:
-    """Register now if cadquery is imported, else when it is; False if it is not installed."""
-    if "cadquery" in sys.modules:
-        register(sys.modules["cadquery"])
-        return True
-    if importlib.util.find_spec("cadquery") is None:
-        return False
-    if _HOOK not in sys.meta_path:
-        sys.meta_path.insert(0, _HOOK)
-    return True
-
-
-install()
+register()

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lattice_cad._atomic import atomic_write
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core.atomic import atomic_write
+from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["render", "render_png", "save_png", "load_for_preview"]
 
@@ -154,7 +154,7 @@ def load_for_preview(path: str | os.PathLike[str]) -> Any:
 
         part = load_part(p)
         return (np.asarray(part.vertices), np.asarray(part.faces))
-    from lattice_cad.export import read_mesh
+    from lattice_cad.io import read_mesh
 
     return read_mesh(p)
 
@@ -204,9 +204,9 @@ def render_png(
             raise ValueError("cannot draw an empty graph (no struts)")
         what = _draw_graph(ax, fig, obj, max_struts)
     else:
-        from lattice_cad.skin import _mesh_arrays
+        from lattice_cad.core.mesh import mesh_arrays
 
-        arrays = _mesh_arrays(obj)
+        arrays = mesh_arrays(obj)
         if arrays is None:
             raise TypeError(f"cannot draw a {type(obj).__name__}")
         v, f = arrays

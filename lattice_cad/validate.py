@@ -6,14 +6,15 @@ import inspect
 import os
 from typing import Any
 
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["validate"]
 
 
 def validate(
     graph: LatticeGraph,
-    segments: int = 6,
+    segments: int = config.DEFAULT_SEGMENTS,
     report: str | os.PathLike[str] | None = "report.html",
     *,
     volume_preserving: bool | str = "both",

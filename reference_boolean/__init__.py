@@ -5,6 +5,12 @@ node (a sphere fused with the half-struts up to the strut midpoints),
 tessellated so that neighbouring hubs share their midpoint circles exactly,
 and stacked without any boolean between hubs.
 
+The name: the reference is "boolean" in the sense of exact solid modelling (each hub is an
+OCCT boolean union of a sphere and half-struts), not because hubs are fused with each other;
+they are not, which is what makes it fast and exactly watertight. The OCCT side of a hub
+lives in :mod:`lattice_cad.occ_impl.truss`; this package describes hubs in numpy, runs them
+in worker processes, stacks the results and compares meshes with them.
+
 - :func:`build_reference` -> :class:`Reference` (exact volume, watertight mesh,
   STL / STEP export, failed hubs by node index).
 - :func:`compare` -> :class:`ValidationReport` (manifold3d unions at several
@@ -13,11 +19,10 @@ and stacked without any boolean between hubs.
 OCCT (OCP) is only imported when a reference is built.
 """
 
+from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
 from reference_boolean.compare import MeshComparison, ValidationReport, compare, union_mesh
 from reference_boolean.reference import (
-    DirtyLatticeError,
     Reference,
-    ReferenceBuildError,
     build_reference,
     find_overlaps,
     strut_frames,

@@ -19,9 +19,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fast_stitch.mesh import Mesh
-from lattice_cad.graph import LatticeGraph
-from reference_boolean.reference import SPHERE_FACTOR, Reference, build_reference
+from lattice_cad.core import config
+from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.mesh import Mesh
+from reference_boolean.reference import Reference, build_reference
 
 __all__ = [
     "ValidationReport",
@@ -31,9 +32,6 @@ __all__ = [
     "surface_deviation",
     "mesh_validity",
 ]
-
-#: Default number of surface samples per mesh for the deviation measures.
-DEFAULT_SAMPLES = 50_000
 
 
 # ------------------------------------------------------------------ union
@@ -60,7 +58,7 @@ def union_mesh(graph: LatticeGraph, segments: int) -> Mesh:
     parts = []
     unit = m3.Manifold.sphere(1.0, n)
     for i in np.flatnonzero(rmax > 0):
-        R = SPHERE_FACTOR * rmax[i]
+        R = config.SPHERE_FACTOR * rmax[i]
         parts.append(unit.scale([R, R, R]).translate(graph.nodes[i].tolist()))
     z = np.array([0.0, 0.0, 1.0])
     for e, (a, b) in enumerate(graph.edges):
@@ -119,7 +117,7 @@ def _sample(mesh: Mesh, n: int, rng: np.random.Generator) -> NDArray[np.float64]
 
 
 def surface_deviation(
-    source: Mesh, target: Mesh, *, samples: int = DEFAULT_SAMPLES, seed: int = 0
+    source: Mesh, target: Mesh, *, samples: int = config.DEFAULT_SAMPLES, seed: int = 0
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Distances from points sampled densely on ``source`` to the surface of ``target``.
 
@@ -401,7 +399,7 @@ def compare(
     meshes: dict[str, Mesh | Any] | None = None,
     union_segments: tuple[int, ...] = (16, 32, 64, 128),
     reference: Reference | None = None,
-    samples: int = DEFAULT_SAMPLES,
+    samples: int = config.DEFAULT_SAMPLES,
     label: str = "mesh",
     seed: int = 0,
     **reference_options: Any,

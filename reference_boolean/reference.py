@@ -14,7 +14,7 @@ Shared midpoint circles: both hubs of a strut build its stump with the same
 canonical frame (a function of the strut's line only) and are tessellated
 with the same absolute deflections, so BRepMesh puts the same ``K`` points at
 the angles ``2 pi k / K`` on both sides. This is verified for every circle
-(:mod:`reference_boolean._occ`), then every circle vertex is replaced by one
+(:mod:`lattice_cad.occ_impl.truss`), then every circle vertex is replaced by one
 exact canonical point per ``(strut, k)`` shared by both hubs, which makes the
 stacked mesh watertight by construction (index-based). Any hub for which this
 cannot be verified is reported in :attr:`Reference.failed`.
@@ -39,9 +39,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fast_stitch.mesh import Mesh
-from lattice_cad.errors import LatticeError
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.checks import check_workers
+from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
+from lattice_cad.core.formats import Kind, resolve
+from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.mesh import Mesh
 
 __all__ = [
     "Reference",
@@ -49,34 +52,18 @@ __all__ = [
     "DirtyLatticeError",
     "build_reference",
     "find_overlaps",
-    "SPHERE_FACTOR",
     "strut_frames",
 ]
 
-#: Hub sphere radius over the largest incident strut radius (Wang et al.: 0.001 % larger).
-SPHERE_FACTOR = 1.00001
-#: Default linear deflection, relative to the smallest strut radius.
-DEFAULT_TOLERANCE_REL = 0.01
-#: Default angular deflection (radians) of the tessellation.
-DEFAULT_ANGULAR = 0.25
-#: Default time bound (seconds) of one hub build (construction, checks, tessellation).
-DEFAULT_HUB_TIMEOUT = 300.0
-#: Quantum (relative to the longest strut) of the hub cache keys.
-CACHE_QUANTUM = 1e-9
-#: Largest allowed move (relative to the hub size) when snapping circle vertices.
-SNAP_RTOL = 1e-7
 
-_G1 = np.array([0.5773502691896258, 0.2113248654051871, 0.7886751345948129])
-_G2 = np.array([0.3119, 0.8211, -0.4781]) / np.linalg.norm([0.3119, 0.8211, -0.4781])
-_G3 = np.array([-0.6124, 0.3536, 0.7071]) / np.linalg.norm([-0.6124, 0.3536, 0.7071])
-
-
-class ReferenceBuildError(LatticeError, RuntimeError):
-    """The reference cannot be built (bad input, or a failure that is not per hub)."""
-
-
-class DirtyLatticeError(ReferenceBuildError, ValueError):
-    """Hubs of the lattice would overlap, so the stacked reference would not be exact."""
+# Fixed "generic" unit vectors (no lattice direction is parallel or perpendicular to them by
+# accident): the sign of a strut's axis comes from its dot product with _SIGN_REF, and its
+# frame's x direction from the cross product with _FRAME_REF (or _FRAME_REF_ALT when the
+# strut is nearly parallel to _FRAME_REF). Both depend on the strut's line only, so the two
+# hubs of a strut, and translated copies of a hub, get the same frame.
+_SIGN_REF = np.array([0.5773502691896258, 0.2113248654051871, 0.7886751345948129])
+_FRAME_REF = np.array([0.3119, 0.8211, -0.4781]) / np.linalg.norm([0.3119, 0.8211, -0.4781])
+_FRAME_REF_ALT = np.array([-0.6124, 0.3536, 0.7071]) / np.linalg.norm([-0.6124, 0.3536, 0.7071])
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,44 +125,41 @@ class Reference:
         )
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the stacked mesh (``.stl``) or the hub solids (``.step`` / ``.stp``).
+        """Write the stacked mesh (``.stl``, ``.3mf``, ...) or the hub solids (``.step``).
 
         The STEP file holds one solid per built hub, in place; it re-imports as
         valid solids whose volumes add up to :attr:`volume`.
         """
         p = Path(path)
-        suffix = p.suffix.lower()
-        if suffix == ".stl":
-            return self.mesh.save(p)
-        if suffix in (".step", ".stp"):
-            from reference_boolean import _occ
+        _, kind = resolve(p, (Kind.SOLIDS, Kind.MESH))
+        if kind is Kind.MESH:
+            from lattice_cad import io
 
-            nodes = [
-                n
-                for n in range(self.graph.num_nodes)
-                if self.node_template[n] >= 0 and n not in self.failed
-            ]
-            breps = [self.breps[self.node_template[n]] for n in nodes]
-            trans = [self.graph.nodes[n] for n in nodes]
-            # OCCT writes to a path: a temp file beside the target, then an atomic rename
-            tmp = p.with_name(f".{p.name}.{os.getpid()}.part.step")
-            try:
-                _occ.write_step(str(tmp), breps, trans)
-                os.replace(tmp, p)
-            finally:
-                tmp.unlink(missing_ok=True)
-            return p
-        raise ValueError(
-            f"cannot save a reference as {suffix or 'a file without suffix'}: "
-            "use .stl, .step or .stp"
-        )
+            return io.save_mesh(self.mesh, p)
+        from lattice_cad.occ_impl.step import write_step_solids
+
+        nodes = [
+            n
+            for n in range(self.graph.num_nodes)
+            if self.node_template[n] >= 0 and n not in self.failed
+        ]
+        breps = [self.breps[self.node_template[n]] for n in nodes]
+        trans = [self.graph.nodes[n] for n in nodes]
+        # OCCT writes to a path: a temp file beside the target, then an atomic rename
+        tmp = p.with_name(f".{p.name}.{os.getpid()}.part.step")
+        try:
+            write_step_solids(str(tmp), breps, trans)
+            os.replace(tmp, p)
+        finally:
+            tmp.unlink(missing_ok=True)
+        return p
 
 
 # ---------------------------------------------------------------- geometry
 def _canonical_dir(d: NDArray[np.float64]) -> NDArray[np.float64]:
     """(M, 3) unit directions with a sign that depends on the line only."""
     u = d / np.linalg.norm(d, axis=1)[:, None]
-    s = np.sign(u @ _G1)
+    s = np.sign(u @ _SIGN_REF)
     s[s == 0] = 1.0
     return u * s[:, None]
 
@@ -193,9 +177,9 @@ def strut_frames(
         the same for translated copies), ``ydir = axis x xdir``.
     """
     D = _canonical_dir(np.asarray(graph.edge_vectors))
-    x = np.cross(D, _G2)
+    x = np.cross(D, _FRAME_REF)
     bad = np.linalg.norm(x, axis=1) < 0.3
-    x[bad] = np.cross(D[bad], _G3)
+    x[bad] = np.cross(D[bad], _FRAME_REF_ALT)
     x /= np.linalg.norm(x, axis=1)[:, None]
     y = np.cross(D, x)
     return D, x, y
@@ -206,7 +190,7 @@ def _node_radius(graph: LatticeGraph) -> NDArray[np.float64]:
     rmax = np.zeros(graph.num_nodes)
     np.maximum.at(rmax, graph.edges[:, 0], graph.radii[:, 0])
     np.maximum.at(rmax, graph.edges[:, 1], graph.radii[:, 1])
-    return SPHERE_FACTOR * rmax
+    return config.SPHERE_FACTOR * rmax
 
 
 def find_overlaps(graph: LatticeGraph) -> list[str]:
@@ -261,14 +245,14 @@ def _hub_specs(
     graph: LatticeGraph, cache: bool
 ) -> tuple[list[Any], NDArray[np.int64], list[NDArray[np.int64]], list[NDArray[np.int64]]]:
     """Distinct hub specs, the template of each node, and slot -> strut of each node."""
-    from reference_boolean._occ import HubSpec
+    from lattice_cad.occ_impl.truss import HubSpec
 
     nodes, edges, radii = graph.nodes, graph.edges, graph.radii
     offsets, inc_edge, inc_side = graph.incidence
     R = _node_radius(graph)
     _, X, Y = strut_frames(graph)
     rmid = radii.mean(axis=1)
-    q = CACHE_QUANTUM * float(np.max(graph.edge_lengths))
+    q = config.CACHE_QUANTUM * float(np.max(graph.edge_lengths))
     specs: list[Any] = []
     keys: dict[bytes, int] = {}
     template = np.full(graph.num_nodes, -1, dtype=np.int64)
@@ -310,7 +294,7 @@ def _hub_specs(
 
 # ---------------------------------------------------------------- workers
 def _build_one(args: tuple[Any, float, float, bool]) -> Any:
-    from reference_boolean import _occ
+    from lattice_cad.occ_impl import truss as _occ
 
     spec, deflection, angular, keep = args
     return _occ.build_hub(spec, deflection=deflection, angular=angular, keep_brep=keep)
@@ -334,7 +318,7 @@ def _run(
     timeout: float,
     progress: Any,
 ) -> list[Any]:
-    from reference_boolean._occ import HubResult
+    from lattice_cad.occ_impl.truss import HubResult
 
     results: list[Any] = [None] * len(specs)
     if workers == 0:  # in process, no time bound (debugging)
@@ -388,10 +372,10 @@ def build_reference(
     graph: LatticeGraph,
     *,
     tolerance: float | None = None,
-    angular: float = DEFAULT_ANGULAR,
+    angular: float = config.DEFAULT_ANGULAR,
     workers: int | None = None,
     cache: bool = True,
-    hub_timeout: float = DEFAULT_HUB_TIMEOUT,
+    hub_timeout: float = config.DEFAULT_HUB_TIMEOUT,
     keep_solids: bool = True,
     progress: Any = None,
 ) -> Reference:
@@ -435,12 +419,11 @@ def build_reference(
         raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
     if graph.num_edges == 0:
         raise ReferenceBuildError("the graph has no struts: nothing to build")
+    workers = check_workers(workers, minimum=0)
     if workers is None:
         workers = min(2, os.cpu_count() or 1)
-    if workers < 0:
-        raise ValueError(f"workers must be >= 0, got {workers}")
     if tolerance is None:
-        tolerance = DEFAULT_TOLERANCE_REL * float(graph.radii.min())
+        tolerance = config.DEFAULT_TOLERANCE_REL * float(graph.radii.min())
     if not (tolerance > 0 and math.isfinite(tolerance)):
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if not (0 < angular < math.pi):
@@ -569,7 +552,7 @@ def _stack(
         # snapping check: the circle vertices must already be where the canonical points are
         move = np.abs(placed[:, :nc, :] - circ[vmap[:, :nc]]).max(axis=(1, 2)) if nc else None
         if move is not None:
-            bad = move > SNAP_RTOL * scale
+            bad = move > config.SNAP_RTOL * scale
             for n, mv in zip(ns[bad], move[bad], strict=True):
                 failed[int(n)] = (
                     f"a midpoint circle vertex is {mv:.3g} away from its canonical point"

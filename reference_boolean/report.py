@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from lattice_cad._atomic import atomic_write
+from lattice_cad.core.atomic import atomic_write
+from lattice_cad.core.formats import Kind, format_for
 
 if TYPE_CHECKING:
     from reference_boolean.compare import ValidationReport
@@ -38,17 +39,13 @@ def _json_default(o: Any) -> Any:
 def save(rep: ValidationReport, path: str | os.PathLike[str]) -> Path:
     """Write ``rep`` by suffix: ``.json``, ``.md`` or ``.html`` (atomically)."""
     p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix == ".json":
+    fmt = format_for(p, Kind.REPORT)
+    if fmt.name == "json":
         text = json.dumps(rep.to_dict(), indent=2, default=_json_default)
-    elif suffix == ".md":
+    elif fmt.name == "md":
         text = to_markdown(rep)
-    elif suffix in (".html", ".htm"):
-        text = to_html(rep)
     else:
-        raise ValueError(
-            f"cannot save a report as {suffix or 'a file without suffix'}: use .json, .md or .html"
-        )
+        text = to_html(rep)
     with atomic_write(p, "w") as fh:
         fh.write(text)
     return p

@@ -80,7 +80,7 @@ def test_unit_cube_is_valid():
 def test_accepts_trimesh_objects_and_any_integer_dtype():
     box = trimesh.creation.box()
     assert check(box).valid
-    from fast_stitch.mesh import Mesh
+    from lattice_cad.core.mesh import Mesh
 
     assert check(Mesh(np.asarray(box.vertices), np.asarray(box.faces))).valid
     v, f = cube()

@@ -168,7 +168,7 @@ def test_fill_all_flags(capsys, box_step, tmp_path):
 
 
 def test_fill_beam_lattice_and_skin(capsys, box_step, tmp_path):
-    from lattice_cad.export import read_beam_lattice
+    from lattice_cad.io import read_beam_lattice
 
     out = tmp_path / "box.3mf"
     code, _, err = run(capsys, "fill", box_step, "-o", out, "--beam-lattice", "--cell-size", "4")
@@ -322,7 +322,7 @@ def test_graph_npz_input(capsys, tmp_path):
     block("cubic", 1, cell_size=5.0, radius=0.4).save(g)
     code, _, err = run(capsys, "stitch", g, "-o", tmp_path / "g.ply")
     assert code == 0, err
-    from lattice_cad.export import read_mesh
+    from lattice_cad.io import read_mesh
 
     v, f = read_mesh(tmp_path / "g.ply")
     assert len(f) > 0 and np.isfinite(v).all()

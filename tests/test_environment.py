@@ -17,7 +17,7 @@ import tomllib
 from packaging.requirements import Requirement
 from packaging.version import Version
 
-from lattice_cad import _stack
+from lattice_cad.occ_impl import stack as _stack
 
 ROOT = Path(__file__).resolve().parents[1]
 

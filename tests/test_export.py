@@ -1,4 +1,4 @@
-"""lattice_cad.export: formats by suffix, limits, beam-lattice 3MF re-read with lib3mf."""
+"""lattice_cad.io: formats by suffix, limits, beam-lattice 3MF re-read with lib3mf."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 import fast_stitch
 from conformal import block
 from fast_stitch.check import check
-from lattice_cad import export
-from lattice_cad.export import ExportError, ExportWarning
+from lattice_cad import io as export
+from lattice_cad.core.errors import ExportError, ExportWarning
 
 
 @pytest.fixture(scope="module")

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import fast_stitch
-from conformal import block
+from conformal import block, skin
 from fast_stitch.check import check
-from lattice_cad import LatticeGraph, skin
+from lattice_cad import LatticeGraph
 from lattice_cad.lattice import Lattice
 
 
@@ -95,7 +95,7 @@ BRACKET = Path(__file__).parents[1] / "examples" / "bracket.step"
 
 
 def test_fill_tet_bracket_is_valid(tmp_path):
-    from lattice_cad.errors import LatticeWarning
+    from lattice_cad.core.errors import LatticeWarning
 
     with pytest.warns(LatticeWarning, match="thinned"):  # crowded tet edges are thinned
         lat = Lattice.fill(BRACKET, cell_size=5.0, radius=0.4, method="tet")
@@ -155,7 +155,7 @@ def test_fill_build123d_and_path(tmp_path, box_lattice):
 
 
 def test_beam_lattice_with_clip(tmp_path, box_lattice):
-    from lattice_cad.export import read_beam_lattice
+    from lattice_cad.io import read_beam_lattice
 
     p = box_lattice.save(tmp_path / "b.3mf", beam_lattice=True)
     info = read_beam_lattice(p)
@@ -214,7 +214,7 @@ def test_skin_is_one_watertight_solid(box, tmp_path):
     bodies = [p for p in man.decompose() if p.volume() > 0]
     assert len(bodies) == 1  # struts are fused to the wall: nothing floats
     p = lat.save(tmp_path / "s.stl")
-    from lattice_cad.export import read_mesh
+    from lattice_cad.io import read_mesh
 
     assert check(read_mesh(p), self_intersections=False).valid
     assert isinstance(man, manifold3d.Manifold)
@@ -300,8 +300,8 @@ def test_to_workplane_and_to_part():
 
 def test_import_stays_light():
     code = (
-        "import sys, lattice_cad.lattice, lattice_cad.cli, lattice_cad.export, "
-        "lattice_cad.skin, lattice_cad.preview\n"
+        "import sys, lattice_cad.lattice, lattice_cad.cli, lattice_cad.io, "
+        "conformal.skin, lattice_cad.preview\n"
         "heavy = [m for m in ('cadquery', 'OCP', 'build123d', 'manifold3d', 'trimesh', "
         "'matplotlib', 'lib3mf', 'reference_boolean') if m in sys.modules]\n"
         "print(heavy)"
@@ -310,13 +310,16 @@ def test_import_stays_light():
     assert out.stdout.strip() == "[]", out.stdout
 
 
-def test_plugin_registers_without_importing_cadquery():
+def test_plugin_registers_the_cadquery_way_and_engines_never_touch_cadquery():
     code = (
-        "import sys, lattice_cad.plugin\n"
-        "assert 'cadquery' not in sys.modules\n"
+        "import sys, lattice_cad, fast_stitch, conformal, reference_boolean, lattice_cad.io\n"
+        "assert 'cadquery' not in sys.modules, 'an engine imported cadquery'\n"
+        "hooks = [type(h).__module__ for h in sys.meta_path]\n"
+        "assert not any(h.startswith('lattice_cad') for h in hooks), hooks\n"
         "import cadquery as cq\n"
+        "assert not hasattr(cq.Workplane, 'lattice')\n"
+        "import lattice_cad.plugin\n"
         "assert cq.Workplane.lattice is lattice_cad.plugin.lattice\n"
-        "assert lattice_cad.plugin._HOOK not in sys.meta_path\n"
         "print('ok')"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

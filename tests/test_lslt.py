@@ -187,7 +187,7 @@ def test_intermediary_sections_add_rings_and_improve_quality():
 
 
 def test_triangle_quality_metric():
-    from fast_stitch.mesh import Mesh
+    from lattice_cad.core.mesh import Mesh
 
     s3 = math.sqrt(3)
     v = np.array([[0, 0, 0], [1, 0, 0], [0.5, s3 / 2, 0], [0, 1, 0], [100, 0, 0]], float)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conformal.part import Part, PartError, load_part
-from lattice_cad.errors import LatticeError, LatticeWarning
+from lattice_cad.core.errors import LatticeError, LatticeWarning
 from tests.conftest import DATA
 
 
@@ -107,7 +107,7 @@ def test_bad_source_type():
 def test_step_in_inches_comes_out_in_mm(tmp_path):
     import cadquery as cq
 
-    from conformal import _occ
+    from lattice_cad.occ_impl import step as _occ
 
     shape = cq.Workplane().box(25.4, 50.8, 12.7, centered=False).val().wrapped
     path = tmp_path / "inch.step"
@@ -222,7 +222,7 @@ def test_real_mesh_contains_agrees_with_trimesh(rng):
 
 
 def test_declared_length_unit_is_read_from_the_step_text():
-    from conformal import _occ
+    from lattice_cad.occ_impl import step as _occ
 
     si = "#5=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) );"
     metre = "#5=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT($,.METRE.) );"
@@ -240,7 +240,7 @@ def test_declared_length_unit_is_read_from_the_step_text():
 def _inch_box_step(tmp_path):
     import cadquery as cq
 
-    from conformal import _occ
+    from lattice_cad.occ_impl import step as _occ
 
     shape = cq.Workplane().box(25.4, 50.8, 12.7, centered=False).val().wrapped
     path = tmp_path / "inch.step"
@@ -249,7 +249,8 @@ def _inch_box_step(tmp_path):
 
 
 def test_step_units_check_refuses_a_part_loaded_at_the_wrong_scale(tmp_path):
-    from conformal import StepUnitsError, _occ
+    from lattice_cad.core.errors import StepUnitsError
+    from lattice_cad.occ_impl import step as _occ
 
     path, diagonal = _inch_box_step(tmp_path)
     _occ.check_step_units(path, ["INCH"], diagonal)  # the right size passes
@@ -266,7 +267,7 @@ def test_step_units_check_refuses_a_part_loaded_at_the_wrong_scale(tmp_path):
 
 
 def test_every_step_part_in_shared_data_passes_the_units_check():
-    from conformal import _occ
+    from lattice_cad.occ_impl import step as _occ
 
     seen = 0
     for path in sorted((DATA / "step").glob("*")):

@@ -9,19 +9,19 @@ import pytest
 
 from conformal.cells import block
 from lattice_cad import LatticeError, LatticeGraph
+from lattice_cad.core import config
 from reference_boolean import (
     DirtyLatticeError,
     ReferenceBuildError,
     build_reference,
     find_overlaps,
 )
-from reference_boolean.reference import SPHERE_FACTOR
 from tests.conftest import star_graph
 
 
 def capped_cylinder_volume(r: float, length: float) -> float:
     """Exact volume of two spheres R = 1.00001 r at the ends of a cylinder (r, length)."""
-    R = SPHERE_FACTOR * r
+    R = config.SPHERE_FACTOR * r
     a = math.sqrt(R * R - r * r)  # where the sphere crosses the cylinder
     inside = math.pi * r * r * a + math.pi * (R * R * (R - a) - (R**3 - a**3) / 3)
     hub = 4 / 3 * math.pi * R**3 + math.pi * r * r * 0.5 * length - inside
@@ -70,7 +70,7 @@ def test_two_strut_joints(angle_deg):
     assert np.isfinite(hv).all()
     assert ref.volume == pytest.approx(hv.sum(), rel=1e-12)
     # the centre hub is at most sphere + both stumps, at least one stump + the sphere
-    r, R = 0.08, SPHERE_FACTOR * 0.08
+    r, R = 0.08, config.SPHERE_FACTOR * 0.08
     stump = math.pi * r * r * 0.5
     assert 4 / 3 * math.pi * R**3 < hv[0] < 4 / 3 * math.pi * R**3 + 2 * stump
     if angle_deg == 180:  # straight: sphere + cylinder through it, in closed form
@@ -98,7 +98,7 @@ def test_tapered_strut_volume():
     assert ref.complete
     check_watertight(ref.mesh)
     # volume of the union of two spheres and a cone frustum, by numerical integration
-    Ra, Rb = SPHERE_FACTOR * ra, SPHERE_FACTOR * rb
+    Ra, Rb = config.SPHERE_FACTOR * ra, config.SPHERE_FACTOR * rb
     z = np.linspace(-Ra, L + Rb, 400_001)
     rc = np.where((z >= 0) & (z <= L), ra + (rb - ra) * z / L, 0.0)
     rsa = np.sqrt(np.clip(Ra**2 - z**2, 0, None))
@@ -131,15 +131,15 @@ def test_bcc_block_cache_and_sum():
 def test_stl_and_step_round_trip(tmp_path):
     import trimesh
 
-    from reference_boolean import _occ
-
     g = star_graph([[1, 0, 0], [0, 1, 0], [0, 0, 1]], lengths=1.0, radii=0.1)
     ref = build_reference(g)
     p = ref.save(tmp_path / "ref.stl")
     tm = trimesh.load(p)
     assert len(tm.faces) == len(ref.mesh.faces)
     s = ref.save(tmp_path / "ref.step")
-    solids = _occ.read_step_solids(str(s))
+    from lattice_cad.occ_impl.step import read_step_solids
+
+    solids = read_step_solids(str(s))
     assert len(solids) == 4
     assert all(valid for valid, _ in solids)
     assert sum(v for _, v in solids) == pytest.approx(ref.volume, rel=1e-7)
@@ -162,7 +162,7 @@ def test_dirty_lattice_detected():
 
 
 def test_forced_occt_failure_is_reported(monkeypatch):
-    from reference_boolean import _occ
+    from lattice_cad.occ_impl import truss as _occ
 
     real = _occ.make_hub_shape
     calls = []
@@ -192,12 +192,14 @@ def test_forced_occt_failure_is_reported(monkeypatch):
 
 
 def test_invalid_shape_is_caught(monkeypatch):
-    from reference_boolean import _occ
+    from lattice_cad.occ_impl import truss as _occ
 
     def invalid(spec, **kw):
         from OCP.TopoDS import TopoDS_Shape
 
-        _occ._check_valid(TopoDS_Shape(), "hub")  # a null shape never passes
+        from lattice_cad.occ_impl.shapes import check_valid
+
+        check_valid(TopoDS_Shape(), "hub")  # a null shape never passes
         raise AssertionError("unreachable")
 
     monkeypatch.setattr(_occ, "make_hub_shape", invalid)
@@ -220,7 +222,8 @@ def test_bad_options():
 
 def test_trimmed_stumps_give_the_same_hub():
     """Stumps that start inside the sphere (the fast default) leave the hub unchanged."""
-    from reference_boolean import _occ
+    from lattice_cad.occ_impl import truss as _occ
+    from lattice_cad.occ_impl.shapes import volume
     from reference_boolean.reference import _hub_specs
 
     # thin struts beside a thick one: the thin stumps are trimmed, the thick one is not
@@ -238,7 +241,7 @@ def test_trimmed_stumps_give_the_same_hub():
     assert sum(h > 0 for h in starts) == 3 and starts[int(np.argmax(spec.r_node))] == 0.0
     for h, a, b in zip(starts, spec.r_node, spec.r_mid, strict=True):
         assert h**2 + max(a, b) ** 2 < spec.radius**2  # the dropped part is inside the sphere
-    vols = [_occ._volume(_occ.make_hub_shape(spec, trim=t)) for t in (True, False)]
+    vols = [volume(_occ.make_hub_shape(spec, trim=t), eps=1e-10) for t in (True, False)]
     assert vols[0] == pytest.approx(vols[1], rel=1e-8)
     res = _occ.build_hub(spec, deflection=1e-3, angular=0.25, keep_brep=False)
     assert res.status == "ok" and res.attempts == ["fuse: ok"]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from conformal.similarity import Similarity, SimilarityError
-from lattice_cad.errors import LatticeError
+from lattice_cad.core.errors import LatticeError
 
 
 def rodrigues(axis, angle):

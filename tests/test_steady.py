@@ -14,7 +14,7 @@ import fast_stitch
 from conformal._steady_kernels import connector_local
 from conformal.similarity import Similarity
 from conformal.steady import SteadyLattice, SteadyLatticeError
-from lattice_cad.errors import LatticeError
+from lattice_cad.core.errors import LatticeError
 from tests.conftest import assert_valid
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

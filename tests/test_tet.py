@@ -12,7 +12,7 @@ from conformal.part import Part, PartError, load_part
 from conformal.radius import StrutClash, check_fit, fit_radii
 from conformal.tet import tet_edges, tet_lattice, tet_mesh
 from lattice_cad import LatticeGraph
-from lattice_cad.errors import LatticeWarning
+from lattice_cad.core.errors import LatticeWarning
 from tests.conftest import DATA, assert_valid
 
 

@@ -21,7 +21,7 @@ from conformal.radius import (
 from conformal.voxel import voxel_lattice, voxelize
 from fast_stitch.fit import clashes
 from lattice_cad import LatticeGraph
-from lattice_cad.errors import LatticeWarning
+from lattice_cad.core.errors import LatticeWarning
 from tests.conftest import assert_valid
 
 

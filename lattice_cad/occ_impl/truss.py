@@ -1,4 +1,7 @@
-"""All OCCT (OCP) calls of :mod:`reference_boolean` live in this module.
+"""The exact unit truss of one lattice node (Wang, Chen & Rosen), in OpenCascade.
+
+:mod:`reference_boolean` describes each hub in plain numpy and calls this module; it is
+where the OCCT side of the reference lives.
 
 One function, :func:`build_hub`, turns the plain-numpy description of one unit
 truss (:class:`HubSpec`) into a :class:`HubResult`: the exact volume from
@@ -33,35 +36,35 @@ with a status instead of producing a mesh with a crack.
 
 from __future__ import annotations
 
-import io
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from OCP.BinTools import BinTools
-from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Surface
-from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
-from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
-from OCP.BRepCheck import BRepCheck_Analyzer
-from OCP.BRepGProp import BRepGProp
-from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepPrimAPI import (
     BRepPrimAPI_MakeCone,
     BRepPrimAPI_MakeCylinder,
     BRepPrimAPI_MakeSphere,
 )
 from OCP.GeomAbs import GeomAbs_Plane
-from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
-from OCP.GProp import GProp_GProps
-from OCP.IFSelect import IFSelect_RetDone
-from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
-from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED, TopAbs_SOLID
-from OCP.TopExp import TopExp_Explorer
-from OCP.TopLoc import TopLoc_Location
-from OCP.TopoDS import TopoDS, TopoDS_Builder, TopoDS_Compound, TopoDS_Shape
-from OCP.TopTools import TopTools_ListOfShape
+from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+from OCP.TopAbs import TopAbs_SOLID
+from OCP.TopoDS import TopoDS_Shape
+
+from lattice_cad.core import config
+from lattice_cad.core.errors import OCCTFailure
+from lattice_cad.occ_impl.shapes import (
+    check_done,
+    check_valid,
+    count,
+    face_area,
+    face_triangulations,
+    fuse,
+    to_bytes,
+    volume,
+)
 
 __all__ = [
     "HubSpec",
@@ -69,20 +72,7 @@ __all__ = [
     "OCCTFailure",
     "build_hub",
     "make_hub_shape",
-    "write_step",
-    "read_step_solids",
 ]
-
-#: Relative tolerance (of the hub size) for "this point is on that circle / plane".
-GEOM_RTOL = 1e-7
-#: Relative tolerance for merging the copies of edge nodes of adjacent faces.
-MERGE_RTOL = 1e-11
-#: Angular tolerance (radians) of the uniform circle discretisation check.
-ANGLE_TOL = 1e-6
-
-
-class OCCTFailure(Exception):
-    """An OCCT step failed (internal: turned into a ``HubResult.status``)."""
 
 
 @dataclass(frozen=True)
@@ -144,43 +134,6 @@ class HubResult:
     seconds: float = 0.0
 
 
-# ------------------------------------------------------------------ checks
-def _check_valid(shape: TopoDS_Shape, what: str) -> None:
-    if shape is None or shape.IsNull():
-        raise OCCTFailure(f"{what}: null shape")
-    if not BRepCheck_Analyzer(shape).IsValid():
-        raise OCCTFailure(f"{what}: BRepCheck_Analyzer reports an invalid shape")
-
-
-def _done(builder: object, what: str) -> None:
-    if not builder.IsDone():  # type: ignore[attr-defined]
-        raise OCCTFailure(f"{what}: IsDone() is false")
-    has_errors = getattr(builder, "HasErrors", None)
-    if has_errors is not None and has_errors():
-        raise OCCTFailure(f"{what}: HasErrors() is true")
-
-
-#: Relative accuracy requested from GProp's adaptive volume integration.
-VOLUME_EPS = 1e-10
-
-
-def _volume(shape: TopoDS_Shape) -> float:
-    """Volume by GProp's adaptive integration (the default Gauss rule is off by ~1e-5
-    on the near-tangent sphere/strut patches)."""
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props, VOLUME_EPS, False)
-    return float(props.Mass())
-
-
-def _count(shape: TopoDS_Shape, kind: object) -> int:
-    ex = TopExp_Explorer(shape, kind)
-    n = 0
-    while ex.More():
-        n += 1
-        ex.Next()
-    return n
-
-
 # ------------------------------------------------------------ construction
 def _pnt(v: NDArray[np.float64]) -> gp_Pnt:
     return gp_Pnt(float(v[0]), float(v[1]), float(v[2]))
@@ -188,13 +141,6 @@ def _pnt(v: NDArray[np.float64]) -> gp_Pnt:
 
 def _dir(v: NDArray[np.float64]) -> gp_Dir:
     return gp_Dir(float(v[0]), float(v[1]), float(v[2]))
-
-
-#: A stump starts at ``TRIM_FRACTION`` of the largest height at which its start disc is
-#: still strictly inside the hub sphere (see :func:`stump_start`).
-TRIM_FRACTION = 0.9
-#: Stumps whose start could only move by less than this fraction of ``R`` start at the node.
-TRIM_MIN_REL = 0.05
 
 
 def stump_start(radius: float, r0: float, r1: float, h: float) -> float:
@@ -207,14 +153,14 @@ def stump_start(radius: float, r0: float, r1: float, h: float) -> float:
     unchanged as a point set. It does remove most of the stump/stump
     intersection curves inside the sphere, which the fuse otherwise computes
     and then throws away (about 20 % of the fuse time on jittered degree-6
-    hubs). ``h0 = TRIM_FRACTION * sqrt(R^2 - rmax^2)`` keeps the start disc's
+    hubs). ``h0 = config.TRIM_FRACTION * sqrt(R^2 - rmax^2)`` keeps the start disc's
     rim clear of the sphere; stumps nearly as thick as the sphere (where
     ``h0`` would be tiny) start at the node as before.
     """
     rmax = max(r0, r1)
     room = math.sqrt(max(radius * radius - rmax * rmax, 0.0))
-    h0 = TRIM_FRACTION * room
-    if h0 < TRIM_MIN_REL * radius or h0 >= 0.5 * h:
+    h0 = config.TRIM_FRACTION * room
+    if h0 < config.TRIM_MIN_REL * radius or h0 >= 0.5 * h:
         return 0.0
     return h0
 
@@ -230,9 +176,9 @@ def make_primitives(spec: HubSpec, *, trim: bool = True) -> list[TopoDS_Shape]:
         gp_Ax2(origin, gp_Dir(0, 0, 1), gp_Dir(1, 0, 0)), spec.radius
     )
     sphere_mk.Build()
-    _done(sphere_mk, "sphere")
+    check_done(sphere_mk, "sphere")
     shapes = [sphere_mk.Shape()]
-    _check_valid(shapes[0], "sphere")
+    check_valid(shapes[0], "sphere")
     for j, v in enumerate(spec.vecs):
         h = float(np.linalg.norm(v))
         u = v / h
@@ -244,29 +190,11 @@ def make_primitives(spec: HubSpec, *, trim: bool = True) -> list[TopoDS_Shape]:
         else:
             mk = BRepPrimAPI_MakeCone(ax, r0 + (r1 - r0) * (h0 / h), r1, h - h0)
         mk.Build()
-        _done(mk, f"stump {j}")
+        check_done(mk, f"stump {j}")
         s = mk.Shape()
-        _check_valid(s, f"stump {j}")
+        check_valid(s, f"stump {j}")
         shapes.append(s)
     return shapes
-
-
-def _fuse(objects: list[TopoDS_Shape], tools: list[TopoDS_Shape], fuzzy: float) -> TopoDS_Shape:
-    args, tls = TopTools_ListOfShape(), TopTools_ListOfShape()
-    for s in objects:
-        args.Append(s)
-    for s in tools:
-        tls.Append(s)
-    op = BRepAlgoAPI_Fuse()
-    op.SetArguments(args)
-    op.SetTools(tls)
-    op.SetRunParallel(False)
-    op.SetNonDestructive(True)
-    if fuzzy > 0.0:
-        op.SetFuzzyValue(fuzzy)
-    op.Build()
-    _done(op, "fuse")
-    return op.Shape()
 
 
 def make_hub_shape(
@@ -281,16 +209,16 @@ def make_hub_shape(
     """
     prims = make_primitives(spec, trim=trim)
     if construction == "fuse":
-        shape = _fuse(prims[:1], prims[1:], fuzzy)
+        shape = fuse(prims[:1], prims[1:], fuzzy=fuzzy, parallel=False, check=False)
     elif construction == "sequential":
         shape = prims[0]
         for j, s in enumerate(prims[1:]):
-            shape = _fuse([shape], [s], fuzzy)
-            _check_valid(shape, f"sequential fuse after stump {j}")
+            shape = fuse([shape], [s], fuzzy=fuzzy, parallel=False, check=False)
+            check_valid(shape, f"sequential fuse after stump {j}")
     else:  # pragma: no cover - guarded by the caller
         raise ValueError(f"unknown construction {construction!r}")
-    _check_valid(shape, "hub")
-    n_solids = _count(shape, TopAbs_SOLID)
+    check_valid(shape, "hub")
+    n_solids = count(shape, TopAbs_SOLID)
     if n_solids != 1:
         raise OCCTFailure(f"hub: the fuse gave {n_solids} solids instead of 1")
     return shape
@@ -300,41 +228,16 @@ def make_hub_shape(
 def _tessellate(
     shape: TopoDS_Shape, spec: HubSpec, deflection: float, angular: float
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], list[NDArray[np.int64]]]:
-    mesher = BRepMesh_IncrementalMesh(shape, deflection, False, angular, False)
-    if not mesher.IsDone():
-        raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
-    tol = GEOM_RTOL * scale
+    tol = config.GEOM_RTOL * scale
     axes = spec.vecs / np.linalg.norm(spec.vecs, axis=1)[:, None]
     plane_off = np.einsum("ij,ij->i", spec.vecs, axes)
     verts: list[NDArray[np.float64]] = []
     tris: list[NDArray[np.int64]] = []
     cap_found = np.zeros(len(spec.vecs), dtype=bool)
     base = 0
-    ex = TopExp_Explorer(shape, TopAbs_FACE)
-    while ex.More():
-        face = TopoDS.Face_s(ex.Current())
-        ex.Next()
-        loc = TopLoc_Location()
-        tri = BRep_Tool.Triangulation_s(face, loc)
-        if tri is None or tri.NbTriangles() == 0:
-            raise OCCTFailure("BRepMesh left a face without triangulation")
-        nn = tri.NbNodes()
-        node = tri.Node
-        pts = np.array(
-            [(p.X(), p.Y(), p.Z()) for p in (node(i) for i in range(1, nn + 1))], dtype=np.float64
-        ).reshape(nn, 3)
-        if not loc.IsIdentity():
-            m = loc.Transformation()
-            rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
-            pts = pts @ rot.T + np.array([m.Value(r, 4) for r in (1, 2, 3)])
-        tri_at = tri.Triangle
-        t = np.array(
-            [tri_at(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
-        ).reshape(-1, 3)
-        t -= 1
-        if face.Orientation() == TopAbs_REVERSED:
-            t = t[:, ::-1]
+    for face, pts, t in face_triangulations(shape, deflection, angular, parallel=False):
+        nn = len(pts)
         # a planar face lying in a midpoint plane is a midpoint disc: dropped
         if BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
             proj = pts @ axes.T - plane_off  # (nn, d)
@@ -343,7 +246,7 @@ def _tessellate(
                 j = int(np.flatnonzero(on)[0])
                 if cap_found[j]:
                     raise OCCTFailure(f"the midpoint disc of stump {j} is split into pieces")
-                area = _face_area(face)
+                area = face_area(face)
                 expect = math.pi * float(spec.r_mid[j]) ** 2
                 if abs(area - expect) > 1e-6 * expect:
                     raise OCCTFailure(
@@ -360,7 +263,7 @@ def _tessellate(
         raise OCCTFailure(f"no midpoint disc found for stump(s) {missing}")
     v = np.concatenate(verts)
     f = np.concatenate(tris)
-    v, f = _merge(v, f, MERGE_RTOL * scale)
+    v, f = _merge(v, f, config.MERGE_RTOL * scale)
     circles = _circles(v, f, spec, tol)
     # circle vertices first (stable), the rest after
     on_circle = np.concatenate(circles)
@@ -370,12 +273,6 @@ def _tessellate(
     starts = np.cumsum([0] + [len(c) for c in circles])
     circles = [np.arange(starts[j], starts[j + 1], dtype=np.int64) for j in range(len(circles))]
     return v[order], inv[f], circles
-
-
-def _face_area(face: TopoDS_Shape) -> float:
-    props = GProp_GProps()
-    BRepGProp.SurfaceProperties_s(face, props)
-    return float(props.Mass())
 
 
 def _merge(
@@ -431,7 +328,7 @@ def _circles(
         step = 2 * math.pi / k
         slot = np.rint(ang / step).astype(np.int64) % k
         dev = np.abs((ang - slot * step + math.pi) % (2 * math.pi) - math.pi)
-        if dev.max() > ANGLE_TOL or len(np.unique(slot)) != k:
+        if dev.max() > config.ANGLE_TOL or len(np.unique(slot)) != k:
             raise OCCTFailure(
                 f"midpoint circle of stump {j}: {k} vertices not uniformly spaced from the "
                 f"frame's x axis (max angle error {dev.max():.3g} rad)"
@@ -473,8 +370,6 @@ def build_hub(
     keep_brep : bool
         Return the solid as a BREP string (for STEP export).
     """
-    import time
-
     t0 = time.perf_counter()
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
     attempts: list[str] = []
@@ -488,7 +383,7 @@ def build_hub(
             shape = make_hub_shape(
                 spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim
             )
-            vol = _volume(shape)
+            vol = volume(shape, eps=config.VOLUME_EPS)
             if not (vol > 0.0 and math.isfinite(vol)):
                 raise OCCTFailure(f"hub volume {vol!r} is not positive")
             v, f, circles = _tessellate(shape, spec, deflection, angular)
@@ -499,7 +394,7 @@ def build_hub(
             attempts.append(f"{name}: {type(exc).__name__}: {exc}")
             continue
         attempts.append(f"{name}: ok")
-        brep = _to_bytes(shape) if keep_brep else b""
+        brep = to_bytes(shape) if keep_brep else b""
         return HubResult(
             status="ok",
             attempts=attempts,
@@ -515,62 +410,3 @@ def build_hub(
         attempts=attempts,
         seconds=time.perf_counter() - t0,
     )
-
-
-# --------------------------------------------------------------------- STEP
-def _to_bytes(shape: TopoDS_Shape) -> bytes:
-    buf = io.BytesIO()
-    BinTools.Write_s(shape, buf)
-    return buf.getvalue()
-
-
-def _from_bytes(data: bytes) -> TopoDS_Shape:
-    shape = TopoDS_Shape()
-    BinTools.Read_s(shape, io.BytesIO(data))
-    if shape.IsNull():
-        raise OCCTFailure("cannot read a hub solid back from binary BREP")
-    return shape
-
-
-def write_step(path: str, breps: list[bytes], translations: list[NDArray[np.float64]]) -> int:
-    """Write one solid per (BREP string, translation) pair into a STEP file.
-
-    Returns the number of solids written. Raises :class:`OCCTFailure` on error.
-    """
-    builder = TopoDS_Builder()
-    comp = TopoDS_Compound()
-    builder.MakeCompound(comp)
-    cache: dict[int, TopoDS_Shape] = {}
-    n = 0
-    for brep, t in zip(breps, translations, strict=True):
-        key = id(brep)
-        if key not in cache:
-            cache[key] = _from_bytes(brep)
-        trsf = gp_Trsf()
-        trsf.SetTranslation(gp_Vec(float(t[0]), float(t[1]), float(t[2])))
-        mk = BRepBuilderAPI_Transform(cache[key], trsf, True)
-        _done(mk, "translate hub")
-        builder.Add(comp, mk.Shape())
-        n += 1
-    writer = STEPControl_Writer()
-    if writer.Transfer(comp, STEPControl_AsIs) != IFSelect_RetDone:
-        raise OCCTFailure("STEP transfer failed")
-    if writer.Write(str(path)) != IFSelect_RetDone:
-        raise OCCTFailure(f"STEP write to {path} failed")
-    return n
-
-
-def read_step_solids(path: str) -> list[tuple[bool, float]]:
-    """(BRepCheck valid, volume) of every solid in a STEP file."""
-    reader = STEPControl_Reader()
-    if reader.ReadFile(str(path)) != IFSelect_RetDone:
-        raise OCCTFailure(f"cannot read STEP file {path}")
-    reader.TransferRoots()
-    shape = reader.OneShape()
-    out = []
-    ex = TopExp_Explorer(shape, TopAbs_SOLID)
-    while ex.More():
-        s = ex.Current()
-        out.append((bool(BRepCheck_Analyzer(s).IsValid()), _volume(s)))
-        ex.Next()
-    return out

@@ -1,24 +1,23 @@
-"""Writing lattices, meshes and graphs to files, chosen by suffix.
+"""Readers and writers of meshes, graphs and beam lattices (the suffix table is
+:mod:`lattice_cad.core.formats`).
 
-============  =====================================================  =====================
-suffix        content                                                writer
-============  =====================================================  =====================
-``.stl``      binary STL of the mesh                                 :mod:`fast_stitch`
-``.3mf``      3MF core mesh, or with ``beam_lattice=True`` the 3MF   lib3mf
-              Beam Lattice extension (beams with per-end radii,
-              balls at the nodes, the part as clipping mesh)
-``.ply``      binary PLY                                             trimesh
-``.obj``      Wavefront OBJ                                          trimesh
-``.json``     the lattice graph (exact, text)                        :class:`LatticeGraph`
-``.npz``      the lattice graph (exact, compressed)                  :class:`LatticeGraph`
-============  =====================================================  =====================
+Every file is written atomically (:func:`lattice_cad.core.atomic.atomic_write`): a failed or
+interrupted export never leaves a half-written file behind. Formats that cannot hold the
+result are refused with :class:`ExportError` (binary STL counts triangles in 32 bits; lib3mf
+indexes with signed 32-bit integers), and files estimated above ``config.WARN_BYTES`` (2 GB,
+where many slicers fail) raise an :class:`ExportWarning`.
 
-Every file is written atomically (:func:`lattice_cad._atomic.atomic_write`): a
-failed or interrupted export never leaves a half-written file behind. Formats
-that cannot hold the result are refused with :class:`ExportError` (binary STL
-counts triangles in 32 bits; lib3mf indexes with signed 32-bit integers), and
-files estimated above :data:`WARN_BYTES` (2 GB, where many slicers fail) raise an
-:class:`ExportWarning`.
+===========  ===========================================================  ==============
+format       content                                                      written with
+===========  ===========================================================  ==============
+STL          binary STL of the mesh                                       numpy (core)
+3MF          3MF core mesh, or with ``beam_lattice=True`` the 3MF Beam    lib3mf
+             Lattice extension (beams with per-end radii, balls at the
+             nodes, the part as clipping mesh)
+PLY, OBJ     binary PLY, Wavefront OBJ                                    trimesh
+JSON, NPZ    the lattice graph (exact)                                    LatticeGraph
+STEP         exact B-rep solids                                           OpenCascade
+===========  ===========================================================  ==============
 """
 
 from __future__ import annotations
@@ -34,18 +33,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lattice_cad._atomic import atomic_write
-from lattice_cad.errors import LatticeError, LatticeWarning
-from lattice_cad.graph import LatticeGraph
+from lattice_cad.core import config
+from lattice_cad.core.atomic import atomic_write
+from lattice_cad.core.errors import ExportError, ExportWarning
+from lattice_cad.core.formats import Kind, format_for, suffixes
+from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.mesh import Mesh, mesh_arrays, stl_size, weld
 
 __all__ = [
     "ExportError",
     "ExportWarning",
     "MESH_SUFFIXES",
     "GRAPH_SUFFIXES",
-    "WARN_BYTES",
-    "STL_MAX_TRIANGLES",
-    "THREEMF_MAX",
     "estimate_bytes",
     "check_limits",
     "save_mesh",
@@ -56,35 +55,15 @@ __all__ = [
 ]
 
 #: Mesh formats written by :func:`save_mesh`.
-MESH_SUFFIXES = (".stl", ".3mf", ".ply", ".obj")
+MESH_SUFFIXES = suffixes(Kind.MESH)
 #: Graph formats written by :func:`save_graph`.
-GRAPH_SUFFIXES = (".json", ".npz")
-#: Files estimated above this size raise an :class:`ExportWarning`.
-WARN_BYTES = 2 * 1024**3
-#: Binary STL stores the triangle count as uint32.
-STL_MAX_TRIANGLES = 2**32 - 1
-#: lib3mf indexes vertices, triangles and beams with signed 32-bit integers.
-THREEMF_MAX = 2**31 - 1
-
-
-try:  # one class for both layers: fast_stitch raises it too
-    from fast_stitch.mesh import ExportError
-except ImportError:  # pragma: no cover - fast_stitch is part of the distribution
-
-    class ExportError(LatticeError, ValueError):  # type: ignore[no-redef]
-        """A result cannot be written faithfully in the requested format."""
-
-
-class ExportWarning(LatticeWarning):
-    """An export succeeded but the file may be too large for common slicers."""
+GRAPH_SUFFIXES = suffixes(Kind.GRAPH)
 
 
 # ---------------------------------------------------------------- utilities
 def _arrays(mesh: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Vertices (V, 3) float64 and faces (F, 3) int64 of any mesh-like object."""
-    from lattice_cad.skin import _mesh_arrays
-
-    arrays = _mesh_arrays(mesh)
+    arrays = mesh_arrays(mesh)
     if arrays is None:
         raise TypeError(
             f"cannot export a {type(mesh).__name__}: expected a mesh (vertices and faces), "
@@ -96,32 +75,28 @@ def _arrays(mesh: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     return v, f
 
 
-def _suffix(path: Path) -> str:
-    return path.suffix.lower()
-
-
-def estimate_bytes(suffix: str, n_vertices: int, n_faces: int, *, n_beams: int = 0) -> int:
+def estimate_bytes(fmt: str, n_vertices: int, n_faces: int, *, n_beams: int = 0) -> int:
     """Approximate size in bytes of a file of the given format.
 
     Exact for binary STL (``84 + 50 F``) and binary PLY; 3MF and OBJ are estimates
     (3MF is zip-compressed XML, about 12 bytes per vertex and 10 per triangle or beam).
     """
-    s = suffix.lower()
-    if s == ".stl":
-        return 84 + 50 * n_faces
-    if s == ".ply":
+    s = fmt.lower().lstrip(".")
+    if s == "stl":
+        return stl_size(n_faces)
+    if s == "ply":
         return 200 + 12 * n_vertices + 13 * n_faces
-    if s == ".obj":
+    if s == "obj":
         return 34 * n_vertices + 22 * n_faces
-    if s == ".3mf":
+    if s == "3mf":
         return 1200 + 12 * n_vertices + 10 * n_faces + 14 * n_beams
-    raise ValueError(f"no size estimate for {suffix!r}")
+    raise ValueError(f"no size estimate for {fmt!r}")
 
 
 def check_limits(
     path: str | os.PathLike[str], n_vertices: int, n_faces: int, *, n_beams: int = 0
 ) -> int:
-    """Refuse what a format cannot hold; warn above :data:`WARN_BYTES`.
+    """Refuse what a format cannot hold; warn above :data:`config.WARN_BYTES`.
 
     Returns
     -------
@@ -135,21 +110,22 @@ def check_limits(
         triangles or beams for 3MF (the message names the file and the counts).
     """
     p = Path(path)
-    s = _suffix(p)
-    if s == ".stl" and n_faces > STL_MAX_TRIANGLES:
+    s = p.suffix.lower()
+    if s == ".stl" and n_faces > config.STL_MAX_TRIANGLES:
         raise ExportError(
             f"{p.name}: {n_faces:,} triangles do not fit in a binary STL "
-            f"(at most {STL_MAX_TRIANGLES:,}); save as a 3MF beam lattice or split the part"
+            f"(at most {config.STL_MAX_TRIANGLES:,}); save as a 3MF beam lattice or split the part"
         )
     if s == ".3mf":
         for what, n in (("vertices", n_vertices), ("triangles", n_faces), ("beams", n_beams)):
-            if n > THREEMF_MAX:
+            if n > config.THREEMF_MAX:
                 raise ExportError(
-                    f"{p.name}: {n:,} {what} do not fit in a 3MF file (at most {THREEMF_MAX:,}); "
+                    f"{p.name}: {n:,} {what} do not fit in a 3MF file "
+                    f"(at most {config.THREEMF_MAX:,}); "
                     "use beam_lattice=True or split the part"
                 )
     size = estimate_bytes(s, n_vertices, n_faces, n_beams=n_beams)
-    if size > WARN_BYTES:
+    if size > config.WARN_BYTES:
         warnings.warn(
             f"{p.name}: the file will be about {size / 1024**3:.1f} GiB; many slicers fail "
             "above 2 GB (consider a 3MF beam lattice, fewer segments or a coarser lattice)",
@@ -247,28 +223,21 @@ def save_mesh(mesh: Any, path: str | os.PathLike[str], *, name: str = "lattice")
         When the file will be larger than 2 GB.
     """
     p = Path(path)
-    s = _suffix(p)
-    if s not in MESH_SUFFIXES:
-        raise ValueError(
-            f"cannot write a mesh as {s or 'a file without suffix'} ({p.name}): "
-            f"use one of {', '.join(MESH_SUFFIXES)}"
-        )
+    fmt = format_for(p, Kind.MESH)
     v, f = _arrays(mesh)
     if len(f) == 0:
         raise ExportError(f"{p.name}: the mesh is empty (no triangles)")
     check_limits(p, len(v), len(f))
-    if s == ".stl":
-        from fast_stitch.mesh import Mesh
-
+    if fmt.name == "stl":
         m = mesh if isinstance(mesh, Mesh) else Mesh(vertices=v, faces=f)
         m.save(p)
-    elif s == ".3mf":
+    elif fmt.name == "3mf":
         _save_3mf(p, v, f, name)
     else:
         import trimesh
 
         tm = trimesh.Trimesh(vertices=v, faces=f, process=False)
-        if s == ".ply":
+        if fmt.name == "ply":
             data: bytes | str = trimesh.exchange.ply.export_ply(tm, encoding="binary")
         else:
             data = trimesh.exchange.obj.export_obj(tm, include_normals=False)
@@ -283,13 +252,7 @@ def save_mesh(mesh: Any, path: str | os.PathLike[str], *, name: str = "lattice")
 
 def save_graph(graph: LatticeGraph, path: str | os.PathLike[str]) -> Path:
     """Write a graph as ``.json`` or ``.npz`` (see :meth:`LatticeGraph.save`)."""
-    p = Path(path)
-    if _suffix(p) not in GRAPH_SUFFIXES:
-        raise ValueError(
-            f"cannot write a graph as {_suffix(p) or 'a file without suffix'} ({p.name}): "
-            "use .json or .npz"
-        )
-    return graph.save(p)
+    return graph.save(path)
 
 
 def save_beam_lattice(
@@ -330,8 +293,7 @@ def save_beam_lattice(
         An empty graph, too many beams for 3MF, or lib3mf refusing the model.
     """
     p = Path(path)
-    if _suffix(p) != ".3mf":
-        raise ValueError(f"a beam lattice is written as .3mf, got {p.name!r}")
+    format_for(p, Kind.BEAM_LATTICE)
     if graph.num_edges == 0:
         raise ExportError(f"{p.name}: the graph has no struts: nothing to write")
     used = np.flatnonzero(graph.degree > 0)
@@ -504,10 +466,10 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
         A missing or unreadable file (named in the message).
     """
     p = Path(path)
+    fmt = format_for(p, Kind.MESH, action="read")
     if not p.is_file():
         raise FileNotFoundError(f"mesh file not found: {p}")
-    s = _suffix(p)
-    if s == ".3mf":
+    if fmt.name == "3mf":
         lib3mf, model = _read_3mf_model(p)
         objs = _mesh_objects(model)
         clip_ids = set()
@@ -536,8 +498,6 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
         raise ExportError(f"{p}: cannot read mesh: {exc}") from None
     v = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
     f = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
-    if s == ".stl" and len(v):
-        from lattice_cad.skin import _weld
-
-        v, f = _weld(v, f, decimals=12, drop=False)
+    if fmt.name == "stl" and len(v):
+        v, f = weld(v, f, tol=1e-12, drop_degenerate=False)
     return v, f

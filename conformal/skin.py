@@ -11,7 +11,7 @@ exact Euclidean distance transform gives the distance to the boundary, and a
 marching-tetrahedra pass (a Freudenthal split of every voxel, so the surface
 is closed and 2-manifold by construction) extracts the level ``d = t``. The
 wall thickness is therefore exact up to about half a voxel; the voxel size is
-``thickness / 3`` unless the grid would exceed :data:`MAX_VOXELS`.
+``thickness / 3`` unless the grid would exceed :data:`config.MAX_VOXELS`.
 """
 
 from __future__ import annotations
@@ -22,40 +22,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lattice_cad.errors import LatticeError
+from lattice_cad.core import config
+from lattice_cad.core.errors import SkinError
+from lattice_cad.core.mesh import mesh_arrays, weld
 
-__all__ = ["SkinError", "as_manifold", "inset", "hollow", "add_skin", "MAX_VOXELS"]
-
-#: Upper bound on the number of voxels of the distance grid (memory ~ 20 bytes/voxel).
-MAX_VOXELS = 8_000_000
-#: Edges shorter than this (mm) are collapsed after the booleans (no float32 slivers in STL).
-SLIVER = 1e-4
-#: Voxels per wall thickness, when the budget allows.
-VOXELS_PER_THICKNESS = 3.0
-
-
-class SkinError(LatticeError, ValueError):
-    """A part cannot be hollowed (not a closed solid, or the wall is too thick)."""
-
-
-# ------------------------------------------------------------------ conversion
-def _mesh_arrays(obj: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
-    """Vertices and faces of anything mesh-like, or None."""
-    import manifold3d
-
-    if isinstance(obj, manifold3d.Manifold):
-        m = obj.to_mesh64() if hasattr(obj, "to_mesh64") else obj.to_mesh()
-        return (
-            np.asarray(m.vert_properties, dtype=np.float64)[:, :3],
-            np.asarray(m.tri_verts, dtype=np.int64),
-        )
-    if isinstance(obj, tuple) and len(obj) == 2:
-        return np.asarray(obj[0], dtype=np.float64), np.asarray(obj[1], dtype=np.int64)
-    v = getattr(obj, "vertices", None)
-    f = getattr(obj, "faces", None)
-    if v is not None and f is not None and not callable(v) and not callable(f):
-        return np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int64)
-    return None
+__all__ = ["SkinError", "as_manifold", "inset", "hollow", "add_skin"]
 
 
 def shape_mesh(
@@ -74,46 +45,15 @@ def shape_mesh(
     vertices : (V, 3) float64
     faces : (F, 3) int64
     """
-    import cadquery as cq
-    from OCP.TopoDS import TopoDS_Shape
+    from lattice_cad.occ_impl import shapes as occ
 
-    if isinstance(shape, cq.Workplane):
-        vals = [v for v in shape.vals() if isinstance(v, cq.Shape)]
-        if not vals:
-            raise SkinError("the workplane holds no solid to tessellate")
-        cshape = vals[0] if len(vals) == 1 else cq.Compound.makeCompound(vals)
-    elif isinstance(shape, cq.Shape):
-        cshape = shape
-    else:
-        wrapped = shape if isinstance(shape, TopoDS_Shape) else getattr(shape, "wrapped", None)
-        if not isinstance(wrapped, TopoDS_Shape):
-            raise TypeError(f"cannot tessellate a {type(shape).__name__}")
-        cshape = cq.Shape.cast(wrapped)
-    verts, tris = cshape.tessellate(tolerance, angular)
-    v = np.array([[p.x, p.y, p.z] for p in verts], dtype=np.float64).reshape(-1, 3)
-    f = np.array(tris, dtype=np.int64).reshape(-1, 3)
-    return _weld(v, f)
-
-
-def _weld(
-    v: NDArray[np.float64], f: NDArray[np.int64], decimals: int = 9, *, drop: bool = True
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Merge coincident vertices (per-face tessellations share boundary points).
-
-    With ``drop``, faces that become degenerate (a repeated vertex) are removed.
-    """
-    if len(v) == 0:
-        return v, f
-    key = np.round(v, decimals)
-    uniq, inv = np.unique(key, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
-    first = np.full(len(uniq), len(v), dtype=np.int64)
-    np.minimum.at(first, inv, np.arange(len(v)))
-    f2 = inv[f]
-    if not drop:
-        return v[first], f2
-    keep = (f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])
-    return v[first], f2[keep]
+    topo = occ.as_topods(shape)
+    if topo is None:
+        raise TypeError(f"cannot tessellate a {type(shape).__name__}")
+    if not occ.solids(topo):
+        raise SkinError("the shape holds no solid to tessellate")
+    v, f = occ.tessellate(topo, tolerance, angular)
+    return weld(v, f, tol=1e-9)
 
 
 def as_manifold(obj: Any, *, name: str = "part") -> Any:
@@ -135,13 +75,13 @@ def as_manifold(obj: Any, *, name: str = "part") -> Any:
 
     if isinstance(obj, manifold3d.Manifold):
         return obj
-    arrays = _mesh_arrays(obj)
+    arrays = mesh_arrays(obj)
     if arrays is None:
         for attr in ("mesh", "shape", "solid", "wrapped"):
             inner = getattr(obj, attr, None)
             if inner is not None and not callable(inner):
                 if attr in ("mesh",):
-                    arrays = _mesh_arrays(inner)
+                    arrays = mesh_arrays(inner)
                 if arrays is None:
                     try:
                         arrays = shape_mesh(inner if attr != "wrapped" else obj)
@@ -154,7 +94,7 @@ def as_manifold(obj: Any, *, name: str = "part") -> Any:
     v, f = arrays
     if len(f) == 0:
         raise SkinError(f"{name} has no triangles")
-    v, f = _weld(v, f)
+    v, f = weld(v, f, tol=1e-9)
     man = manifold3d.Manifold(
         manifold3d.Mesh(
             vert_properties=np.ascontiguousarray(v, dtype=np.float32),
@@ -169,7 +109,7 @@ def as_manifold(obj: Any, *, name: str = "part") -> Any:
 
 def to_arrays(man: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Vertices (V, 3) float64 and faces (F, 3) int64 of a manifold3d.Manifold."""
-    arrays = _mesh_arrays(man)
+    arrays = mesh_arrays(man)
     assert arrays is not None
     return arrays
 
@@ -178,43 +118,19 @@ def to_arrays(man: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
 def _inside_grid(
     man: Any, origin: NDArray[np.float64], h: float, shape: tuple[int, int, int]
 ) -> NDArray[np.bool_]:
-    """Inside mask at voxel centres ``origin + (i + 0.5) * h`` (even-odd per slice)."""
-    from matplotlib.path import Path as MplPath
+    """Inside mask at voxel centres ``origin + (i + 0.5) * h`` (exact winding numbers)."""
+    from conformal.part import Part
 
-    nx, ny, nz = shape
-    xs = origin[0] + (np.arange(nx) + 0.5) * h
-    ys = origin[1] + (np.arange(ny) + 0.5) * h
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    pts = np.column_stack([gx.ravel(), gy.ravel()])
-    inside = np.zeros(shape, dtype=bool)
-    for k in range(nz):
-        z = origin[2] + (k + 0.5) * h
-        polys = man.slice(z).to_polygons()
-        if not polys:
-            continue
-        layer = np.zeros(len(pts), dtype=bool)
-        for poly in polys:
-            poly = np.asarray(poly, dtype=np.float64)
-            if len(poly) < 3:
-                continue
-            lo, hi = poly.min(axis=0), poly.max(axis=0)
-            sel = np.flatnonzero(
-                (pts[:, 0] >= lo[0])
-                & (pts[:, 0] <= hi[0])
-                & (pts[:, 1] >= lo[1])
-                & (pts[:, 1] <= hi[1])
-            )
-            if len(sel):
-                layer[sel] ^= MplPath(poly).contains_points(pts[sel])
-        inside[:, :, k] = layer.reshape(nx, ny)
-    return inside
+    v, f = to_arrays(man)
+    part = Part(v, f, name="skin")
+    return part.grid_contains(origin + 0.5 * h, np.full(3, h), shape)
 
 
 def _grid_spacing(extent: NDArray[np.float64], thickness: float) -> float:
-    h = thickness / VOXELS_PER_THICKNESS
+    h = thickness / config.VOXELS_PER_THICKNESS
     vol = float(np.prod(extent + 4 * h))
-    if vol / h**3 > MAX_VOXELS:
-        h = (vol / MAX_VOXELS) ** (1.0 / 3.0)
+    if vol / h**3 > config.MAX_VOXELS:
+        h = (vol / config.MAX_VOXELS) ** (1.0 / 3.0)
     return h
 
 
@@ -356,7 +272,7 @@ def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
         Wall thickness (> 0, same unit as the part).
     voxel : float, optional
         Grid spacing of the distance field (default ``thickness / 3``, coarser
-        if the grid would exceed :data:`MAX_VOXELS`).
+        if the grid would exceed :data:`config.MAX_VOXELS`).
 
     Returns
     -------
@@ -434,13 +350,13 @@ def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None =
     man = as_manifold(part)
     skin = hollow(man, thickness, voxel=voxel)
     lat = as_manifold(lattice, name="lattice mesh")
-    out = (skin + (lat ^ man)).simplify(SLIVER)
+    out = (skin + (lat ^ man)).simplify(config.SLIVER)
     # negative-volume shells are the walls of the (lattice-filled) cavity, not bodies
     pieces = sum(1 for p in out.decompose() if p.volume() > 0)
     if pieces > 1:
         import warnings
 
-        from lattice_cad.errors import LatticeWarning
+        from lattice_cad.core.errors import LatticeWarning
 
         warnings.warn(
             f"the skinned part has {pieces} separate pieces: some lattice struts do not reach "

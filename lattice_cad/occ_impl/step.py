@@ -1,34 +1,18 @@
-"""Every OCCT (OCP / cadquery / build123d) call of the ``conformal`` package.
+"""STEP files: read (converted to mm) and write (in a chosen unit), with unit cross-checks.
 
-Nothing else in ``conformal`` imports OCP, cadquery or build123d; this module
-itself is imported lazily (only when a STEP file or a CAD shape is loaded), so
-``import conformal`` stays fast. OCCT converts STEP lengths to millimetres on
-reading (its default ``xstep.cascade.unit`` is MM), whatever unit the file
-declares.
+OCCT converts STEP lengths to millimetres on reading (``xstep.cascade.unit`` is MM), whatever
+unit the file declares. Because one OCCT build's unit handling has been wrong before (7.8's
+writer ignored ``write.step.unit``; an inconsistent install converted twice), every read and
+every write is cross-checked here against the file's own text: see
+:func:`check_step_units`.
 """
 
 from __future__ import annotations
 
 import os
 import re
-from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
-
-from lattice_cad import _stack
-
-_stack.warn_once()  # before the first OCP import: a broken stack is named, with its fix
-
-from OCP.Bnd import Bnd_Box
-from OCP.BRep import BRep_Builder, BRep_Tool
-from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
-from OCP.BRepBndLib import BRepBndLib
-from OCP.BRepCheck import BRepCheck_Analyzer
-from OCP.BRepGProp import BRepGProp
-from OCP.BRepMesh import BRepMesh_IncrementalMesh
-from OCP.BRepTools import BRepTools
-from OCP.GProp import GProp_GProps
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Interface import Interface_Static
 from OCP.STEPControl import (
@@ -38,24 +22,19 @@ from OCP.STEPControl import (
     STEPControl_Writer,
 )
 from OCP.TColStd import TColStd_SequenceOfAsciiString
-from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
-from OCP.TopExp import TopExp_Explorer
-from OCP.TopLoc import TopLoc_Location
-from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shape
-from OCP.TopTools import TopTools_ListOfShape
+from OCP.TopoDS import TopoDS_Shape
+
+from lattice_cad.core.errors import OCCTFailure, StepUnitsError
+from lattice_cad.occ_impl.shapes import bounds, compound, from_bytes, is_valid, solids, translated
+from lattice_cad.occ_impl.shapes import volume as shape_volume
 
 __all__ = [
     "read_step",
     "write_step",
-    "as_topods",
-    "solids",
-    "open_shells",
-    "fuse",
-    "tessellate",
-    "volume",
-    "bounds",
-    "write_brep",
-    "compound",
+    "write_step_solids",
+    "read_step_solids",
+    "declared_length_unit",
+    "check_step_units",
 ]
 
 
@@ -153,8 +132,6 @@ def check_step_units(
     StepUnitsError
         Naming the file, both units and both sizes.
     """
-    from conformal.part import StepUnitsError
-
     name = os.fspath(path)
     with open(path, encoding="latin-1") as fh:
         text = fh.read()
@@ -203,162 +180,37 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "M
         if mm_per_unit <= 0:
             raise ValueError(f"unknown STEP unit {unit!r}")
         writer.Model().SetWriteLengthUnit(mm_per_unit)
-        writer.Transfer(shape, STEPControl_AsIs)
+        if writer.Transfer(shape, STEPControl_AsIs) != IFSelect_RetDone:
+            raise OCCTFailure(f"{path}: STEP transfer failed")
         if writer.Write(str(path)) != IFSelect_RetDone:
-            raise OSError(f"OCCT could not write {path}")
+            raise OCCTFailure(f"OCCT could not write {path}")
     finally:
         Interface_Static.SetCVal_s("write.step.unit", "MM")
     box = bounds(shape)
     check_step_units(path, [unit], float(np.linalg.norm(box[1] - box[0])))
 
 
-def as_topods(obj: Any) -> TopoDS_Shape | None:
-    """The OCCT shape of a cadquery Workplane/Shape, a build123d shape, or a TopoDS_Shape."""
-    if isinstance(obj, TopoDS_Shape):
-        return obj
-    vals = getattr(obj, "vals", None)
-    if callable(vals) and type(obj).__name__ == "Workplane":  # cadquery.Workplane
-        shapes = [
-            v.wrapped for v in vals() if isinstance(getattr(v, "wrapped", None), TopoDS_Shape)
-        ]
-        if not shapes:
-            return None
-        return shapes[0] if len(shapes) == 1 else compound(shapes)
-    wrapped = getattr(obj, "wrapped", None)  # cadquery.Shape, build123d Shape/Part
-    if isinstance(wrapped, TopoDS_Shape):
-        return wrapped
-    return None
+def write_step_solids(
+    path: str | os.PathLike[str], breps: list[bytes], translations: list[object]
+) -> int:
+    """Write one solid per (binary BREP, translation) pair into one STEP file (in mm).
 
-
-def compound(shapes: list[TopoDS_Shape]) -> TopoDS_Compound:
-    """A compound of ``shapes``."""
-    comp = TopoDS_Compound()
-    builder = BRep_Builder()
-    builder.MakeCompound(comp)
-    for s in shapes:
-        builder.Add(comp, s)
-    return comp
-
-
-def solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
-    """The solids of ``shape``."""
-    out = []
-    exp = TopExp_Explorer(shape, TopAbs_SOLID)
-    while exp.More():
-        out.append(TopoDS.Solid_s(exp.Current()))
-        exp.Next()
-    return out
-
-
-def open_shells(shape: TopoDS_Shape) -> int:
-    """Number of shells of ``shape`` that are not part of a solid."""
-    n = 0
-    exp = TopExp_Explorer(shape, TopAbs_SHELL, TopAbs_SOLID)
-    while exp.More():
-        n += 1
-        exp.Next()
-    return n
-
-
-def faces_outside_solids(shape: TopoDS_Shape) -> int:
-    """Number of faces of ``shape`` that are not part of a solid."""
-    n = 0
-    exp = TopExp_Explorer(shape, TopAbs_FACE, TopAbs_SOLID)
-    while exp.More():
-        n += 1
-        exp.Next()
-    return n
-
-
-def is_valid(shape: TopoDS_Shape) -> bool:
-    """BRepCheck validity."""
-    return bool(BRepCheck_Analyzer(shape).IsValid())
-
-
-def fuse(parts: list[TopoDS_Shape], fuzzy: float = 0.0) -> TopoDS_Shape | None:
-    """Boolean union of several solids; None when OCCT fails or gives an invalid shape."""
-    args = TopTools_ListOfShape()
-    args.Append(parts[0])
-    tools = TopTools_ListOfShape()
-    for p in parts[1:]:
-        tools.Append(p)
-    op = BRepAlgoAPI_Fuse()
-    op.SetArguments(args)
-    op.SetTools(tools)
-    op.SetRunParallel(True)
-    if fuzzy > 0:
-        op.SetFuzzyValue(fuzzy)
-    op.Build()
-    if not op.IsDone():
-        return None
-    op.SimplifyResult()
-    res = op.Shape()
-    if res.IsNull() or not is_valid(res):
-        return None
-    return res
-
-
-def volume(shape: TopoDS_Shape) -> float:
-    """Volume of ``shape`` (mm^3)."""
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props)
-    return float(props.Mass())
-
-
-def bounds(shape: TopoDS_Shape) -> NDArray[np.float64]:
-    """(2, 3) float64 bounding box of ``shape``."""
-    box = Bnd_Box()
-    BRepBndLib.Add_s(shape, box)
-    x0, y0, z0, x1, y1, z1 = box.Get()
-    return np.array([[x0, y0, z0], [x1, y1, z1]])
-
-
-def tessellate(
-    shape: TopoDS_Shape, deflection: float, angular: float = 0.25
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Triangulate every face of ``shape`` (BRepMesh).
-
-    Returns
-    -------
-    vertices : (V, 3) float64
-        Per-face vertices (not merged across faces).
-    faces : (F, 3) int64
-        Triangles, oriented by the face orientation (outward for a valid solid).
+    Equal BREP strings are decoded once. Returns the number of solids written.
     """
-    BRepMesh_IncrementalMesh(shape, float(deflection), False, float(angular), True)
-    verts: list[NDArray[np.float64]] = []
-    tris: list[NDArray[np.int64]] = []
-    base = 0
-    exp = TopExp_Explorer(shape, TopAbs_FACE)
-    while exp.More():
-        face = TopoDS.Face_s(exp.Current())
-        exp.Next()
-        loc = TopLoc_Location()
-        tri = BRep_Tool.Triangulation_s(face, loc)
-        if tri is None:
-            continue
-        trsf = loc.Transformation()
-        nn = tri.NbNodes()
-        v = np.empty((nn, 3))
-        for i in range(nn):
-            p = tri.Node(i + 1).Transformed(trsf)
-            v[i] = (p.X(), p.Y(), p.Z())
-        nt = tri.NbTriangles()
-        t = np.empty((nt, 3), dtype=np.int64)
-        for i in range(nt):
-            t[i] = tri.Triangle(i + 1).Get()
-        t -= 1
-        if face.Orientation() == TopAbs_REVERSED:
-            t = t[:, ::-1]
-        verts.append(v)
-        tris.append(t + base)
-        base += nn
-    if not verts:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-    return np.vstack(verts), np.vstack(tris)
+    cache: dict[int, TopoDS_Shape] = {}
+    shapes = []
+    for brep, t in zip(breps, translations, strict=True):
+        key = id(brep)
+        if key not in cache:
+            cache[key] = from_bytes(brep)
+        shapes.append(translated(cache[key], t))
+    write_step(compound(shapes), path)
+    return len(shapes)
 
 
-def write_brep(shape: TopoDS_Shape, path: str | os.PathLike[str]) -> None:
-    """Write ``shape`` as an OCCT ``.brep`` file (for gmsh)."""
-    if not BRepTools.Write_s(shape, str(path)):
-        raise OSError(f"OCCT could not write {path}")
+def read_step_solids(path: str | os.PathLike[str]) -> list[tuple[bool, float]]:
+    """(BRepCheck valid, volume) of every solid in a STEP file."""
+    shape = read_step(path)
+    if shape is None:
+        raise OCCTFailure(f"cannot read STEP file {path}")
+    return [(is_valid(s), shape_volume(s, eps=1e-10)) for s in solids(shape)]

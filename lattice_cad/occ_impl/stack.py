@@ -15,7 +15,7 @@ import importlib.metadata as md
 import re
 import warnings
 
-from lattice_cad.errors import CADStackWarning
+from lattice_cad.core.errors import CADStackWarning
 
 __all__ = ["SUPPORTED", "FIX", "ocp_distributions", "problems", "warn_once", "CADStackWarning"]
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
+import zipfile
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -18,8 +19,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lattice_cad._atomic import atomic_write
-from lattice_cad.errors import InvalidGraphError, LatticeWarning
+from lattice_cad.core.atomic import atomic_write
+from lattice_cad.core.errors import InvalidGraphError, LatticeWarning
+from lattice_cad.core.formats import Kind, format_for
 
 __all__ = ["LatticeGraph"]
 
@@ -221,11 +223,11 @@ class LatticeGraph:
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the graph to ``.npz`` or ``.json`` (atomically). Returns the path."""
         p = Path(path)
-        suffix = p.suffix.lower()
-        if suffix == ".json":
+        fmt = format_for(p, Kind.GRAPH)
+        if fmt.name == "json":
             with atomic_write(p, "w") as fh:
                 json.dump(self.to_dict(), fh)
-        elif suffix == ".npz":
+        else:
             with atomic_write(p, "wb") as fh:
                 np.savez_compressed(
                     fh,
@@ -235,36 +237,28 @@ class LatticeGraph:
                     edges=self.edges,
                     radii=self.radii,
                 )
-        else:
-            raise ValueError(
-                f"cannot save a graph as {suffix or 'a file without suffix'}: use .npz or .json"
-            )
         return p
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> LatticeGraph:
         """Read a graph written by :meth:`save` (``.npz`` or ``.json``)."""
         p = Path(path)
+        fmt = format_for(p, Kind.GRAPH, action="read")
         if not p.exists():
             raise FileNotFoundError(f"graph file not found: {p}")
-        suffix = p.suffix.lower()
         try:
-            if suffix == ".json":
+            if fmt.name == "json":
                 with open(p, encoding="utf-8") as fh:
                     data = json.load(fh)
                 return cls.from_dict(data)
-            if suffix == ".npz":
-                with np.load(p, allow_pickle=False) as z:
-                    if str(z.get("format", "")) != _FORMAT:
-                        raise InvalidGraphError(f"{p}: not a lattice-cad graph archive")
-                    return cls(z["nodes"], z["edges"], z["radii"])
+            with np.load(p, allow_pickle=False) as z:
+                if str(z.get("format", "")) != _FORMAT:
+                    raise InvalidGraphError(f"{p}: not a lattice-cad graph archive")
+                return cls(z["nodes"], z["edges"], z["radii"])
         except InvalidGraphError as exc:
             raise InvalidGraphError(f"{p}: {exc}") from None
-        except (OSError, ValueError, KeyError) as exc:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             raise InvalidGraphError(f"{p}: cannot read graph: {exc}") from None
-        raise ValueError(
-            f"cannot load a graph from {suffix or 'a file without suffix'}: use .npz or .json"
-        )
 
 
 # ---------------------------------------------------------------- coercion

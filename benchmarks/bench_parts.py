@@ -1,0 +1,550 @@
+"""Real-parts benchmark: run ``lattice-cad fill`` on every shared test part with five settings.
+
+What it measures
+----------------
+Every file in ``<repo>/../shared/data/step`` and ``<repo>/../shared/data/meshes`` is filled
+by the command-line tool, once per setting, in a fresh subprocess (so each time includes the
+interpreter start-up, imports, loading the numba cache, reading the part, building the
+lattice, meshing it and writing the STL: what a user waits for). The cell size is the
+largest extent of the part / 15 (the extent comes from ``conformal.load_part``, called once
+per part in this process) and the strut radius is cell / 12. The settings are
+
+=========  ============================================
+bcc        ``--cell bcc``
+skin       ``--cell octet --skin CELL/6``
+tet        ``--method tet``
+conform    ``--cell kelvin --fill conform``
+clip       ``--cell bcc --fill clip``
+=========  ============================================
+
+each added to ``lattice-cad fill PART -o OUT.stl --cell-size CELL --radius R``.
+
+A run is ``ok`` only when the command exits with 0, the STL exists, ``lattice-cad check``
+accepts it, and an independent check passes: trimesh (vertices merged) finds it watertight,
+winding-consistent and with a positive volume, and manifold3d builds a ``Manifold`` from it
+with status ``NoError``. Outcomes: ``ok``, ``fail`` (non-zero exit, no file, or the part
+could not be loaded here), ``invalid`` (a file was written but a check rejects it),
+``timeout``. For every run the table gives the wall time of the fill command, the number
+of struts (parsed from the "N struts, M nodes" line the CLI prints; ``--quiet`` would
+suppress it, so it is not passed), the triangles of the written file, the bodies
+(connected components over shared edges) and the first line of the error.
+
+Before the measurements every setting is run once on a small box so that numba kernels
+are compiled and cached (``--no-warmup`` skips this); the first run after a code change
+would otherwise include minutes of compilation.
+
+How to run
+----------
+::
+
+    python benchmarks/bench_parts.py                       # all parts, all settings
+    python benchmarks/bench_parts.py --parts kcl_ bunny --settings bcc tet
+    python benchmarks/bench_parts.py --jobs 2 --timeout 300 --json results.json
+    python benchmarks/bench_parts.py --out /tmp/lattices   # keep the STL files
+
+Rows are printed as the runs complete; at the end the whole table is printed again,
+sorted by part and setting, followed by one summary line per setting. Ctrl-C kills the
+running subprocesses and prints the partial table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import warnings
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+PART_DIRS = ("step", "meshes")
+
+CELLS_PER_EXTENT = 15.0
+RADIUS_PER_CELL = 12.0
+SKIN_PER_CELL = 6.0
+
+ERROR_WIDTH = 90
+CHECK_TIMEOUT_MIN = 120.0
+
+
+def _fmt_mm(value: float) -> str:
+    return f"{value:.6g}"
+
+
+# setting name -> extra ``lattice-cad fill`` arguments for a given cell size (mm)
+SETTINGS: dict[str, Callable[[float], list[str]]] = {
+    "bcc": lambda cell: ["--cell", "bcc"],
+    "skin": lambda cell: ["--cell", "octet", "--skin", _fmt_mm(cell / SKIN_PER_CELL)],
+    "tet": lambda cell: ["--method", "tet"],
+    "conform": lambda cell: ["--cell", "kelvin", "--fill", "conform"],
+    "clip": lambda cell: ["--cell", "bcc", "--fill", "clip"],
+}
+
+SETTING_FLAGS = {
+    "bcc": "--cell bcc",
+    "skin": f"--cell octet --skin CELL/{SKIN_PER_CELL:g}",
+    "tet": "--method tet",
+    "conform": "--cell kelvin --fill conform",
+    "clip": "--cell bcc --fill clip",
+}
+
+STRUTS_RE = re.compile(r"^\s*([\d,]+) struts\b", re.MULTILINE)
+
+
+def _lattice_cad() -> str:
+    """The ``lattice-cad`` script next to this interpreter, else the one on PATH."""
+    exe = Path(sys.executable).with_name("lattice-cad")
+    if exe.exists():
+        return str(exe)
+    found = shutil.which("lattice-cad")
+    if found is None:
+        sys.exit("error: the lattice-cad command is not installed (pip install -e .)")
+    return found
+
+
+LATTICE_CAD = _lattice_cad()
+
+
+# ------------------------------------------------------------------ data types
+@dataclass
+class Part:
+    """A part file with the lattice dimensions derived from its extent."""
+
+    path: Path
+    size: tuple[float, float, float] | None = None
+    load_error: str = ""
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def cell(self) -> float:
+        assert self.size is not None
+        return max(self.size) / CELLS_PER_EXTENT
+
+    @property
+    def radius(self) -> float:
+        return self.cell / RADIUS_PER_CELL
+
+
+@dataclass
+class Row:
+    """The result of one (part, setting) run."""
+
+    part: str
+    setting: str
+    outcome: str  # ok / fail / invalid / timeout
+    seconds: float | None = None
+    struts: int | None = None
+    triangles: int | None = None
+    bodies: int | None = None
+    error: str = ""
+    cell: float | None = None
+    radius: float | None = None
+    command: str = ""
+
+
+# ------------------------------------------------------------------ helpers
+@contextlib.contextmanager
+def _silence_fds() -> Iterator[None]:
+    """Send file descriptors 1 and 2 to /dev/null (OpenCascade prints from C++)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, devnull):
+            os.close(fd)
+
+
+def _one_line(text: str, width: int = ERROR_WIDTH) -> str:
+    """``text`` on one line, without the data directory, truncated to ``width``."""
+    text = " ".join(text.split()).replace(f"{DATA}{os.sep}", "")
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def _error_line(stderr: str, stdout: str = "") -> str:
+    """The line that explains a failure: the CLI's ``error:`` line, else the first line."""
+    lines = [ln.strip() for chunk in stderr.splitlines() for ln in chunk.split("\r")]
+    lines = [ln for ln in lines if ln]
+    for ln in lines:
+        if ln.startswith("error:"):
+            return _one_line(ln)
+    # skip tqdm progress bars; fall back to stdout (OpenCascade messages, check reports)
+    plain = [ln for ln in lines if "|" not in ln] or lines
+    plain += [ln.strip() for ln in stdout.splitlines() if ln.strip()]
+    return _one_line(plain[0]) if plain else ""
+
+
+def _load_parts(paths: Sequence[Path]) -> list[Part]:
+    """Load every part once (in this process) to get its extent."""
+    from conformal import load_part
+
+    parts = []
+    for path in paths:
+        part = Part(path)
+        try:
+            with warnings.catch_warnings(), _silence_fds():
+                warnings.simplefilter("ignore")
+                size = np.asarray(load_part(path).size, dtype=float)
+            if size.shape != (3,) or not np.all(np.isfinite(size)) or size.max() <= 0:
+                raise ValueError(f"bad part size {size}")
+            part.size = (float(size[0]), float(size[1]), float(size[2]))
+        except Exception as exc:  # any load error is a reported result
+            part.load_error = _one_line(f"load_part: {str(exc) or type(exc).__name__}")
+        parts.append(part)
+    return parts
+
+
+class Runner:
+    """Runs subprocesses in their own process groups so that they can all be killed."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._procs: set[subprocess.Popen[bytes]] = set()
+        self.stopping = threading.Event()
+
+    def run(self, cmd: list[str], timeout: float) -> tuple[int | None, str, str, float]:
+        """Like ``subprocess.run(cmd, capture_output=True, timeout=timeout)``.
+
+        Returns (exit code or None on timeout, stdout, stderr, wall seconds). A separate
+        session keeps the terminal's Ctrl-C away from the child; :meth:`kill_all` ends it.
+        """
+        if self.stopping.is_set():
+            raise KeyboardInterrupt
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
+        )
+        with self._lock:
+            self._procs.add(proc)
+        try:
+            try:
+                out, err = proc.communicate(timeout=timeout)
+                code: int | None = proc.returncode
+            except subprocess.TimeoutExpired:
+                self._kill(proc)
+                out, err = proc.communicate()
+                code = None
+        finally:
+            with self._lock:
+                self._procs.discard(proc)
+        seconds = time.perf_counter() - t0
+        if self.stopping.is_set():
+            raise KeyboardInterrupt
+        return code, out.decode(errors="replace"), err.decode(errors="replace"), seconds
+
+    @staticmethod
+    def _kill(proc: subprocess.Popen[bytes]) -> None:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(proc.pid, signal.SIGKILL)
+
+    def kill_all(self) -> None:
+        self.stopping.set()
+        with self._lock:
+            procs = list(self._procs)
+        for proc in procs:
+            self._kill(proc)
+
+
+# ------------------------------------------------------------------ checks
+def independent_check(path: Path) -> tuple[str, int, int]:
+    """Check a mesh file with trimesh and manifold3d.
+
+    Returns (problem or "", triangles in the file, bodies).
+    """
+    import manifold3d
+    import trimesh
+    import trimesh.graph
+
+    raw = trimesh.load(path, force="mesh", process=False)
+    if not isinstance(raw, trimesh.Trimesh):
+        return f"trimesh: loaded a {type(raw).__name__}, not a mesh", 0, 0
+    triangles = len(raw.faces)
+    if triangles == 0:
+        return "empty mesh", 0, 0
+    mesh = trimesh.Trimesh(vertices=raw.vertices, faces=raw.faces, process=True)  # merges
+    del raw
+    bodies = len(
+        trimesh.graph.connected_components(mesh.face_adjacency, nodes=np.arange(len(mesh.faces)))
+    )
+    problems = []
+    if not mesh.is_watertight:
+        problems.append("not watertight")
+    if not mesh.is_winding_consistent:
+        problems.append("winding inconsistent")
+    volume = float(mesh.volume)
+    if not volume > 0:
+        problems.append(f"volume {volume:.4g} <= 0")
+    man = manifold3d.Manifold(
+        manifold3d.Mesh(
+            vert_properties=np.ascontiguousarray(mesh.vertices, dtype=np.float32),
+            tri_verts=np.ascontiguousarray(mesh.faces, dtype=np.uint32),
+        )
+    )
+    status = man.status()
+    if status != manifold3d.Error.NoError:
+        problems.append(f"manifold3d {status.name}")
+    return ("trimesh/manifold3d: " + ", ".join(problems)) if problems else "", triangles, bodies
+
+
+def run_one(
+    runner: Runner, part: Part, setting: str, out_dir: Path, timeout: float, keep: bool
+) -> Row:
+    """Fill ``part`` with ``setting`` and check the result."""
+    if part.size is None:
+        return Row(part.name, setting, "fail", error=part.load_error)
+    cell, radius = part.cell, part.radius
+    out = out_dir / f"{part.path.stem}__{setting}.stl"
+    out.unlink(missing_ok=True)
+    cmd = [
+        LATTICE_CAD,
+        "fill",
+        str(part.path),
+        "-o",
+        str(out),
+        "--cell-size",
+        _fmt_mm(cell),
+        "--radius",
+        _fmt_mm(radius),
+        *SETTINGS[setting](cell),
+    ]
+    row = Row(part.name, setting, "fail", cell=cell, radius=radius)
+    row.command = shlex.join(["lattice-cad", *cmd[1:]])
+    try:
+        code, stdout, stderr, row.seconds = runner.run(cmd, timeout)
+        if m := STRUTS_RE.search(stdout):
+            row.struts = int(m.group(1).replace(",", ""))
+        if code is None:
+            row.outcome, row.error = "timeout", f"timed out after {timeout:g} s"
+            return row
+        if code != 0:
+            row.error = _error_line(stderr, stdout) or f"exit code {code}"
+            return row
+        if not out.is_file():
+            row.error = "exit code 0 but no output file"
+            return row
+        row.outcome = "invalid"
+        ccode, cout, cerr, _ = runner.run(
+            [LATTICE_CAD, "check", str(out)], max(timeout, CHECK_TIMEOUT_MIN)
+        )
+        problem, row.triangles, row.bodies = independent_check(out)
+        if ccode is None:
+            row.error = f"lattice-cad check timed out after {max(timeout, CHECK_TIMEOUT_MIN):g} s"
+        elif ccode != 0:
+            detail = _error_line(cerr, cout).replace(str(out) + ": ", "")
+            row.error = _one_line(f"lattice-cad check: {detail or f'exit code {ccode}'}")
+        elif problem:
+            row.error = _one_line(problem)
+        else:
+            row.outcome = "ok"
+        return row
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # report, keep benchmarking
+        row.error = _one_line(f"benchmark: {type(exc).__name__}: {exc}")
+        return row
+    finally:
+        if not keep:
+            out.unlink(missing_ok=True)
+
+
+def warm_up(runner: Runner, settings: Sequence[str], out_dir: Path, timeout: float) -> None:
+    """Run every setting once on a 20 mm box so that numba compiles (and caches) its kernels."""
+    import trimesh
+
+    box = out_dir / "_warmup_box.stl"
+    trimesh.creation.box(extents=(20.0, 20.0, 20.0)).export(box)
+    part = Part(box, size=(20.0, 20.0, 20.0))
+    for setting in settings:
+        t0 = time.perf_counter()
+        row = run_one(runner, part, setting, out_dir, timeout, keep=False)
+        note = f"  ({row.error})" if row.outcome != "ok" else ""
+        print(f"warm-up {setting:<8} {row.outcome:<8} {time.perf_counter() - t0:7.1f} s{note}")
+    box.unlink(missing_ok=True)
+
+
+# ------------------------------------------------------------------ output
+COLUMNS = (
+    ("part", "<", 42),
+    ("setting", "<", 7),
+    ("outcome", "<", 7),
+    ("seconds", ">", 8),
+    ("struts", ">", 9),
+    ("triangles", ">", 10),
+    ("bodies", ">", 6),
+    ("error", "<", 0),
+)
+
+
+def _cell(row: Row, name: str) -> str:
+    value = getattr(row, name)
+    if value is None:
+        return ""
+    if name == "seconds":
+        return f"{value:.1f}"
+    if isinstance(value, int):
+        return f"{value:,}" if name != "bodies" else str(value)
+    return str(value)
+
+
+def format_header() -> str:
+    head = "  ".join(f"{n:{a}{w}}" if w else n for n, a, w in COLUMNS)
+    return head + "\n" + "-" * (len(head) + ERROR_WIDTH - len("error"))
+
+
+def format_row(row: Row) -> str:
+    return "  ".join(f"{_cell(row, n):{a}{w}}" if w else _cell(row, n) for n, a, w in COLUMNS)
+
+
+def format_summary(rows: Sequence[Row], settings: Sequence[str], n_parts: int) -> str:
+    lines = []
+    for setting in settings:
+        done = [r for r in rows if r.setting == setting]
+        ok = sum(r.outcome == "ok" for r in done)
+        counts = {o: sum(r.outcome == o for r in done) for o in ("fail", "invalid", "timeout")}
+        extra = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
+        missing = n_parts - len(done)
+        if missing:
+            extra = ", ".join(filter(None, [extra, f"{missing} not run"]))
+        lines.append(f"{setting}: {ok}/{n_parts} ok" + (f"  ({extra})" if extra else ""))
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------ main
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        description="Fill every shared test part with five lattice settings and check the files.",
+    )
+    p.add_argument(
+        "--parts", nargs="+", metavar="SUBSTR", help="only parts whose file name contains one"
+    )
+    p.add_argument(
+        "--settings", nargs="+", metavar="NAME", choices=list(SETTINGS), help="only these"
+    )
+    p.add_argument(
+        "--timeout", type=float, default=600.0, metavar="SECONDS", help="per run (default 600)"
+    )
+    p.add_argument("--jobs", type=int, default=1, metavar="N", help="parallel runs (default 1)")
+    p.add_argument(
+        "--out", type=Path, metavar="DIR", help="keep the STL files here (default: a temp dir)"
+    )
+    p.add_argument("--json", type=Path, metavar="PATH", help="also save the rows as JSON")
+    p.add_argument("--no-warmup", action="store_true", help="skip the numba warm-up runs")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.jobs < 1 or not args.timeout > 0:
+        sys.exit("error: --jobs must be >= 1 and --timeout > 0")
+    dirs = [DATA / d for d in PART_DIRS]
+    missing = [d for d in dirs if not d.is_dir()]
+    if missing:
+        sys.exit(f"error: shared data not found: {', '.join(map(str, missing))}")
+    paths = sorted((f for d in dirs for f in d.iterdir() if f.is_file()), key=lambda f: f.name)
+    if args.parts:
+        paths = [f for f in paths if any(s in f.name for s in args.parts)]
+    if not paths:
+        sys.exit("error: no part matches --parts")
+    settings = [s for s in SETTINGS if not args.settings or s in args.settings]
+
+    keep = args.out is not None
+    out_dir = args.out or Path(tempfile.mkdtemp(prefix="bench_parts_"))
+    out_dir.mkdir(parents=True, exist_ok=True)
+
+    print(f"lattice-cad: {LATTICE_CAD}")
+    print(f"data: {DATA}  ({len(paths)} parts)  settings: {' '.join(settings)}")
+    print(f"timeout {args.timeout:g} s, jobs {args.jobs}, output: {out_dir}", flush=True)
+    t0 = time.perf_counter()
+    runner = Runner()
+    parts: list[Part] = []
+    rows: list[Row] = []
+    interrupted = False
+    pool = ThreadPoolExecutor(max_workers=args.jobs)
+    try:
+        parts = _load_parts(paths)
+        print(f"parts loaded in {time.perf_counter() - t0:.1f} s:")
+        for part in parts:
+            if part.size is None:
+                print(f"  {part.name:<42}  {part.load_error}")
+            else:
+                dims = " x ".join(f"{s:.4g}" for s in part.size)
+                print(f"  {part.name:<42}  {dims} mm, cell {part.cell:.4g}, r {part.radius:.4g}")
+        print(flush=True)
+        if not args.no_warmup:
+            warm_up(runner, settings, out_dir, args.timeout)
+            print(flush=True)
+        print(format_header(), flush=True)
+        tasks = [(part, s) for part in parts for s in settings]
+        futures: set[Future[Row]] = {
+            pool.submit(run_one, runner, part, s, out_dir, args.timeout, keep) for part, s in tasks
+        }
+        while futures:
+            done, futures = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+            for fut in done:
+                row = fut.result()
+                rows.append(row)
+                print(format_row(row), flush=True)
+    except KeyboardInterrupt:
+        interrupted = True
+        runner.kill_all()
+        pool.shutdown(wait=True, cancel_futures=True)
+        print("\ninterrupted: running subprocesses killed; partial results", flush=True)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        if not keep:
+            shutil.rmtree(out_dir, ignore_errors=True)
+
+    order = {s: i for i, s in enumerate(settings)}
+    rows.sort(key=lambda r: (r.part, order[r.setting]))
+    print()
+    print(f"results ({len(rows)} runs, {time.perf_counter() - t0:.0f} s in total)")
+    print(format_header())
+    for row in rows:
+        print(format_row(row))
+    print()
+    print(format_summary(rows, settings, len(paths)), flush=True)
+
+    if args.json:
+        payload = {
+            "data": str(DATA),
+            "timeout": args.timeout,
+            "jobs": args.jobs,
+            "interrupted": interrupted,
+            "settings": {s: SETTING_FLAGS[s] for s in settings},
+            "cell": f"largest extent / {CELLS_PER_EXTENT:g}",
+            "radius": f"cell / {RADIUS_PER_CELL:g}",
+            "parts": [{"part": p.name, "size": p.size, "load_error": p.load_error} for p in parts],
+            "rows": [asdict(r) for r in rows],
+        }
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(payload, indent=1) + "\n")
+        print(f"wrote {args.json}")
+    return 130 if interrupted else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

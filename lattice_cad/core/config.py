@@ -1,0 +1,135 @@
+"""Every shared tolerance, limit and default, in one place (like trimesh's ``tol``).
+
+Modules read these as ``config.NAME`` at call time (numba kernels freeze them when they
+compile). Change them here, not in the modules that use them; each says why it has its value.
+Constants that belong to one algorithm's arithmetic (exact-predicate error bounds, status
+codes) stay beside their kernels.
+"""
+
+from __future__ import annotations
+
+# ---------------------------------------------------------------------------------- defaults
+#: Unit cell, cell size (mm), strut radius (mm) and polygon segments per strut when the
+#: user gives none (Lattice.fill, Workplane.lattice and ``lattice-cad fill``).
+DEFAULT_CELL = "bcc"
+DEFAULT_CELL_SIZE = 5.0
+DEFAULT_RADIUS = 0.4
+DEFAULT_SEGMENTS = 6
+
+
+# ------------------------------------------------------------------------------- File limits
+
+#: Files estimated above this size raise an :class:`ExportWarning`.
+WARN_BYTES = 2 * 1024**3
+
+#: Binary STL stores the triangle count as uint32.
+STL_MAX_TRIANGLES = 2**32 - 1
+
+#: lib3mf indexes vertices, triangles and beams with signed 32-bit integers.
+THREEMF_MAX = 2**31 - 1
+
+
+# ------------------------------------------------------------------- Stitching (fast_stitch)
+
+#: Relative safety margin on profile offsets (keeps hull triangles away from slivers).
+OFFSET_MARGIN = 1e-2
+
+#: Profiles are never closer to their node than ``r * tan(FLOOR_ANGLE)``.
+FLOOR_ANGLE_DEG = 10.0
+
+#: Struts must keep at least this fraction of their length as open cylinder.
+MIN_CYLINDER_FRACTION = 1e-6
+
+#: Relative margin of :func:`clashes`: elements must be ``(1 + margin) (r_a + r_b)`` apart.
+CLEARANCE_MARGIN = 0.02
+
+
+# ------------------------------------------------------------------- LSLT (fast_stitch.lslt)
+
+#: Coplanarity tolerance of the node structure (unit directions).
+COPLANAR_EPS = 1e-9
+
+#: Tolerances tried in turn when a node's structure has slivers (near-degenerate nodes).
+COPLANAR_EPS_RETRY = (COPLANAR_EPS, 1e-7, 1e-5, 1e-3)
+
+#: Smallest distance between consecutive section vertices, relative to the radius.
+MIN_STEP = 1e-5
+
+#: Struts within this (radians) of one plane through their node are projected onto it.
+FLAT_EPS = 1e-5
+
+#: Tube vertices must lie this far (relative) inside their cone at each node.
+CONE_MARGIN = 1e-7
+
+#: Largest supported node degree (bit masks of 64 points incl. the origin).
+MAX_DEGREE = 62
+
+#: Largest polygon size ``segments_for_chord_error`` may return.
+MAX_SEGMENTS = 100_000
+
+
+# ----------------------------------------------- Fitting radii to a graph (conformal.radius)
+
+#: Fraction of its length every strut keeps as open cylinder after :func:`fit_radii`.
+FIT_SLACK = 0.05
+
+
+# ------------------------------------------------------------- Skins (voxel distance method)
+
+#: Upper bound on the number of voxels of the distance grid (memory ~ 20 bytes/voxel).
+MAX_VOXELS = 8_000_000
+
+#: Edges shorter than this (mm) are collapsed after the booleans (no float32 slivers in STL).
+SLIVER = 1e-4
+
+#: Voxels per wall thickness, when the budget allows.
+VOXELS_PER_THICKNESS = 3.0
+
+
+# ------------------------------------------------------- Exact reference (reference_boolean)
+
+#: Hub sphere radius over the largest incident strut radius (Wang et al.: 0.001 % larger).
+SPHERE_FACTOR = 1.00001
+
+#: Default linear deflection, relative to the smallest strut radius.
+DEFAULT_TOLERANCE_REL = 0.01
+
+#: Default angular deflection (radians) of the tessellation.
+DEFAULT_ANGULAR = 0.25
+
+#: Default time bound (seconds) of one hub build (construction, checks, tessellation).
+DEFAULT_HUB_TIMEOUT = 300.0
+
+#: Quantum (relative to the longest strut) of the hub cache keys.
+CACHE_QUANTUM = 1e-9
+
+#: Largest allowed move (relative to the hub size) when snapping circle vertices.
+SNAP_RTOL = 1e-7
+
+#: Relative tolerance (of the hub size) for "this point is on that circle / plane".
+GEOM_RTOL = 1e-7
+
+#: Relative tolerance for merging the copies of edge nodes of adjacent faces.
+MERGE_RTOL = 1e-11
+
+#: Angular tolerance (radians) of the uniform circle discretisation check.
+ANGLE_TOL = 1e-6
+
+#: Relative accuracy requested from GProp's adaptive volume integration.
+VOLUME_EPS = 1e-10
+
+#: A stump starts at ``TRIM_FRACTION`` of the largest height at which its start disc is
+#: still strictly inside the hub sphere (see :func:`stump_start`).
+TRIM_FRACTION = 0.9
+
+#: Stumps whose start could only move by less than this fraction of ``R`` start at the node.
+TRIM_MIN_REL = 0.05
+
+#: Default number of surface samples per mesh for the deviation measures.
+DEFAULT_SAMPLES = 50_000
+
+
+# ----------------------------------------------------------------- B-rep output of the front
+
+#: Largest lattice for which :meth:`Lattice.to_workplane` builds B-rep solids by default.
+MAX_BREP_STRUTS = 2_000

@@ -1,0 +1,115 @@
+"""Every exception and warning lattice-cad raises on purpose, in one hierarchy.
+
+Catch :class:`LatticeError` for any refusal of the product; each subclass also derives from
+the built-in exception a Python user would expect (``ValueError`` for bad input,
+``RuntimeError`` for a build that failed). The engines re-export the ones they raise (for
+example ``conformal.PartError``), but they are defined here only.
+
+::
+
+    LatticeError
+    ├── InvalidGraphError        a graph breaks an input rule (names the node or edge)
+    ├── StitchError              a valid graph cannot be stitched (fast_stitch)
+    ├── FitError                 struts cannot be made to fit (conformal.radius)
+    ├── PartError                a part file or shape cannot be used (conformal.part)
+    │   └── StepUnitsError       a STEP file's unit disagrees with OCCT's reading of it
+    ├── SkinError                a part cannot be hollowed (conformal.skin)
+    ├── SimilarityError          invalid similarity parameters (conformal.similarity)
+    ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
+    ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
+    ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
+    └── ReferenceBuildError      the exact reference cannot be built (reference_boolean)
+        └── DirtyLatticeError    hubs would overlap, the stacked reference is not exact
+
+    LatticeWarning               accepted, but deserves the user's attention
+    ├── ExportWarning            a file may be too large for common slicers
+    └── CADStackWarning          the installed cadquery/build123d/OCP set is unsupported
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "LatticeError",
+    "InvalidGraphError",
+    "StitchError",
+    "FitError",
+    "PartError",
+    "StepUnitsError",
+    "SkinError",
+    "SimilarityError",
+    "SteadyLatticeError",
+    "ExportError",
+    "OCCTFailure",
+    "ReferenceBuildError",
+    "DirtyLatticeError",
+    "LatticeWarning",
+    "ExportWarning",
+    "CADStackWarning",
+]
+
+
+class LatticeError(Exception):
+    """Base class of every error raised on purpose by lattice-cad."""
+
+
+class InvalidGraphError(LatticeError, ValueError):
+    """A lattice graph violates an input rule; the message names the node or edge."""
+
+
+class StitchError(LatticeError, ValueError):
+    """A valid graph cannot be stitched (struts meet too closely, or overlap)."""
+
+
+class FitError(LatticeError, ValueError):
+    """Some struts cannot be made to fit (the message lists them)."""
+
+
+class PartError(LatticeError, ValueError):
+    """A part cannot be used: unreadable, empty, not a closed solid (the message says which)."""
+
+
+class StepUnitsError(PartError):
+    """A STEP file's declared length unit disagrees with OCCT's reading of it."""
+
+
+class SkinError(LatticeError, ValueError):
+    """A part cannot be hollowed (not a closed solid, or the wall is too thick)."""
+
+
+class SimilarityError(LatticeError, ValueError):
+    """Invalid similarity parameters (non-positive scale, zero axis, non-finite values)."""
+
+
+class SteadyLatticeError(LatticeError, ValueError):
+    """Invalid steady-lattice input; the message names the ball, rack or index at fault."""
+
+
+class ExportError(LatticeError, ValueError):
+    """A mesh cannot be written faithfully in the requested format."""
+
+
+class OCCTFailure(LatticeError, RuntimeError):
+    """An OpenCascade operation failed (not done, errors, or an invalid result).
+
+    Inside the reference builder it becomes a per-hub status, never an uncaught error.
+    """
+
+
+class ReferenceBuildError(LatticeError, RuntimeError):
+    """The reference cannot be built (bad input, or a failure that is not per hub)."""
+
+
+class DirtyLatticeError(ReferenceBuildError, ValueError):
+    """Hubs of the lattice would overlap, so the stacked reference would not be exact."""
+
+
+class LatticeWarning(UserWarning):
+    """Something was accepted but deserves the user's attention (e.g. isolated nodes)."""
+
+
+class ExportWarning(LatticeWarning):
+    """An export succeeded but the file may be too large for common slicers."""
+
+
+class CADStackWarning(LatticeWarning):
+    """The installed cadquery/build123d/OCP set is not the supported one."""

@@ -1,0 +1,37 @@
+"""The I/O room: every reader and writer of lattice-cad, dispatched by one suffix table.
+
+The table is :data:`lattice_cad.core.formats.FORMATS` (a suffix means the same everywhere,
+and an unsupported one gets one clear error). Meshes, graphs and beam lattices are read and
+written by :mod:`lattice_cad.io.exchange`; exact solids (STEP) by
+:mod:`lattice_cad.occ_impl.step`; parts are loaded by :func:`conformal.load_part`.
+"""
+
+from lattice_cad.core.formats import FORMATS, Format, Kind, format_for, suffixes
+from lattice_cad.io.exchange import (
+    GRAPH_SUFFIXES,
+    MESH_SUFFIXES,
+    check_limits,
+    estimate_bytes,
+    read_beam_lattice,
+    read_mesh,
+    save_beam_lattice,
+    save_graph,
+    save_mesh,
+)
+
+__all__ = [
+    "FORMATS",
+    "Format",
+    "Kind",
+    "format_for",
+    "suffixes",
+    "MESH_SUFFIXES",
+    "GRAPH_SUFFIXES",
+    "check_limits",
+    "estimate_bytes",
+    "read_beam_lattice",
+    "read_mesh",
+    "save_beam_lattice",
+    "save_graph",
+    "save_mesh",
+]

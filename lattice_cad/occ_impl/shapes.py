@@ -1,0 +1,334 @@
+"""OCCT shapes: conversion, exploration, checks, booleans, measures and tessellation.
+
+Every builder result is checked (``IsDone()``, ``HasErrors()`` where the binding has it,
+``BRepCheck_Analyzer``); a failure raises :class:`OCCTFailure` naming the step.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from OCP.BinTools import BinTools
+from OCP.Bnd import Bnd_Box
+from OCP.BRep import BRep_Builder, BRep_Tool
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
+from OCP.BRepBndLib import BRepBndLib
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.BRepGProp import BRepGProp
+from OCP.BRepMesh import BRepMesh_IncrementalMesh
+from OCP.BRepTools import BRepTools
+from OCP.gp import gp_Trsf, gp_Vec
+from OCP.GProp import GProp_GProps
+from OCP.TopAbs import TopAbs_COMPOUND, TopAbs_FACE, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopLoc import TopLoc_Location
+from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
+from OCP.TopTools import TopTools_ListOfShape
+
+from lattice_cad.core.errors import OCCTFailure
+
+__all__ = [
+    "as_topods",
+    "compound",
+    "solids",
+    "count",
+    "open_shells",
+    "faces_outside_solids",
+    "is_valid",
+    "check_valid",
+    "check_done",
+    "fuse",
+    "volume",
+    "face_area",
+    "bounds",
+    "translated",
+    "is_compound",
+    "face_triangulations",
+    "tessellate",
+    "write_brep",
+    "to_bytes",
+    "from_bytes",
+]
+
+
+# ------------------------------------------------------------------- checks
+def is_valid(shape: TopoDS_Shape) -> bool:
+    """BRepCheck validity (False for a null shape)."""
+    return shape is not None and not shape.IsNull() and bool(BRepCheck_Analyzer(shape).IsValid())
+
+
+def check_valid(shape: TopoDS_Shape, what: str) -> None:
+    """Raise :class:`OCCTFailure` unless ``shape`` is non-null and BRepCheck-valid."""
+    if shape is None or shape.IsNull():
+        raise OCCTFailure(f"{what}: null shape")
+    if not BRepCheck_Analyzer(shape).IsValid():
+        raise OCCTFailure(f"{what}: BRepCheck_Analyzer reports an invalid shape")
+
+
+def check_done(builder: object, what: str) -> None:
+    """Raise :class:`OCCTFailure` unless the builder is done and reports no errors."""
+    if not builder.IsDone():  # type: ignore[attr-defined]
+        raise OCCTFailure(f"{what}: IsDone() is false")
+    has_errors = getattr(builder, "HasErrors", None)
+    if has_errors is not None and has_errors():
+        raise OCCTFailure(f"{what}: HasErrors() is true")
+
+
+# --------------------------------------------------------------- booleans
+def fuse(
+    objects: list[TopoDS_Shape],
+    tools: list[TopoDS_Shape] | None = None,
+    *,
+    fuzzy: float = 0.0,
+    parallel: bool = True,
+    simplify: bool = False,
+    check: bool = True,
+) -> TopoDS_Shape:
+    """Boolean union of ``objects`` with ``tools`` (the general fuse).
+
+    With ``tools=None`` the first object is fused with the others. ``fuzzy`` is OCCT's
+    fuzzy value (absolute length); ``simplify`` merges faces split only by the boolean;
+    ``check`` runs BRepCheck on the result.
+
+    Raises
+    ------
+    OCCTFailure
+        The fuse is not done, has errors, or (with ``check``) gives an invalid shape.
+    """
+    if tools is None:
+        objects, tools = objects[:1], objects[1:]
+    args, tls = TopTools_ListOfShape(), TopTools_ListOfShape()
+    for s in objects:
+        args.Append(s)
+    for s in tools:
+        tls.Append(s)
+    op = BRepAlgoAPI_Fuse()
+    op.SetArguments(args)
+    op.SetTools(tls)
+    op.SetRunParallel(parallel)
+    op.SetNonDestructive(True)
+    if fuzzy > 0.0:
+        op.SetFuzzyValue(fuzzy)
+    op.Build()
+    check_done(op, "fuse")
+    if simplify:
+        op.SimplifyResult()
+    res = op.Shape()
+    if check:
+        check_valid(res, "fuse")
+    return res
+
+
+# ---------------------------------------------------------------- measures
+def volume(shape: TopoDS_Shape, *, eps: float | None = None) -> float:
+    """Volume of ``shape`` (mm^3) by GProp.
+
+    With ``eps`` GProp integrates adaptively to that relative accuracy (the default Gauss
+    rule is off by about 1e-5 on near-tangent sphere/strut patches).
+    """
+    props = GProp_GProps()
+    if eps is None:
+        BRepGProp.VolumeProperties_s(shape, props)
+    else:
+        BRepGProp.VolumeProperties_s(shape, props, eps, False)
+    return float(props.Mass())
+
+
+def face_area(face: TopoDS_Shape) -> float:
+    """Area of a face (mm^2)."""
+    props = GProp_GProps()
+    BRepGProp.SurfaceProperties_s(face, props)
+    return float(props.Mass())
+
+
+def translated(shape: TopoDS_Shape, offset: Any) -> TopoDS_Shape:
+    """A copy of ``shape`` moved by ``offset`` (3,)."""
+    trsf = gp_Trsf()
+    trsf.SetTranslation(gp_Vec(float(offset[0]), float(offset[1]), float(offset[2])))
+    mk = BRepBuilderAPI_Transform(shape, trsf, True)
+    check_done(mk, "translate")
+    return mk.Shape()
+
+
+def is_compound(shape: TopoDS_Shape) -> bool:
+    """True when ``shape`` is a compound (several shapes) rather than one solid."""
+    return bool(shape.ShapeType() == TopAbs_COMPOUND)
+
+
+def count(shape: TopoDS_Shape, kind: Any, avoid: Any = None) -> int:
+    """Number of sub-shapes of type ``kind`` (TopAbs_*), not inside ``avoid`` if given."""
+    exp = TopExp_Explorer(shape, kind) if avoid is None else TopExp_Explorer(shape, kind, avoid)
+    n = 0
+    while exp.More():
+        n += 1
+        exp.Next()
+    return n
+
+
+# ------------------------------------------------------------ tessellation
+def face_triangulations(
+    shape: TopoDS_Shape,
+    deflection: float,
+    angular: float = 0.25,
+    *,
+    relative: bool = False,
+    parallel: bool = True,
+) -> Iterator[tuple[TopoDS_Face, NDArray[np.float64], NDArray[np.int64]]]:
+    """Triangulate ``shape`` with BRepMesh and yield each face's triangulation.
+
+    Yields
+    ------
+    face : TopoDS_Face
+    vertices : (n, 3) float64
+        The face's nodes in global coordinates. Nodes on an edge shared by two faces are
+        computed once by BRepMesh, so both faces carry bit-identical copies.
+    faces : (t, 3) int64
+        Triangles (0-based into ``vertices``), oriented by the face orientation (outward for
+        a valid solid).
+
+    Raises
+    ------
+    OCCTFailure
+        BRepMesh is not done, or leaves a face without triangulation.
+    """
+    mesher = BRepMesh_IncrementalMesh(shape, float(deflection), relative, float(angular), parallel)
+    if not mesher.IsDone():
+        raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        face = TopoDS.Face_s(exp.Current())
+        exp.Next()
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None or tri.NbTriangles() == 0:
+            raise OCCTFailure("BRepMesh left a face without triangulation")
+        nn = tri.NbNodes()
+        node = tri.Node
+        pts = np.array(
+            [(p.X(), p.Y(), p.Z()) for p in (node(i) for i in range(1, nn + 1))], dtype=np.float64
+        ).reshape(nn, 3)
+        if not loc.IsIdentity():
+            m = loc.Transformation()
+            rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+            pts = pts @ rot.T + np.array([m.Value(r, 4) for r in (1, 2, 3)])
+        tri_at = tri.Triangle
+        t = np.array(
+            [tri_at(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
+        ).reshape(-1, 3)
+        t -= 1
+        if face.Orientation() == TopAbs_REVERSED:
+            t = t[:, ::-1]
+        yield face, pts, t
+
+
+def tessellate(
+    shape: TopoDS_Shape, deflection: float, angular: float = 0.25
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Triangulate the whole of ``shape`` at once, faces sharing their edge nodes.
+
+    Returns
+    -------
+    vertices : (V, 3) float64
+        Each distinct node once (the copies on shared edges are merged by exact equality).
+    faces : (F, 3) int64
+        Triangles, outward for a valid solid.
+    """
+    verts: list[NDArray[np.float64]] = []
+    tris: list[NDArray[np.int64]] = []
+    base = 0
+    for _face, v, t in face_triangulations(shape, deflection, angular):
+        verts.append(v)
+        tris.append(t + base)
+        base += len(v)
+    if not verts:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    v = np.vstack(verts)
+    f = np.vstack(tris)
+    uniq, inverse = np.unique(v, axis=0, return_inverse=True)
+    return uniq, inverse.reshape(-1)[f]
+
+
+# --------------------------------------------------------------------- I/O
+def to_bytes(shape: TopoDS_Shape) -> bytes:
+    """``shape`` as binary BREP (for passing shapes between processes)."""
+    buf = io.BytesIO()
+    BinTools.Write_s(shape, buf)
+    return buf.getvalue()
+
+
+def from_bytes(data: bytes) -> TopoDS_Shape:
+    """A shape back from :func:`to_bytes`."""
+    shape = TopoDS_Shape()
+    BinTools.Read_s(shape, io.BytesIO(data))
+    if shape.IsNull():
+        raise OCCTFailure("cannot read a solid back from binary BREP")
+    return shape
+
+
+# ------------------------------------------------------------- conversion
+def as_topods(obj: Any) -> TopoDS_Shape | None:
+    """The OCCT shape of a cadquery Workplane/Shape, a build123d shape, or a TopoDS_Shape."""
+    if isinstance(obj, TopoDS_Shape):
+        return obj
+    vals = getattr(obj, "vals", None)
+    if callable(vals) and type(obj).__name__ == "Workplane":  # cadquery.Workplane
+        shapes = [
+            v.wrapped for v in vals() if isinstance(getattr(v, "wrapped", None), TopoDS_Shape)
+        ]
+        if not shapes:
+            return None
+        return shapes[0] if len(shapes) == 1 else compound(shapes)
+    wrapped = getattr(obj, "wrapped", None)  # cadquery.Shape, build123d Shape/Part
+    if isinstance(wrapped, TopoDS_Shape):
+        return wrapped
+    return None
+
+
+def compound(shapes: list[TopoDS_Shape]) -> TopoDS_Compound:
+    """A compound of ``shapes``."""
+    comp = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(comp)
+    for s in shapes:
+        builder.Add(comp, s)
+    return comp
+
+
+def solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
+    """The solids of ``shape``."""
+    out = []
+    exp = TopExp_Explorer(shape, TopAbs_SOLID)
+    while exp.More():
+        out.append(TopoDS.Solid_s(exp.Current()))
+        exp.Next()
+    return out
+
+
+def open_shells(shape: TopoDS_Shape) -> int:
+    """Number of shells of ``shape`` that are not part of a solid."""
+    return count(shape, TopAbs_SHELL, TopAbs_SOLID)
+
+
+def faces_outside_solids(shape: TopoDS_Shape) -> int:
+    """Number of faces of ``shape`` that are not part of a solid."""
+    return count(shape, TopAbs_FACE, TopAbs_SOLID)
+
+
+def bounds(shape: TopoDS_Shape) -> NDArray[np.float64]:
+    """(2, 3) float64 bounding box of ``shape``."""
+    box = Bnd_Box()
+    BRepBndLib.Add_s(shape, box)
+    x0, y0, z0, x1, y1, z1 = box.Get()
+    return np.array([[x0, y0, z0], [x1, y1, z1]])
+
+
+def write_brep(shape: TopoDS_Shape, path: str | os.PathLike[str]) -> None:
+    """Write ``shape`` as an OCCT ``.brep`` file (for gmsh)."""
+    if not BRepTools.Write_s(shape, str(path)):
+        raise OSError(f"OCCT could not write {path}")
