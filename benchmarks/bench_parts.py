@@ -185,17 +185,38 @@ def _one_line(text: str, width: int = ERROR_WIDTH) -> str:
     return text if len(text) <= width else text[: width - 3] + "..."
 
 
-def _error_line(stderr: str, stdout: str = "") -> str:
-    """The line that explains a failure: the CLI's ``error:`` line, else the first line."""
-    lines = [ln.strip() for chunk in stderr.splitlines() for ln in chunk.split("\r")]
-    lines = [ln for ln in lines if ln]
-    for ln in lines:
-        if ln.startswith("error:"):
-            return _one_line(ln)
-    # skip tqdm progress bars; fall back to stdout (OpenCascade messages, check reports)
-    plain = [ln for ln in lines if "|" not in ln] or lines
-    plain += [ln.strip() for ln in stdout.splitlines() if ln.strip()]
-    return _one_line(plain[0]) if plain else ""
+ANSI_RE = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+
+
+def _lines(text: str) -> list[str]:
+    """Non-empty lines of captured output, without ANSI escapes (tqdm redraws with \\r)."""
+    text = ANSI_RE.sub("", text)
+    return [ln.strip() for chunk in text.splitlines() for ln in chunk.split("\r") if ln.strip()]
+
+
+def _is_progress(line: str) -> bool:
+    return "|" in line and ("it/s" in line or "/s]" in line or "%" in line)
+
+
+def _error_line(code: int | None, stderr: str, stdout: str = "") -> str:
+    """The line that explains a failure.
+
+    The CLI's ``error: ...`` line if there is one; else the last line of stderr that is
+    neither a progress bar nor a warning (a traceback's exception), else the first line of
+    stdout, else the first warning. A death by a signal is named first.
+    """
+    err, out = _lines(stderr), _lines(stdout)
+    text = next((ln[ln.index("error:") :] for ln in err + out if "error:" in ln), "")
+    if not text:
+        rest = [ln for ln in err if not _is_progress(ln) and not ln.startswith("warning:")]
+        warns = [ln for ln in err if ln.startswith("warning:")]
+        text = (rest[-1:] or out[:1] or warns[:1] or [""])[0]
+    if code is not None and code < 0:
+        with contextlib.suppress(ValueError):
+            text = f"killed by {signal.Signals(-code).name}; {text}".rstrip("; ")
+    if not text and code:
+        text = f"exit code {code}"
+    return _one_line(text)
 
 
 def _load_parts(paths: Sequence[Path]) -> list[Part]:
@@ -248,6 +269,10 @@ class Runner:
                 self._kill(proc)
                 out, err = proc.communicate()
                 code = None
+        except BaseException:  # Ctrl-C in this thread: do not leave the child running
+            self._kill(proc)
+            proc.wait()
+            raise
         finally:
             with self._lock:
                 self._procs.discard(proc)
@@ -341,7 +366,7 @@ def run_one(
             row.outcome, row.error = "timeout", f"timed out after {timeout:g} s"
             return row
         if code != 0:
-            row.error = _error_line(stderr, stdout) or f"exit code {code}"
+            row.error = _error_line(code, stderr, stdout)
             return row
         if not out.is_file():
             row.error = "exit code 0 but no output file"
@@ -354,8 +379,10 @@ def run_one(
         if ccode is None:
             row.error = f"lattice-cad check timed out after {max(timeout, CHECK_TIMEOUT_MIN):g} s"
         elif ccode != 0:
-            detail = _error_line(cerr, cout).replace(str(out) + ": ", "")
-            row.error = _one_line(f"lattice-cad check: {detail or f'exit code {ccode}'}")
+            prefix = f"{out}: "
+            report = [ln for ln in _lines(cout) if ln.startswith(prefix)]
+            detail = report[0][len(prefix) :] if report else _error_line(ccode, cerr, cout)
+            row.error = _one_line(f"lattice-cad check: {detail}")
         elif problem:
             row.error = _one_line(problem)
         else:
@@ -456,8 +483,14 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # the fills run in their own sessions: a SIGTERM must end them too, as Ctrl-C does
+    signal.signal(signal.SIGTERM, _interrupt)
     if args.jobs < 1 or not args.timeout > 0:
         sys.exit("error: --jobs must be >= 1 and --timeout > 0")
     dirs = [DATA / d for d in PART_DIRS]
@@ -483,6 +516,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parts: list[Part] = []
     rows: list[Row] = []
     interrupted = False
+    futures: list[Future[Row]] = []
+    reported: set[Future[Row]] = set()
     pool = ThreadPoolExecutor(max_workers=args.jobs)
     try:
         parts = _load_parts(paths)
@@ -499,19 +534,26 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(flush=True)
         print(format_header(), flush=True)
         tasks = [(part, s) for part in parts for s in settings]
-        futures: set[Future[Row]] = {
+        futures = [
             pool.submit(run_one, runner, part, s, out_dir, args.timeout, keep) for part, s in tasks
-        }
-        while futures:
-            done, futures = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+        ]
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
             for fut in done:
-                row = fut.result()
-                rows.append(row)
-                print(format_row(row), flush=True)
+                rows.append(fut.result())
+                reported.add(fut)
+                print(format_row(rows[-1]), flush=True)
     except KeyboardInterrupt:
         interrupted = True
         runner.kill_all()
         pool.shutdown(wait=True, cancel_futures=True)
+        # runs that were being checked when the subprocesses were killed still count
+        rows += [
+            f.result()
+            for f in futures
+            if f not in reported and f.done() and not f.cancelled() and not f.exception()
+        ]
         print("\ninterrupted: running subprocesses killed; partial results", flush=True)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)

@@ -169,7 +169,7 @@ def _cmd_reference(args: argparse.Namespace, con: _Console) -> int:
 
     graph = _load_graph(args.graph)
     out = Path(args.output)
-    resolve(out, (Kind.SOLIDS, Kind.MESH))  # refuse a bad suffix before the long build
+    resolve(out, (Kind.SOLIDS, Kind.MESH), what="reference")  # refuse before the build
     with con.step("reference") as progress:
         ref = build_reference(graph, progress=progress)
     with con.step(f"write {out.suffix.lstrip('.')}"):

@@ -304,7 +304,7 @@ class Lattice:
             if self.part is not None:
                 clip = (self.part.vertices, self.part.faces)
             return io.save_beam_lattice(self.graph, p, clip=clip)
-        _, kind = resolve(p, (Kind.MESH, Kind.GRAPH, Kind.SOLIDS))
+        _, kind = resolve(p, (Kind.MESH, Kind.GRAPH, Kind.SOLIDS), what="lattice")
         if kind is Kind.GRAPH:
             return io.save_graph(self.graph, p)
         if kind is Kind.SOLIDS:

@@ -131,7 +131,7 @@ class Reference:
         valid solids whose volumes add up to :attr:`volume`.
         """
         p = Path(path)
-        _, kind = resolve(p, (Kind.SOLIDS, Kind.MESH))
+        _, kind = resolve(p, (Kind.SOLIDS, Kind.MESH), what="reference")
         if kind is Kind.MESH:
             from lattice_cad import io
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import time
 
 import numpy as np
 import pytest
@@ -356,9 +355,7 @@ def test_sparse_huge_extent_uses_row_fallback():
 
 
 @pytest.mark.slow
-def test_million_cell_bcc_block_is_fast():
-    t0 = time.perf_counter()
+def test_million_cell_bcc_block_counts():
+    # its speed is measured by benchmarks/bench_conformal.py, not asserted here
     g = block("bcc", 100, cell_size=1.0, radius=0.1)
-    elapsed = time.perf_counter() - t0
     assert (g.num_nodes, g.num_edges) == cell_counts("bcc", 100)
-    assert elapsed < 10.0, f"1M-cell bcc block took {elapsed:.1f} s"

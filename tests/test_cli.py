@@ -230,7 +230,7 @@ def test_errors_are_one_line(capsys, tmp_path):
     code, _, err = run(capsys, "fill", tmp_path / "missing.step", "-o", "x.stl", "--debug")
     assert code == 1 and "Traceback" in err and err.rstrip().splitlines()[-1].startswith("error:")
     code, _, err = run(capsys, "stitch", tmp_path / "g.txt", "-o", tmp_path / "x.stl")
-    assert code == 1 and "must end in .json or .npz" in err
+    assert code == 1 and "cannot load a graph as .txt (g.txt): use .json, .npz" in err
 
 
 def test_stitch_check_preview(capsys, graph_json, tmp_path):
@@ -276,8 +276,8 @@ def test_reference_and_validate(capsys, tmp_path):
     code, stdout, err = run(capsys, "reference", g, "-o", step)
     assert code == 0, err
     assert step.exists() and "Reference(" in stdout
-    code, _, err = run(capsys, "reference", g, "-o", tmp_path / "ref.obj")
-    assert code == 1 and ".step, .stp or .stl" in err
+    code, _, err = run(capsys, "reference", g, "-o", tmp_path / "ref.txt")
+    assert code == 1 and "cannot save a reference as .txt" in err and ".step, .stp" in err
     rep = tmp_path / "report"
     code, stdout, err = run(capsys, "validate", g, "--report", rep, "--segments", "8")
     assert code == 0, err

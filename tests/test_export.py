@@ -9,7 +9,7 @@ import fast_stitch
 from conformal import block
 from fast_stitch.check import check
 from lattice_cad import io as export
-from lattice_cad.core.errors import ExportError, ExportWarning
+from lattice_cad.core.errors import ExportError, ExportWarning, LatticeWarning
 
 
 @pytest.fixture(scope="module")
@@ -56,13 +56,18 @@ def test_mesh_like_inputs(tmp_path, mesh):
 
 
 def test_bad_suffix_and_empty(tmp_path, mesh):
-    with pytest.raises(ValueError, match=r"cannot write a mesh as \.step \(m\.step\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"cannot save a mesh as \.step \(m\.step\): use \.stl, \.3mf, \.ply",
+    ):
         export.save_mesh(mesh, tmp_path / "m.step")
     with pytest.raises(ValueError, match="without suffix"):
         export.save_mesh(mesh, tmp_path / "m")
     with pytest.raises(ExportError, match="e.stl: the mesh is empty"):
         export.save_mesh((np.zeros((0, 3)), np.zeros((0, 3), int)), tmp_path / "e.stl")
-    with pytest.raises(ValueError, match="use .json or .npz"):
+    with pytest.raises(
+        ValueError, match=r"cannot save a graph as \.txt \(g\.txt\): use \.json, \.npz"
+    ):
         export.save_graph(block("bcc", 1), tmp_path / "g.txt")
     assert not list(tmp_path.iterdir())
 
@@ -78,7 +83,7 @@ def test_limits(tmp_path):
         size = export.check_limits(tmp_path / "big.stl", 3, 50_000_000)
     assert size == 84 + 50 * 50_000_000
     assert export.check_limits(tmp_path / "small.stl", 3, 1000) == 50_084
-    assert issubclass(ExportWarning, export.LatticeWarning)
+    assert issubclass(ExportWarning, LatticeWarning)
     assert ExportError is fast_stitch.ExportError
 
 
@@ -131,7 +136,7 @@ def test_beam_lattice_3mf(tmp_path, graph, mesh):
 
 
 def test_beam_lattice_errors(tmp_path, graph):
-    with pytest.raises(ValueError, match="written as .3mf"):
+    with pytest.raises(ValueError, match=r"cannot save a beam lattice as .* use \.3mf"):
         export.save_beam_lattice(graph, tmp_path / "b.stl")
     from lattice_cad import LatticeGraph
 

@@ -70,7 +70,9 @@ def test_lattice_options_checked(tmp_path):
     lat = Lattice(g)
     with pytest.raises(ValueError, match=r"cannot save a lattice as \.txt \(g\.txt\)"):
         lat.save(tmp_path / "g.txt")
-    with pytest.raises(ValueError, match="beam_lattice=True writes .3mf"):
+    with pytest.raises(
+        ValueError, match=r"cannot save a beam lattice as \.stl \(g\.stl\): use \.3mf"
+    ):
         lat.save(tmp_path / "g.stl", beam_lattice=True)
 
 

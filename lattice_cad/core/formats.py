@@ -94,7 +94,11 @@ def suffixes(kind: Kind, *, action: str = "write") -> tuple[str, ...]:
 
 
 def format_for(
-    path: str | os.PathLike[str], kind: Kind | tuple[Kind, ...], *, action: str = "write"
+    path: str | os.PathLike[str],
+    kind: Kind | tuple[Kind, ...],
+    *,
+    action: str = "write",
+    what: str | None = None,
 ) -> Format:
     """The format of ``path`` for writing (or reading) a ``kind`` (or any of several).
 
@@ -104,13 +108,20 @@ def format_for(
         The suffix is unknown or cannot hold the kind; the message names the file and lists
         the suffixes that can.
     """
-    return resolve(path, kind, action=action)[0]
+    return resolve(path, kind, action=action, what=what)[0]
 
 
 def resolve(
-    path: str | os.PathLike[str], kind: Kind | tuple[Kind, ...], *, action: str = "write"
+    path: str | os.PathLike[str],
+    kind: Kind | tuple[Kind, ...],
+    *,
+    action: str = "write",
+    what: str | None = None,
 ) -> tuple[Format, Kind]:
-    """Like :func:`format_for`, and which of the ``kind`` s (tried in order) the file holds."""
+    """Like :func:`format_for`, and which of the ``kind`` s (tried in order) the file holds.
+
+    ``what`` names the object in the error message (default: the kinds).
+    """
     kinds = (kind,) if isinstance(kind, Kind) else kind
     p = Path(path)
     suffix = p.suffix.lower()
@@ -120,7 +131,7 @@ def resolve(
         if fmt is not None and k in getattr(fmt, attr):
             return fmt, k
     verb = "save" if action == "write" else "load"
-    what = suffix or "a file without suffix"
-    names = " or ".join(k.value for k in kinds)
+    given = suffix or "a file without suffix"
+    names = what or " or ".join(k.value for k in kinds)
     ok = list(dict.fromkeys(s for k in kinds for s in suffixes(k, action=action)))
-    raise ValueError(f"cannot {verb} a {names} as {what} ({p.name}): use " + ", ".join(ok))
+    raise ValueError(f"cannot {verb} a {names} as {given} ({p.name}): use " + ", ".join(ok))
