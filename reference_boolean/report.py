@@ -59,22 +59,23 @@ def _pct(x: float | None) -> str:
     return "-" if x is None else f"{x:+.4%}"
 
 
-def _tables(rep: ValidationReport) -> list[tuple[str, list[str], list[list[str]]]]:
-    d = rep.to_dict()
-    vref = d["volume_reference"]
-    t: list[tuple[str, list[str], list[list[str]]]] = []
+_Table = tuple[str, list[str], list[list[str]]]
+
+
+def _reference_table(d: dict[str, Any]) -> _Table:
+    """The reference itself: size, exact volume, status, hubs, tessellation, time."""
     status = (
         "complete"
         if d["reference_complete"]
         else (f"INCOMPLETE: {len(d['reference_failed'])} hub(s) failed, the volume is partial")
     )
+    g = d["graph"]
     rows = [
         [
             "graph",
-            f"{d['graph']['nodes']} nodes, {d['graph']['struts']} struts"
-            + (", tapered" if d["graph"]["tapered"] else ""),
+            f"{g['nodes']} nodes, {g['struts']} struts" + (", tapered" if g["tapered"] else ""),
         ],
-        ["reference volume (exact, OCCT GProp)", _g(vref, ".10g")],
+        ["reference volume (exact, OCCT GProp)", _g(d["volume_reference"], ".10g")],
         ["reference status", status],
         [
             "reference hubs built / reused",
@@ -88,8 +89,12 @@ def _tables(rep: ValidationReport) -> list[tuple[str, list[str], list[list[str]]
         ["reference triangles", str(d["triangles"]["reference"])],
         ["reference build time (s)", _g(d["timings"]["reference"]["total"], ".3g")],
     ]
-    t.append(("Reference", ["quantity", "value"], rows))
-    urows = [
+    return ("Reference", ["quantity", "value"], rows)
+
+
+def _union_table(d: dict[str, Any]) -> list[_Table]:
+    """The manifold3d unions at each resolution (empty when none were built)."""
+    rows = [
         [
             str(n),
             _g(v, ".10g"),
@@ -100,96 +105,85 @@ def _tables(rep: ValidationReport) -> list[tuple[str, list[str], list[list[str]]
         ]
         for n, v in d["volume_union"].items()
     ]
-    if urows:
-        t.append(
-            (
-                "manifold3d union of the same spheres and struts "
-                f"(fitted convergence order {_g(d['convergence_order'], '.3g')}, 2 expected)",
-                ["segments", "volume", "rel. error", "triangles", "valid", "time (s)"],
-                urows,
-            )
-        )
+    if not rows:
+        return []
+    title = (
+        "manifold3d union of the same spheres and struts "
+        f"(fitted convergence order {_g(d['convergence_order'], '.3g')}, 2 expected)"
+    )
+    return [(title, ["segments", "volume", "rel. error", "triangles", "valid", "time (s)"], rows)]
+
+
+def _mesh_tables(d: dict[str, Any]) -> list[_Table]:
+    """The meshes under test: one summary table, one table per mesh, the worst nodes."""
     meshes = d.get("meshes") or []
-    if meshes:
-        crows = []
-        for row in meshes:
-            sym = row["hausdorff"]["symmetric"]
-            crows.append(
-                [
-                    row["label"],
-                    _g(row["volume"], ".10g"),
-                    _pct(row["relative_volume_error"]),
-                    _g(sym["max"]),
-                    _g(sym["mean"]),
-                    _g(sym["p95"]),
-                    str(row["triangles"]),
-                    str(row["valid"]["valid"]),
-                ]
-            )
-        t.append(
-            (
-                "Meshes under test against the reference (one row per mesh; "
-                "symmetric surface deviation)",
-                [
-                    "mesh",
-                    "volume",
-                    "rel. volume error",
-                    "Hausdorff max",
-                    "mean",
-                    "p95",
-                    "triangles",
-                    "valid",
-                ],
-                crows,
-            )
-        )
+    if not meshes:
+        return []
+    summary = []
     for row in meshes:
-        h = row["hausdorff"]
-        mrows = [
+        sym = row["hausdorff"]["symmetric"]
+        summary.append(
+            [
+                row["label"],
+                _g(row["volume"], ".10g"),
+                _pct(row["relative_volume_error"]),
+                _g(sym["max"]),
+                _g(sym["mean"]),
+                _g(sym["p95"]),
+                str(row["triangles"]),
+                str(row["valid"]["valid"]),
+            ]
+        )
+    cols = ["mesh", "volume", "rel. volume error", "Hausdorff max", "mean", "p95"]
+    out: list[_Table] = [
+        (
+            "Meshes under test against the reference (one row per mesh; "
+            "symmetric surface deviation)",
+            [*cols, "triangles", "valid"],
+            summary,
+        )
+    ]
+    for row in meshes:
+        rows = [
             ["volume", _g(row["volume"], ".10g")],
             ["relative volume error", _pct(row["relative_volume_error"])],
             ["triangles", str(row["triangles"])],
             ["valid", ", ".join(f"{k}={v}" for k, v in row["valid"].items())],
         ]
         for k in ("mesh_to_reference", "reference_to_mesh", "symmetric"):
-            st = h[k]
-            mrows.append(
+            st = row["hausdorff"][k]
+            rows.append(
                 [
                     f"deviation {k.replace('_', ' ')} (max / mean / p95)",
                     f"{_g(st['max'])} / {_g(st['mean'])} / {_g(st['p95'])}",
                 ]
             )
-        t.append((f"Mesh under test: {row['label']}", ["quantity", "value"], mrows))
-    if meshes:
-        t.append(
-            (
-                f"Worst nodes by local deviation ({meshes[0]['label']})",
-                ["node", "deviation"],
-                [[str(w["node"]), _g(w["deviation"])] for w in d["worst_nodes"]],
-            )
-        )
+        out.append((f"Mesh under test: {row['label']}", ["quantity", "value"], rows))
+    worst = [[str(w["node"]), _g(w["deviation"])] for w in d["worst_nodes"]]
+    out.append(
+        (f"Worst nodes by local deviation ({meshes[0]['label']})", ["node", "deviation"], worst)
+    )
+    return out
+
+
+def _extra_tables(d: dict[str, Any]) -> list[_Table]:
+    """Failed hubs (at most 50) and any extra list-of-records tables."""
+    out: list[_Table] = []
     if d["reference_failed"]:
-        t.append(
-            (
-                "Failed hubs",
-                ["node", "reason"],
-                [[k, v] for k, v in list(d["reference_failed"].items())[:50]],
-            )
-        )
+        failed = [[k, v] for k, v in list(d["reference_failed"].items())[:50]]
+        out.append(("Failed hubs", ["node", "reason"], failed))
     for key, val in (d.get("extra") or {}).items():
         if isinstance(val, list) and val and isinstance(val[0], dict):
             cols = list(val[0])
-            t.append(
-                (
-                    key,
-                    cols,
-                    [
-                        [_g(r[c]) if isinstance(r[c], float) else str(r[c]) for c in cols]
-                        for r in val
-                    ],
-                )
-            )
-    return t
+            rows = [[_g(r[c]) if isinstance(r[c], float) else str(r[c]) for c in cols] for r in val]
+            out.append((key, cols, rows))
+    return out
+
+
+def _tables(rep: ValidationReport) -> list[_Table]:
+    """Every table of the report, in order: (title, column names, rows of strings)."""
+    d = rep.to_dict()
+    return [_reference_table(d), *_union_table(d), *_mesh_tables(d), *_extra_tables(d)]
 
 
 def to_markdown(rep: ValidationReport) -> str:
