@@ -30,7 +30,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
 from lattice_cad.core.errors import LatticeWarning, PartError
-from lattice_cad.core.mesh import weld
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
 
@@ -372,13 +371,7 @@ def _from_shape(shape: Any, name: str, deflection: float | None, angular: float)
         raise ValueError(f"deflection must be > 0, got {deflection!r}")
     pieces = []
     for k, solid in enumerate(solids):
-        v, f = _occ.tessellate(solid, defl, angular)
-        if len(f) == 0:
-            raise PartError(f"{name}: solid {k} has no faces to triangulate")
-        v, f = _weld(v, f, diag)
-        problem = _closed_problem(f)
-        if problem:
-            raise PartError(f"{name}: solid {k} is not closed after triangulation ({problem})")
+        v, f = _closed_tessellation(solid, k, name, defl, angular, diag)
         t = v[f]
         if np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() < 0:
             f = f[:, ::-1]  # a solid with reversed orientation
@@ -402,15 +395,47 @@ def _mesh_volume(t: NDArray[np.float64]) -> float:
     return float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() / 6.0)
 
 
-def _weld(
-    v: NDArray[np.float64], f: NDArray[np.int64], diag: float
+def _closed_tessellation(
+    solid: Any, k: int, name: str, defl: float, angular: float, diag: float
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Merge vertices of the per-face triangulations (exactly, else within 1e-9 diag)."""
-    for tol in (0.0, 1e-9 * diag, 1e-7 * diag, 1e-5 * diag):
-        vv, ff = weld(v, f, tol=tol)
-        if not _closed_problem(ff):
-            break
-    return vv, ff
+    """A closed, 2-manifold triangulation of one B-rep solid, healing it if needed.
+
+    The whole solid is meshed at once (faces share their edge nodes); copies of edge nodes
+    that differ by up to the B-rep's own tolerance are merged; if the mesh is still open,
+    the solid is healed with ShapeFix and meshed again. Only then is it refused, naming the
+    B-rep faces that border the holes.
+    """
+    from lattice_cad.occ_impl import shapes as _occ
+
+    problem, faces_at = "", np.zeros(0, dtype=np.int64)
+    for healed in (False, True):
+        shape = _occ.heal(solid) if healed else solid
+        v, f, owner = _occ.tessellate(shape, defl, angular, face_ids=True)
+        if len(f) == 0:
+            raise PartError(f"{name}: solid {k} has no faces to triangulate")
+        limit = max(1e-6 * diag, min(_occ.max_tolerance(shape), 1e-4 * diag))
+        for tol in (0.0, 1e-9 * diag, 1e-7 * diag, limit):
+            if tol == 0.0:
+                vv, ff, kept = v, f, np.ones(len(f), dtype=bool)
+            else:
+                vv, ff, kept = _occ.merge_close(v, f, tol)
+            problem = _closed_problem(ff)
+            if not problem:
+                return vv, ff
+        faces_at = np.unique(owner[kept][_open_triangles(ff)])
+    listed = ", ".join(str(int(i)) for i in faces_at[:10]) + (" ..." if len(faces_at) > 10 else "")
+    raise PartError(
+        f"{name}: solid {k} is not closed after triangulation and healing ({problem}); "
+        f"the holes border B-rep face(s) {listed} (TopExp order)"
+    )
+
+
+def _open_triangles(f: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """(F,) bool: triangles with an edge used once or more than twice."""
+    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    _, inv, cnt = np.unique(np.sort(he, axis=1), axis=0, return_inverse=True, return_counts=True)
+    bad = (cnt != 2)[inv.reshape(-1)]
+    return bad.reshape(3, -1).any(axis=0)
 
 
 def _closed_problem(f: NDArray[np.int64]) -> str:

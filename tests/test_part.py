@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
+import trimesh
 
 from conformal.part import Part, PartError, load_part
 from lattice_cad.core.errors import LatticeError, LatticeWarning
@@ -274,3 +277,24 @@ def test_every_step_part_in_shared_data_passes_the_units_check():
         if _occ.read_step(path) is not None:  # read_step runs check_step_units
             seen += 1
     assert seen == len(list((DATA / "step").glob("*")))
+
+
+def test_nist_ctc02_loads_closed():
+    """Regression: an AP242 file with its own stored triangulation and edge nodes that differ
+    within the B-rep's tolerance was refused as "not closed" (3 open edges)."""
+    part = load_part(DATA / "step" / "nist_ctc_02_asme1_ap242-1.stp")
+    np.testing.assert_allclose(part.size, [680.0, 860.0, 400.0], atol=0.5)
+    tm = trimesh.Trimesh(part.vertices, part.faces, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent and tm.volume > 0
+
+
+def test_every_valid_step_solid_in_shared_data_loads():
+    """A STEP solid that BRepCheck accepts must load (healing and tolerant welding)."""
+    from lattice_cad.occ_impl import shapes, step
+
+    for path in sorted((DATA / "step").glob("*")):
+        shape = step.read_step(path)
+        if all(shapes.is_valid(s) for s in shapes.solids(shape)):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", LatticeWarning)  # solids united
+                load_part(path)

@@ -25,6 +25,8 @@ from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepTools import BRepTools
 from OCP.gp import gp_Trsf, gp_Vec
 from OCP.GProp import GProp_GProps
+from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
+from OCP.ShapeFix import ShapeFix_Shape
 from OCP.TopAbs import TopAbs_COMPOUND, TopAbs_FACE, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
@@ -51,6 +53,9 @@ __all__ = [
     "is_compound",
     "face_triangulations",
     "tessellate",
+    "merge_close",
+    "heal",
+    "max_tolerance",
     "write_brep",
     "to_bytes",
     "from_bytes",
@@ -228,9 +233,16 @@ def face_triangulations(
 
 
 def tessellate(
-    shape: TopoDS_Shape, deflection: float, angular: float = 0.25
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    shape: TopoDS_Shape,
+    deflection: float,
+    angular: float = 0.25,
+    *,
+    face_ids: bool = False,
+) -> Any:
     """Triangulate the whole of ``shape`` at once, faces sharing their edge nodes.
+
+    Triangulations stored in the shape (STEP AP242 files can carry their own) are dropped
+    first, so every face is meshed by the same BRepMesh run.
 
     Returns
     -------
@@ -238,20 +250,76 @@ def tessellate(
         Each distinct node once (the copies on shared edges are merged by exact equality).
     faces : (F, 3) int64
         Triangles, outward for a valid solid.
+    face_of : (F,) int64
+        Only with ``face_ids``: the index of the B-rep face (in TopExp order) of each
+        triangle.
     """
+    BRepTools.Clean_s(shape)
     verts: list[NDArray[np.float64]] = []
     tris: list[NDArray[np.int64]] = []
+    owner: list[NDArray[np.int64]] = []
     base = 0
-    for _face, v, t in face_triangulations(shape, deflection, angular):
+    for i, (_face, v, t) in enumerate(face_triangulations(shape, deflection, angular)):
         verts.append(v)
         tris.append(t + base)
+        owner.append(np.full(len(t), i, dtype=np.int64))
         base += len(v)
     if not verts:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+        empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+        return (*empty, np.zeros(0, dtype=np.int64)) if face_ids else empty
     v = np.vstack(verts)
     f = np.vstack(tris)
     uniq, inverse = np.unique(v, axis=0, return_inverse=True)
-    return uniq, inverse.reshape(-1)[f]
+    f = inverse.reshape(-1)[f]
+    return (uniq, f, np.concatenate(owner)) if face_ids else (uniq, f)
+
+
+def merge_close(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64], tol: float
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]:
+    """Merge vertices closer than ``tol`` (transitively), as OCCT's edge tolerances allow.
+
+    Per-face triangulations carry their own copies of edge nodes; on a B-rep whose edges
+    have a tolerance, the copies can differ by up to that tolerance.
+
+    Returns
+    -------
+    vertices : (V', 3) float64
+        The first vertex of each merged group.
+    faces : (F', 3) int64
+        Faces that still have three distinct vertices.
+    kept : (F,) bool
+        Which input faces were kept.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(vertices)
+    pairs = cKDTree(vertices).query_pairs(tol, output_type="ndarray")
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(g, directed=False)
+    first = np.full(label.max() + 1, n, dtype=np.int64)
+    np.minimum.at(first, label, np.arange(n))
+    keep = np.sort(first)
+    new_id = np.empty(label.max() + 1, dtype=np.int64)
+    new_id[label[keep]] = np.arange(len(keep))
+    f2 = new_id[label[faces]]
+    good = (f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])
+    return vertices[keep], f2[good], good
+
+
+def heal(shape: TopoDS_Shape) -> TopoDS_Shape:
+    """``shape`` after ShapeFix_Shape (wires, edges, tolerances); the input if nothing helps."""
+    fix = ShapeFix_Shape(shape)
+    fix.Perform()
+    out = fix.Shape()
+    return shape if out is None or out.IsNull() else out
+
+
+def max_tolerance(shape: TopoDS_Shape) -> float:
+    """The largest vertex/edge/face tolerance of ``shape`` (mm)."""
+    return float(ShapeAnalysis_ShapeTolerance().Tolerance(shape, 1))
 
 
 # --------------------------------------------------------------------- I/O

@@ -62,6 +62,7 @@ from lattice_cad.occ_impl.shapes import (
     face_area,
     face_triangulations,
     fuse,
+    merge_close,
     to_bytes,
     volume,
 )
@@ -263,7 +264,7 @@ def _tessellate(
         raise OCCTFailure(f"no midpoint disc found for stump(s) {missing}")
     v = np.concatenate(verts)
     f = np.concatenate(tris)
-    v, f = _merge(v, f, config.MERGE_RTOL * scale)
+    v, f, _ = merge_close(v, f, config.MERGE_RTOL * scale)
     circles = _circles(v, f, spec, tol)
     # circle vertices first (stable), the rest after
     on_circle = np.concatenate(circles)
@@ -273,31 +274,6 @@ def _tessellate(
     starts = np.cumsum([0] + [len(c) for c in circles])
     circles = [np.arange(starts[j], starts[j + 1], dtype=np.int64) for j in range(len(circles))]
     return v[order], inv[f], circles
-
-
-def _merge(
-    v: NDArray[np.float64], f: NDArray[np.int64], tol: float
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Merge the copies of edge nodes that each face triangulation carries."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    pairs = cKDTree(v).query_pairs(tol, output_type="ndarray")
-    n = len(v)
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, label = connected_components(g, directed=False)
-    # representative: first vertex of each component
-    first = np.full(label.max() + 1, n, dtype=np.int64)
-    np.minimum.at(first, label, np.arange(n))
-    keep = np.sort(first)
-    new_id = np.empty(label.max() + 1, dtype=np.int64)
-    new_id[label[keep]] = np.arange(len(keep))
-    f2 = new_id[label[f]]
-    # triangles collapsed by the merge (BRepMesh's fans at the sphere's poles) are dropped;
-    # the edge-use check of _circles then proves the rest is still closed
-    good = (f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])
-    return v[keep], f2[good]
 
 
 def _circles(
