@@ -1,34 +1,126 @@
 """Skins: hollow a part to a wall thickness and unite the wall with a lattice.
 
-The printable result of ``Lattice.fill(part, skin=t)`` is one watertight mesh:
-the part minus its inset by ``t`` (the skin), united with the lattice clipped
-to the part, so that the struts that reach the boundary end inside the wall.
-All booleans are done by manifold3d, whose results are guaranteed manifold.
+The printable result of ``Lattice.fill(part, skin=t)`` is one watertight solid per solid of
+the part: the part minus its inset by ``t`` (the skin), united with the lattice clipped to
+the mid-wall surface (the inset by ``t / 2``), so every strut that reaches the boundary ends
+inside the wall and no strut end is flush with the outer surface. All booleans are done by
+manifold3d, whose results are guaranteed manifold.
 
-The inset (the cavity) is computed on a voxel grid: the inside of the part is
-rasterised slice by slice (manifold3d slices, even-odd polygon fill), an
-exact Euclidean distance transform gives the distance to the boundary, and a
-marching-tetrahedra pass (a Freudenthal split of every voxel, so the surface
-is closed and 2-manifold by construction) extracts the level ``d = t``. The
-wall thickness is therefore exact up to about half a voxel; the voxel size is
-``thickness / 3`` unless the grid would exceed :data:`config.MAX_VOXELS`.
+The inner surfaces come from one of two methods, and the :class:`SkinReport` says which,
+with the wall thickness measured on the result:
+
+``"occt"`` (B-rep parts: STEP, CadQuery, build123d)
+    OpenCascade's offset of each solid by ``-t`` and ``-t/2`` (arc joins), checked with
+    ``IsDone`` and BRepCheck, and tessellated with a chord error of 1 % of ``t``. The outer
+    surface is tessellated just as finely, so the wall is exact up to the tessellation.
+``"voxel"`` (meshes, and B-rep parts where OCCT's offset fails)
+    The inside of the part on a grid (exact winding numbers), a Euclidean distance
+    transform, refined to exact point-to-triangle distances in a band around the two
+    levels, and a marching-tetrahedra pass (a Freudenthal split of every voxel, so each
+    surface is closed and 2-manifold by construction) that extracts ``d = t`` and
+    ``d = t / 2``. The grid spacing is ``t / 3`` unless the grid would exceed
+    ``config.MAX_VOXELS`` voxels.
+
+The wall is measured from the inner surface to the outer one (the definition of an offset):
+for every inner vertex, its distance to the outer surface should be ``t``.
 """
 
 from __future__ import annotations
 
 import math
+import time
+import warnings
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lattice_cad.core import config
-from lattice_cad.core.errors import SkinError
+from lattice_cad.core.errors import LatticeWarning, OCCTFailure, SkinError
 from lattice_cad.core.mesh import mesh_arrays, weld
 
-__all__ = ["SkinError", "as_manifold", "inset", "hollow", "add_skin"]
+__all__ = [
+    "SkinError",
+    "SkinReport",
+    "SkinResult",
+    "as_manifold",
+    "inset",
+    "hollow",
+    "build_skin",
+    "add_skin",
+    "marching_tets",
+    "wall_thickness",
+]
+
+#: A wall is accurate when every measured thickness is within this fraction of ``t`` or
+#: this many mm of it, whichever is larger.
+WALL_RTOL = 0.02
+WALL_ATOL = 0.02
 
 
+@dataclass(frozen=True)
+class SkinReport:
+    """How a skin was made and how thick its wall really is.
+
+    Attributes
+    ----------
+    thickness : float
+        The wall thickness asked for (mm).
+    method : str
+        ``"occt"`` (OpenCascade offset) or ``"voxel"`` (distance field).
+    fallback : str
+        Why the OCCT offset was not used (empty when it was, or was not tried).
+    voxel : float
+        Grid spacing of the voxel method (NaN for ``"occt"``).
+    wall : dict
+        Measured wall thickness (mm): ``min``, ``p01``, ``median``, ``p99``, ``max`` over
+        the inner surface's vertices.
+    accurate : bool
+        Every measured thickness is within ``max(WALL_RTOL * t, WALL_ATOL)`` of ``t``.
+    bodies : int
+        Separate solids of the result (one per connected solid of the part).
+    islands_removed : int
+        Lattice pieces that touched neither the skin nor the rest of the lattice, removed.
+    seconds : dict
+    """
+
+    thickness: float
+    method: str
+    fallback: str = ""
+    voxel: float = float("nan")
+    wall: dict[str, float] = field(default_factory=dict)
+    accurate: bool = False
+    bodies: int = 0
+    islands_removed: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    def summary(self) -> str:
+        """One line for logs and the CLI."""
+        how = "OpenCascade offset" if self.method == "occt" else f"voxel field (h={self.voxel:.3g})"
+        if self.fallback:
+            how += f" [OCCT offset failed: {self.fallback}]"
+        w = self.wall
+        wall = (
+            f"wall {w['min']:.4g} .. {w['max']:.4g} mm (median {w['median']:.4g}) for "
+            f"{self.thickness:g}"
+            if w
+            else "wall not measured"
+        )
+        ok = "within tolerance" if self.accurate else "NOT within 2 % / 0.02 mm"
+        islands = f", {self.islands_removed} island(s) removed" if self.islands_removed else ""
+        return f"skin by {how}: {wall}, {ok}; {self.bodies} body(ies){islands}"
+
+
+@dataclass(frozen=True)
+class SkinResult:
+    """The skinned solid (a ``manifold3d.Manifold``) and its :class:`SkinReport`."""
+
+    solid: Any
+    report: SkinReport
+
+
+# ------------------------------------------------------------------ conversion
 def shape_mesh(
     shape: Any, tolerance: float = 0.01, angular: float = 0.2
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -56,13 +148,28 @@ def shape_mesh(
     return weld(v, f, tol=1e-9)
 
 
+def _manifold(v: NDArray[np.float64], f: NDArray[np.int64], name: str) -> Any:
+    import manifold3d
+
+    man = manifold3d.Manifold(
+        manifold3d.Mesh(
+            vert_properties=np.ascontiguousarray(v, dtype=np.float32),
+            tri_verts=np.ascontiguousarray(f, dtype=np.uint32),
+        )
+    )
+    status = man.status()
+    if status != manifold3d.Error.NoError:
+        raise SkinError(f"{name} is not a closed 2-manifold solid (manifold3d: {status.name})")
+    return man
+
+
 def as_manifold(obj: Any, *, name: str = "part") -> Any:
     """A ``manifold3d.Manifold`` of a part or mesh.
 
     Parameters
     ----------
-    obj : Manifold, fast_stitch.Mesh, trimesh.Trimesh, (vertices, faces), CAD shape, or Part
-        A ``conformal.Part`` is used through its ``mesh`` / ``shape`` attribute.
+    obj : Manifold, Mesh, trimesh.Trimesh, (vertices, faces), CAD shape, or Part
+        A ``conformal.Part`` is used through its mesh.
     name : str
         What to call the object in error messages.
 
@@ -77,34 +184,12 @@ def as_manifold(obj: Any, *, name: str = "part") -> Any:
         return obj
     arrays = mesh_arrays(obj)
     if arrays is None:
-        for attr in ("mesh", "shape", "solid", "wrapped"):
-            inner = getattr(obj, attr, None)
-            if inner is not None and not callable(inner):
-                if attr in ("mesh",):
-                    arrays = mesh_arrays(inner)
-                if arrays is None:
-                    try:
-                        arrays = shape_mesh(inner if attr != "wrapped" else obj)
-                    except TypeError:
-                        arrays = None
-                if arrays is not None:
-                    break
-        if arrays is None:
-            arrays = shape_mesh(obj)
+        arrays = shape_mesh(obj)
     v, f = arrays
     if len(f) == 0:
         raise SkinError(f"{name} has no triangles")
     v, f = weld(v, f, tol=1e-9)
-    man = manifold3d.Manifold(
-        manifold3d.Mesh(
-            vert_properties=np.ascontiguousarray(v, dtype=np.float32),
-            tri_verts=np.ascontiguousarray(f, dtype=np.uint32),
-        )
-    )
-    status = man.status()
-    if status != manifold3d.Error.NoError:
-        raise SkinError(f"{name} is not a closed 2-manifold solid (manifold3d: {status.name})")
-    return man
+    return _manifold(v, f, name)
 
 
 def to_arrays(man: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -114,24 +199,288 @@ def to_arrays(man: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     return arrays
 
 
-# ------------------------------------------------------------- distance field
-def _inside_grid(
-    man: Any, origin: NDArray[np.float64], h: float, shape: tuple[int, int, int]
-) -> NDArray[np.bool_]:
-    """Inside mask at voxel centres ``origin + (i + 0.5) * h`` (exact winding numbers)."""
-    from conformal.part import Part
+def _as_part(part: Any) -> Any:
+    """A :class:`conformal.Part` of a Part, a Manifold, a mesh, a path or a CAD shape."""
+    from conformal.part import Part, load_part
 
-    v, f = to_arrays(man)
-    part = Part(v, f, name="skin")
-    return part.grid_contains(origin + 0.5 * h, np.full(3, h), shape)
+    if isinstance(part, Part):
+        return part
+    arrays = mesh_arrays(part)
+    if arrays is not None:
+        v, f = weld(*arrays, tol=1e-9)
+        return Part(v, f, name="part")
+    return load_part(part)
 
 
+# ---------------------------------------------------------------- OCCT offsets
+def _occt_surfaces(part: Any, thickness: float) -> tuple[Any, Any, Any]:
+    """Outer, mid-wall and inner surfaces of a B-rep part from OCCT offsets (Manifolds).
+
+    Raises
+    ------
+    OCCTFailure
+        An offset is not done, invalid, not one solid, or not inside its solid.
+    """
+    import manifold3d
+
+    from lattice_cad.occ_impl import shapes as occ
+
+    defl = 0.01 * thickness
+    outer, mid, inner = manifold3d.Manifold(), manifold3d.Manifold(), manifold3d.Manifold()
+    for k, solid in enumerate(part.shape):
+        vol = occ.volume(solid)
+        pieces = []
+        for dist in (0.0, -0.5 * thickness, -thickness):
+            shape = solid if dist == 0.0 else occ.offset_solid(solid, dist)
+            if dist != 0.0 and not 0.0 < occ.volume(shape) < vol:
+                raise OCCTFailure(f"solid {k}: the offset by {dist:g} is not inside the solid")
+            v, f = occ.tessellate(shape, defl, 0.1)
+            v, f, _ = occ.merge_close(v, f, 1e-6 * thickness)
+            pieces.append(_manifold(v, f, f"the offset of solid {k} by {dist:g}"))
+        outer, mid, inner = outer + pieces[0], mid + pieces[1], inner + pieces[2]
+    return outer, mid, inner
+
+
+# ---------------------------------------------------------------- voxel field
 def _grid_spacing(extent: NDArray[np.float64], thickness: float) -> float:
     h = thickness / config.VOXELS_PER_THICKNESS
     vol = float(np.prod(extent + 4 * h))
     if vol / h**3 > config.MAX_VOXELS:
         h = (vol / config.MAX_VOXELS) ** (1.0 / 3.0)
     return h
+
+
+def _distance_field(
+    part: Any, thickness: float, h: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Depth below the surface at grid points (negative outside), exact near the levels.
+
+    Returns
+    -------
+    depth : (nx, ny, nz) float64
+        Distance to the part's surface at points inside, ``-thickness`` outside.
+    origin : (3,) float64
+        Position of grid point ``[0, 0, 0]``.
+    """
+    from scipy.ndimage import distance_transform_edt
+
+    pad = 2 * h
+    origin = part.bounds[0] - pad
+    dims = tuple(int(n) for n in np.ceil((part.size + 2 * pad) / h).astype(np.int64) + 1)
+    inside = part.grid_contains(origin, np.full(3, h), dims)
+    depth = distance_transform_edt(inside, sampling=h) - 0.5 * h
+    depth[~inside] = -thickness
+    # exact distances where the levels t and t/2 are extracted (the transform is off by up
+    # to half a voxel there)
+    band = inside & (depth > 0.5 * thickness - 2 * h) & (depth < thickness + 2 * h)
+    idx = np.argwhere(band)
+    if len(idx):
+        pts = origin + idx * h
+        exact = part.distance(pts, max_distance=thickness + 4 * h)
+        depth[band] = np.where(np.isfinite(exact), exact, depth[band])
+    return depth, origin
+
+
+def _voxel_surfaces(part: Any, thickness: float, h: float) -> tuple[Any, Any, Any]:
+    """Outer, mid-wall and inner surfaces of a part from its distance field (Manifolds)."""
+    import manifold3d
+
+    depth, origin = _distance_field(part, thickness, h)
+    out = [_manifold(part.vertices, part.faces, "the part")]
+    for level in (0.5 * thickness, thickness):
+        v, f = marching_tets(depth - level, origin, h)  # depth is sampled at the grid points
+        if len(f) == 0:
+            out.append(manifold3d.Manifold())
+            continue
+        out.append(_manifold(v, f, f"the inset by {level:g}"))
+    return out[0], out[1], out[2]
+
+
+def wall_thickness(inner: Any, outer: Any) -> NDArray[np.float64]:
+    """(V,) float64: distance from each vertex of the inner surface to the outer surface."""
+    from conformal.part import Part
+
+    iv, _ = to_arrays(inner)
+    ov, of = to_arrays(outer)
+    if len(iv) == 0:
+        return np.zeros(0)
+    return Part(ov, of, name="outer wall").distance(iv)
+
+
+# ------------------------------------------------------------------- public API
+def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
+    """The part shrunk by ``thickness`` (its cavity when hollowed), as a Manifold.
+
+    Uses the voxel distance field (see the module docstring); empty when the part is
+    nowhere thicker than ``2 * thickness``.
+    """
+    _check_thickness(thickness)
+    p = _as_part(part)
+    h = float(voxel) if voxel is not None else _grid_spacing(p.size, thickness)
+    return _voxel_surfaces(p, thickness, h)[2]
+
+
+def hollow(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
+    """The skin: ``part`` minus its inset by ``thickness`` (a Manifold).
+
+    Raises
+    ------
+    SkinError
+        When the part has no room for a cavity (it is thinner than ``2 * thickness``).
+    """
+    p = _as_part(part)
+    cavity = inset(p, thickness, voxel=voxel)
+    if cavity.is_empty():
+        raise SkinError(
+            f"the part is nowhere thicker than twice the skin thickness {thickness:g}: "
+            "no room for a lattice (use a thinner skin)"
+        )
+    return as_manifold(p) - cavity
+
+
+def _check_thickness(thickness: Any) -> None:
+    if not (isinstance(thickness, (int, float)) and math.isfinite(thickness) and thickness > 0):
+        raise ValueError(f"skin thickness must be a positive number, got {thickness!r}")
+
+
+def _surfaces(
+    part: Any, thickness: float, method: str, voxel: float | None
+) -> tuple[tuple[Any, Any, Any], str, str, float]:
+    """(outer, mid, inner), the method used, why OCCT was not used, the voxel size."""
+    fallback = ""
+    if method in ("auto", "occt") and part.shape is not None:
+        try:
+            return _occt_surfaces(part, thickness), "occt", "", float("nan")
+        except (OCCTFailure, SkinError) as exc:
+            if method == "occt":
+                raise SkinError(f"OpenCascade's offset failed: {exc}") from exc
+            fallback = str(exc)
+        except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
+            if method == "occt":
+                raise SkinError(f"OpenCascade's offset failed: {exc}") from exc
+            fallback = f"{type(exc).__name__}: {exc}"
+    elif method == "occt":
+        raise SkinError("method='occt' needs a B-rep part (STEP, CadQuery or build123d)")
+    h = float(voxel) if voxel is not None else _grid_spacing(part.size, thickness)
+    return _voxel_surfaces(part, thickness, h), "voxel", fallback, h
+
+
+def _keep_attached(solid: Any, outer: Any) -> tuple[Any, int, int]:
+    """Drop the pieces that do not reach the outer surface (lattice islands).
+
+    Returns the kept solid, the number of bodies, and the number of islands removed.
+    Negative-volume components (cavity walls) are always kept.
+    """
+    from conformal.part import Part
+
+    pieces = solid.decompose()
+    if len(pieces) <= 1:
+        return solid, len(pieces), 0
+    ov, of = to_arrays(outer)
+    surface = Part(ov, of, name="outer wall")
+    tol = 1e-4 * float(np.linalg.norm(surface.size))
+    keep, bodies, islands = [], 0, 0
+    for piece in pieces:
+        if piece.volume() < 0:
+            keep.append(piece)
+            continue
+        v, _ = to_arrays(piece)
+        sample = v[:: max(1, len(v) // 2000)]
+        if surface.distance(sample, max_distance=2 * tol).min() <= tol:
+            keep.append(piece)
+            bodies += 1
+        else:
+            islands += 1
+    if not islands:
+        return solid, bodies, 0
+    # Manifold.compose drops negative (cavity) components: join the meshes instead
+    vs, fs, base = [], [], 0
+    for piece in keep:
+        v, f = to_arrays(piece)
+        vs.append(v)
+        fs.append(f + base)
+        base += len(v)
+    return _manifold(np.vstack(vs), np.vstack(fs), "the skinned part"), bodies, islands
+
+
+def build_skin(
+    lattice: Any,
+    part: Any,
+    thickness: float,
+    *,
+    method: str = "auto",
+    voxel: float | None = None,
+) -> SkinResult:
+    """One solid per solid of the part: its skin united with the lattice clipped mid-wall.
+
+    Parameters
+    ----------
+    lattice : Mesh, Manifold or mesh-like
+        The stitched lattice (struts may cross the part's boundary: they are cut at the
+        mid-wall surface, so every strut reaching the boundary ends inside the wall).
+    part : conformal.Part, path or CAD shape
+    thickness : float
+        Wall thickness (mm).
+    method : {"auto", "occt", "voxel"}
+        ``"auto"``: OCCT offsets for B-rep parts, the voxel field otherwise or when OCCT
+        fails (the report says why).
+    voxel : float, optional
+        Grid spacing of the voxel method.
+
+    Returns
+    -------
+    SkinResult
+        ``solid`` (a ``manifold3d.Manifold``, watertight and 2-manifold) and its report.
+    """
+    _check_thickness(thickness)
+    if method not in ("auto", "occt", "voxel"):
+        raise ValueError(f"method must be 'auto', 'occt' or 'voxel', got {method!r}")
+    t0 = time.perf_counter()
+    p = _as_part(part)
+    (outer, mid, inner), used, fallback, h = _surfaces(p, thickness, method, voxel)
+    if inner.is_empty():
+        raise SkinError(
+            f"the part is nowhere thicker than twice the skin thickness {thickness:g}: "
+            "no room for a lattice (use a thinner skin)"
+        )
+    t1 = time.perf_counter()
+    lat = as_manifold(lattice, name="lattice mesh")
+    solid = (outer - inner) + (lat ^ mid)
+    solid, bodies, islands = _keep_attached(solid, outer)
+    t2 = time.perf_counter()
+    wall = wall_thickness(inner, outer)
+    stats = {
+        "min": float(wall.min()),
+        "p01": float(np.percentile(wall, 1)),
+        "median": float(np.median(wall)),
+        "p99": float(np.percentile(wall, 99)),
+        "max": float(wall.max()),
+    }
+    tol = max(WALL_RTOL * thickness, WALL_ATOL)
+    report = SkinReport(
+        thickness=float(thickness),
+        method=used,
+        fallback=fallback,
+        voxel=h,
+        wall=stats,
+        accurate=bool(np.all(np.abs(wall - thickness) <= tol)),
+        bodies=bodies,
+        islands_removed=islands,
+        seconds={
+            "surfaces": t1 - t0,
+            "booleans": t2 - t1,
+            "measure": time.perf_counter() - t2,
+        },
+    )
+    return SkinResult(solid=solid, report=report)
+
+
+def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None = None) -> Any:
+    """The solid of :func:`build_skin` (a ``manifold3d.Manifold``); warns about islands."""
+    result = build_skin(lattice, part, thickness, voxel=voxel)
+    if result.report.islands_removed:
+        warnings.warn(result.report.summary(), LatticeWarning, stacklevel=2)
+    return result.solid
 
 
 # ---------------------------------------------------------- marching tetrahedra
@@ -165,7 +514,11 @@ def marching_tets(
         Each vertex lies on a grid edge or Freudenthal diagonal, shared by all the
         triangles that cross that edge, so the surface is watertight and 2-manifold.
     """
-    f = np.where(field == 0.0, -1e-12, field)  # no sample exactly on the surface
+    # no sample on (or within 0.1 % of a voxel of) the surface: a crossing exactly at a grid
+    # point would give zero-area triangles; moving it by at most h / 1000 does not
+    step = float(np.abs(np.diff(field, axis=0)).max(initial=0.0))  # field change per voxel
+    snap = 1e-3 * step if step > 0 else 1e-12
+    f = np.where(np.abs(field) < snap, -snap, field)
     nx, ny, nz = f.shape
     inside = f > 0
     # cubes that the surface crosses
@@ -211,6 +564,7 @@ def marching_tets(
     pb = origin + tet_ijk[rows, b[cols], :] * h
     ta, tb = va[rows, cols], vb[rows, cols]
     vertices = pa + (ta / (ta - tb))[:, None] * (pb - pa)
+    midpoints = 0.5 * (pa + pb)  # the same crossing at mid-edge: never degenerate
     vid = np.full(keys.shape, -1, dtype=np.int64)
     vid[crosses] = inv.reshape(-1)
     # triangles: 1 or 3 inside -> one triangle; 2 inside -> a quad (two triangles)
@@ -246,13 +600,15 @@ def marching_tets(
         tris.append(cyc[:, [0, 1, 2]])
         tris.append(cyc[:, [0, 2, 3]])
     faces = np.vstack(tris)
-    # orientation: the normal must point from inside to outside (along -grad f)
-    inside_pt = np.zeros((len(faces), 3))
+    # orientation: the normal must point from inside to outside (along -grad f). It is
+    # decided on the mid-edge triangles, which have the orientation of the real ones (each
+    # vertex only slides along its tet edge) but never degenerate, so a crossing at a grid
+    # point (a zero-area triangle) cannot get a random orientation.
     src = np.concatenate([odd, quad, quad]) if len(quad) else odd
     wsum = np.where(ins[src], 1.0, 0.0)
     corner_pos = origin + tet_ijk[src] * h
     inside_pt = (corner_pos * wsum[..., None]).sum(axis=1) / wsum.sum(axis=1)[:, None]
-    tri_pts = vertices[faces]
+    tri_pts = midpoints[faces]
     normal = np.cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0])
     centre = tri_pts.mean(axis=1)
     flip = np.einsum("ij,ij->i", normal, centre - inside_pt) < 0
@@ -261,107 +617,3 @@ def marching_tets(
 
 
 # ------------------------------------------------------------------- hollowing
-def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
-    """The part shrunk by ``thickness`` (its cavity when hollowed), as a Manifold.
-
-    Parameters
-    ----------
-    part : Manifold, mesh or CAD shape
-        A closed solid (see :func:`as_manifold`).
-    thickness : float
-        Wall thickness (> 0, same unit as the part).
-    voxel : float, optional
-        Grid spacing of the distance field (default ``thickness / 3``, coarser
-        if the grid would exceed :data:`config.MAX_VOXELS`).
-
-    Returns
-    -------
-    manifold3d.Manifold
-        Empty when the part is nowhere thicker than ``2 * thickness``.
-    """
-    import manifold3d
-    from scipy.ndimage import distance_transform_edt
-
-    if not (isinstance(thickness, (int, float)) and math.isfinite(thickness) and thickness > 0):
-        raise ValueError(f"skin thickness must be a positive number, got {thickness!r}")
-    man = as_manifold(part)
-    bb = np.asarray(man.bounding_box(), dtype=np.float64).reshape(2, 3)
-    extent = bb[1] - bb[0]
-    h = float(voxel) if voxel is not None else _grid_spacing(extent, thickness)
-    pad = 2 * h
-    origin = bb[0] - pad
-    sx, sy, sz = (int(n) for n in np.ceil((extent + 2 * pad) / h).astype(np.int64) + 1)
-    shape = (sx, sy, sz)
-    inside = _inside_grid(man, origin, h, shape)  # (nx, ny, nz) at voxel centres
-    # signed distance to the boundary, which lies half a voxel beyond the last centre
-    d_in = distance_transform_edt(inside, sampling=h)
-    field = d_in - 0.5 * h - thickness
-    field[~inside] = -thickness
-    v, f = marching_tets(field, origin + 0.5 * h, h)
-    if len(f) == 0:
-        return manifold3d.Manifold()
-    out = manifold3d.Manifold(
-        manifold3d.Mesh(
-            vert_properties=np.ascontiguousarray(v, dtype=np.float32),
-            tri_verts=np.ascontiguousarray(f, dtype=np.uint32),
-        )
-    )
-    if out.status() != manifold3d.Error.NoError:  # pragma: no cover - construction guarantee
-        raise SkinError(f"the inset surface is not manifold ({out.status().name})")
-    # merge the many small coplanar triangles, then stay strictly inside the part
-    return out.simplify(0.05 * h) ^ man
-
-
-def hollow(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
-    """The skin: ``part`` minus its inset by ``thickness`` (a Manifold).
-
-    Raises
-    ------
-    SkinError
-        When the part has no room for a cavity (it is thinner than ``2 * thickness``).
-    """
-    man = as_manifold(part)
-    cavity = inset(man, thickness, voxel=voxel)
-    if cavity.is_empty():
-        raise SkinError(
-            f"the part is nowhere thicker than twice the skin thickness {thickness:g}: "
-            "no room for a lattice (use a thinner skin)"
-        )
-    return man - cavity
-
-
-def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None = None) -> Any:
-    """One solid: the skin of ``part`` united with ``lattice`` clipped to the part.
-
-    Parameters
-    ----------
-    lattice : fast_stitch.Mesh, Manifold or mesh-like
-        The stitched lattice (struts may cross the part's boundary: they are cut
-        by it, so that every strut reaching the boundary ends inside the wall).
-    part : Manifold, mesh or CAD shape
-    thickness : float
-        Wall thickness.
-
-    Returns
-    -------
-    manifold3d.Manifold
-        Watertight and 2-manifold (manifold3d guarantees it).
-    """
-    man = as_manifold(part)
-    skin = hollow(man, thickness, voxel=voxel)
-    lat = as_manifold(lattice, name="lattice mesh")
-    out = (skin + (lat ^ man)).simplify(config.SLIVER)
-    # negative-volume shells are the walls of the (lattice-filled) cavity, not bodies
-    pieces = sum(1 for p in out.decompose() if p.volume() > 0)
-    if pieces > 1:
-        import warnings
-
-        from lattice_cad.core.errors import LatticeWarning
-
-        warnings.warn(
-            f"the skinned part has {pieces} separate pieces: some lattice struts do not reach "
-            "the skin (use fill='clip' so that struts run into the wall)",
-            LatticeWarning,
-            stacklevel=2,
-        )
-    return out

@@ -142,6 +142,8 @@ class Lattice:
         self.graph = graph
         self.part = part
         self.skin = skin
+        #: How the skin was made and its measured wall (set when the mesh is built).
+        self.skin_report: Any = None
         self.segments = int(segments)
         self.progress: bool = False
 
@@ -258,8 +260,9 @@ class Lattice:
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
-        solid = _skin.add_skin(self._lattice_mesh, self.part, self.skin)
-        v, f = _skin.to_arrays(solid)
+        result = _skin.build_skin(self._lattice_mesh, self.part, self.skin)
+        self.skin_report = result.report
+        v, f = _skin.to_arrays(result.solid)
         return Mesh(vertices=v, faces=f)
 
     def mesh(self, *, lattice_only: bool = False) -> Mesh:

@@ -22,7 +22,10 @@ from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
+from OCP.BRepOffset import BRepOffset_Skin
+from OCP.BRepOffsetAPI import BRepOffsetAPI_MakeOffsetShape
 from OCP.BRepTools import BRepTools
+from OCP.GeomAbs import GeomAbs_Arc
 from OCP.gp import gp_Trsf, gp_Vec
 from OCP.GProp import GProp_GProps
 from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
@@ -46,6 +49,7 @@ __all__ = [
     "check_valid",
     "check_done",
     "fuse",
+    "offset_solid",
     "volume",
     "face_area",
     "bounds",
@@ -128,6 +132,25 @@ def fuse(
     if check:
         check_valid(res, "fuse")
     return res
+
+
+def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> TopoDS_Shape:
+    """The solid offset by ``distance`` (negative: inward), joins as arcs.
+
+    Raises
+    ------
+    OCCTFailure
+        The offset is not done, has errors, is BRepCheck-invalid or is not one solid.
+    """
+    mk = BRepOffsetAPI_MakeOffsetShape()
+    mk.PerformByJoin(solid, float(distance), tol, BRepOffset_Skin, False, False, GeomAbs_Arc)
+    check_done(mk, f"offset by {distance:g}")
+    out = mk.Shape()
+    check_valid(out, f"offset by {distance:g}")
+    found = solids(out)
+    if len(found) != 1:
+        raise OCCTFailure(f"offset by {distance:g}: {len(found)} solids instead of 1")
+    return found[0]
 
 
 # ---------------------------------------------------------------- measures
