@@ -226,17 +226,32 @@ def _occt_surfaces(part: Any, thickness: float) -> tuple[Any, Any, Any]:
     from lattice_cad.occ_impl import shapes as occ
 
     defl = 0.01 * thickness
+    tol = max(WALL_RTOL * thickness, WALL_ATOL)
     outer, mid, inner = manifold3d.Manifold(), manifold3d.Manifold(), manifold3d.Manifold()
     for k, solid in enumerate(part.shape):
         vol = occ.volume(solid)
-        pieces = []
-        for dist in (0.0, -0.5 * thickness, -thickness):
-            shape = solid if dist == 0.0 else occ.offset_solid(solid, dist)
-            if dist != 0.0 and not 0.0 < occ.volume(shape) < vol:
-                raise OCCTFailure(f"solid {k}: the offset by {dist:g} is not inside the solid")
+        shapes = [solid, *occ.offset_solid_isolated(solid, (-0.5 * thickness, -thickness))]
+        meshes = []
+        for shape, dist in zip(shapes, (0.0, 0.5 * thickness, thickness), strict=True):
+            if dist and not 0.0 < occ.volume(shape) < vol:
+                raise OCCTFailure(f"solid {k}: the offset by {-dist:g} is not inside the solid")
             v, f = occ.tessellate(shape, defl, 0.1)
             v, f, _ = occ.merge_close(v, f, 1e-6 * thickness)
-            pieces.append(_manifold(v, f, f"the offset of solid {k} by {dist:g}"))
+            meshes.append((v, f))
+        # the offsets must really be offsets: every inner vertex at its depth below the
+        # outer surface (OCCT can return valid solids that are not)
+        from conformal.part import Part
+
+        surface = Part(*meshes[0], name=f"solid {k}")
+        for (v, _), dist in zip(meshes[1:], (0.5 * thickness, thickness), strict=True):
+            depth = surface.distance(v)
+            worst = float(np.abs(depth - dist).max())
+            if worst > tol:
+                raise OCCTFailure(
+                    f"solid {k}: the offset by {-dist:g} is up to {worst:.3g} mm off the wall "
+                    "thickness asked for"
+                )
+        pieces = [_manifold(v, f, f"solid {k} (offset)") for v, f in meshes]
         outer, mid, inner = outer + pieces[0], mid + pieces[1], inner + pieces[2]
     return outer, mid, inner
 

@@ -50,6 +50,7 @@ __all__ = [
     "check_done",
     "fuse",
     "offset_solid",
+    "offset_solid_isolated",
     "volume",
     "face_area",
     "bounds",
@@ -135,7 +136,7 @@ def fuse(
 
 
 def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> TopoDS_Shape:
-    """The solid offset by ``distance`` (negative: inward), joins as arcs.
+    """The solid offset by ``distance`` (negative: inward), edges joined by arcs.
 
     Raises
     ------
@@ -151,6 +152,43 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
     if len(found) != 1:
         raise OCCTFailure(f"offset by {distance:g}: {len(found)} solids instead of 1")
     return found[0]
+
+
+def _offsets_bytes(brep: bytes, distances: tuple[float, ...]) -> list[bytes]:
+    solid = from_bytes(brep)
+    return [to_bytes(offset_solid(solid, d)) for d in distances]
+
+
+def offset_solid_isolated(
+    solid: TopoDS_Shape, distances: tuple[float, ...], *, timeout: float = 120.0
+) -> list[TopoDS_Shape]:
+    """:func:`offset_solid` for each distance, in a child process.
+
+    OCCT's offset algorithm can crash the process (a segmentation fault) or run for a long
+    time on some real parts; in a child, a crash or a timeout is an :class:`OCCTFailure`
+    that the caller can fall back from, and the user's process survives.
+    """
+    import multiprocessing as mp
+    import sys
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import TimeoutError as FutureTimeout
+    from concurrent.futures.process import BrokenProcessPool
+
+    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+    try:
+        future = pool.submit(_offsets_bytes, to_bytes(solid), tuple(float(d) for d in distances))
+        try:
+            data = future.result(timeout=timeout)
+        except FutureTimeout:
+            raise OCCTFailure(f"the offset did not finish within {timeout:g} s") from None
+        except BrokenProcessPool:
+            raise OCCTFailure("OCCT crashed while offsetting (the child process died)") from None
+    finally:
+        for proc in list(getattr(pool, "_processes", {}).values()):
+            proc.kill()
+        pool.shutdown(wait=False, cancel_futures=True)
+    return [from_bytes(b) for b in data]
 
 
 # ---------------------------------------------------------------- measures
