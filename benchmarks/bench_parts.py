@@ -27,7 +27,9 @@ could not be loaded here), ``invalid`` (a file was written but a check rejects i
 ``timeout``. For every run the table gives the wall time of the fill command, the number
 of struts (parsed from the "N struts, M nodes" line the CLI prints; ``--quiet`` would
 suppress it, so it is not passed), the triangles of the written file, the bodies
-(connected components over shared edges) and the first line of the error.
+(connected components over shared edges) and the error: the CLI's ``error:`` line (or the
+problems ``lattice-cad check`` lists, or what the independent check found), cut to 90
+characters in the table and complete in the JSON.
 
 Before the measurements every setting is run once on a small box so that numba kernels
 are compiled and cached (``--no-warmup`` skips this); the first run after a code change
@@ -43,8 +45,8 @@ How to run
     python benchmarks/bench_parts.py --out /tmp/lattices   # keep the STL files
 
 Rows are printed as the runs complete; at the end the whole table is printed again,
-sorted by part and setting, followed by one summary line per setting. Ctrl-C kills the
-running subprocesses and prints the partial table.
+sorted by part and setting, followed by one summary line per setting. Ctrl-C (or SIGTERM)
+kills the running subprocesses and prints the partial table.
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ import tempfile
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -86,24 +88,24 @@ def _fmt_mm(value: float) -> str:
     return f"{value:.6g}"
 
 
-# setting name -> extra ``lattice-cad fill`` arguments for a given cell size (mm)
-SETTINGS: dict[str, Callable[[float], list[str]]] = {
-    "bcc": lambda cell: ["--cell", "bcc"],
-    "skin": lambda cell: ["--cell", "octet", "--skin", _fmt_mm(cell / SKIN_PER_CELL)],
-    "tet": lambda cell: ["--method", "tet"],
-    "conform": lambda cell: ["--cell", "kelvin", "--fill", "conform"],
-    "clip": lambda cell: ["--cell", "bcc", "--fill", "clip"],
-}
-
-SETTING_FLAGS = {
+# setting name -> extra ``lattice-cad fill`` arguments; SKIN stands for CELL / SKIN_PER_CELL
+SETTINGS: dict[str, str] = {
     "bcc": "--cell bcc",
-    "skin": f"--cell octet --skin CELL/{SKIN_PER_CELL:g}",
+    "skin": "--cell octet --skin SKIN",
     "tet": "--method tet",
     "conform": "--cell kelvin --fill conform",
     "clip": "--cell bcc --fill clip",
 }
 
+
+def setting_args(setting: str, cell: float) -> list[str]:
+    """The extra ``lattice-cad fill`` arguments of ``setting`` for cells of ``cell`` mm."""
+    skin = _fmt_mm(cell / SKIN_PER_CELL)
+    return [skin if a == "SKIN" else a for a in SETTINGS[setting].split()]
+
+
 STRUTS_RE = re.compile(r"^\s*([\d,]+) struts\b", re.MULTILINE)
+ANSI_RE = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
 
 def _lattice_cad() -> str:
@@ -179,13 +181,13 @@ def _silence_fds() -> Iterator[None]:
             os.close(fd)
 
 
-def _one_line(text: str, width: int = ERROR_WIDTH) -> str:
-    """``text`` on one line, without the data directory, truncated to ``width``."""
-    text = " ".join(text.split()).replace(f"{DATA}{os.sep}", "")
+def _one_line(text: str) -> str:
+    """``text`` on one line, without the data directory."""
+    return " ".join(text.split()).replace(f"{DATA}{os.sep}", "")
+
+
+def _truncate(text: str, width: int = ERROR_WIDTH) -> str:
     return text if len(text) <= width else text[: width - 3] + "..."
-
-
-ANSI_RE = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
 
 def _lines(text: str) -> list[str]:
@@ -335,6 +337,18 @@ def independent_check(path: Path) -> tuple[str, int, int]:
     return ("trimesh/manifold3d: " + ", ".join(problems)) if problems else "", triangles, bodies
 
 
+def _check_error(out: Path, code: int, stdout: str, stderr: str) -> str:
+    """Why ``lattice-cad check`` rejected ``out``: its problem list, else its report line."""
+    lines = _lines(stdout)
+    head = next((i for i, ln in enumerate(lines) if ln.startswith(f"{out}: ")), None)
+    if head is None:
+        detail = _error_line(code, stderr, stdout)
+    else:
+        problems = [ln[2:] for ln in lines[head + 1 :] if ln.startswith("- ")]
+        detail = "; ".join(problems) or lines[head][len(f"{out}: ") :]
+    return _one_line(f"lattice-cad check: {detail}")
+
+
 def run_one(
     runner: Runner, part: Part, setting: str, out_dir: Path, timeout: float, keep: bool
 ) -> Row:
@@ -354,7 +368,7 @@ def run_one(
         _fmt_mm(cell),
         "--radius",
         _fmt_mm(radius),
-        *SETTINGS[setting](cell),
+        *setting_args(setting, cell),
     ]
     row = Row(part.name, setting, "fail", cell=cell, radius=radius)
     row.command = shlex.join(["lattice-cad", *cmd[1:]])
@@ -366,7 +380,7 @@ def run_one(
             row.outcome, row.error = "timeout", f"timed out after {timeout:g} s"
             return row
         if code != 0:
-            row.error = _error_line(code, stderr, stdout)
+            row.error = _error_line(code, stderr, stdout).replace(f"{out.name}: ", "")
             return row
         if not out.is_file():
             row.error = "exit code 0 but no output file"
@@ -379,10 +393,9 @@ def run_one(
         if ccode is None:
             row.error = f"lattice-cad check timed out after {max(timeout, CHECK_TIMEOUT_MIN):g} s"
         elif ccode != 0:
-            prefix = f"{out}: "
-            report = [ln for ln in _lines(cout) if ln.startswith(prefix)]
-            detail = report[0][len(prefix) :] if report else _error_line(ccode, cerr, cout)
-            row.error = _one_line(f"lattice-cad check: {detail}")
+            row.error = _check_error(out, ccode, cout, cerr)
+            if problem:
+                row.error += f"; {problem}"
         elif problem:
             row.error = _one_line(problem)
         else:
@@ -408,7 +421,7 @@ def warm_up(runner: Runner, settings: Sequence[str], out_dir: Path, timeout: flo
     for setting in settings:
         t0 = time.perf_counter()
         row = run_one(runner, part, setting, out_dir, timeout, keep=False)
-        note = f"  ({row.error})" if row.outcome != "ok" else ""
+        note = f"  ({_truncate(row.error)})" if row.outcome != "ok" else ""
         print(f"warm-up {setting:<8} {row.outcome:<8} {time.perf_counter() - t0:7.1f} s{note}")
     box.unlink(missing_ok=True)
 
@@ -430,6 +443,8 @@ def _cell(row: Row, name: str) -> str:
     value = getattr(row, name)
     if value is None:
         return ""
+    if name == "error":
+        return _truncate(value)
     if name == "seconds":
         return f"{value:.1f}"
     if isinstance(value, int):
@@ -524,7 +539,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"parts loaded in {time.perf_counter() - t0:.1f} s:")
         for part in parts:
             if part.size is None:
-                print(f"  {part.name:<42}  {part.load_error}")
+                print(f"  {part.name:<42}  {_truncate(part.load_error)}")
             else:
                 dims = " x ".join(f"{s:.4g}" for s in part.size)
                 print(f"  {part.name:<42}  {dims} mm, cell {part.cell:.4g}, r {part.radius:.4g}")
@@ -576,7 +591,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "timeout": args.timeout,
             "jobs": args.jobs,
             "interrupted": interrupted,
-            "settings": {s: SETTING_FLAGS[s] for s in settings},
+            "settings": {s: SETTINGS[s] for s in settings},
+            "skin": f"SKIN = cell / {SKIN_PER_CELL:g}",
             "cell": f"largest extent / {CELLS_PER_EXTENT:g}",
             "radius": f"cell / {RADIUS_PER_CELL:g}",
             "parts": [{"part": p.name, "size": p.size, "load_error": p.load_error} for p in parts],

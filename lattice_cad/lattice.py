@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 
 from lattice_cad.core import config
-from lattice_cad.core.errors import LatticeError, OCCTFailure
+from lattice_cad.core.errors import ExportError, LatticeError, OCCTFailure
 from lattice_cad.core.formats import Kind, resolve
 from lattice_cad.core.graph import LatticeGraph
 
@@ -265,8 +265,27 @@ class Lattice:
         v, f = _skin.to_arrays(result.solid)
         return Mesh(vertices=v, faces=f)
 
+    @cached_property
+    def _printable_mesh(self) -> Mesh:
+        import fast_stitch
+        from lattice_cad import io
+
+        mesh, repaired = io.single_precision(self._solid_mesh, name="the lattice")
+        if repaired:  # rounding flattened triangles: check everything before anyone writes
+            report = fast_stitch.check(mesh)
+            if not report.valid:
+                raise ExportError(
+                    f"the lattice cannot be written in single precision (STL, 3MF): rounding "
+                    f"its coordinates to float32 breaks it ({report}); move it closer to the "
+                    "origin or use thicker struts"
+                )
+        return mesh
+
     def mesh(self, *, lattice_only: bool = False) -> Mesh:
         """The printable watertight mesh (built on first use, then cached).
+
+        Its vertices are exactly representable in single precision (as STL and 3MF store
+        them), so every file written from it is the mesh that was checked.
 
         Parameters
         ----------
@@ -278,7 +297,7 @@ class Lattice:
         fast_stitch.Mesh
             The stitched lattice, or (with a skin) the union of skin and lattice.
         """
-        return self._lattice_mesh if lattice_only else self._solid_mesh
+        return self._lattice_mesh if lattice_only else self._printable_mesh
 
     # ---------------------------------------------------------------- files
     def save(self, path: str | os.PathLike[str], *, beam_lattice: bool = False) -> Path:

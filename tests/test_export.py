@@ -152,3 +152,32 @@ def test_read_errors(tmp_path):
     bad.write_bytes(b"not a zip")
     with pytest.raises(ExportError, match="bad.3mf: not a readable 3MF"):
         export.read_mesh(bad)
+
+
+def test_single_precision_output_is_what_gets_written(tmp_path):
+    """The printable mesh is float32-exact, so the STL holds exactly the checked mesh."""
+    g = block("octet", 2, cell_size=3.0, radius=0.3)
+    m, repaired = export.single_precision(fast_stitch.stitch(g, segments=6))
+    assert repaired == 0
+    np.testing.assert_array_equal(m.vertices, m.vertices.astype(np.float32))
+    assert check(m).valid
+    p = export.save_mesh(m, tmp_path / "o.stl")
+    v, f = export.read_mesh(p)
+    assert len(f) == len(m.faces)
+    assert check((v, f)).valid
+
+
+def test_single_precision_refuses_what_float32_cannot_hold():
+    """Regression (issue: extreme magnitudes): thin struts 1e6 mm from the origin flatten
+    in single precision; the error says so and where, before any file is written."""
+    from lattice_cad import LatticeGraph
+
+    o = 1e6
+    g = LatticeGraph(
+        [[o, o, o], [o + 1, o, o], [o, o + 1, o], [o, o, o + 1]], [[0, 1], [0, 2], [0, 3]], 0.1
+    )
+    m = fast_stitch.stitch(g, segments=8)
+    with pytest.raises(
+        ExportError, match=r"collapse when coordinates are rounded .* near \(1e\+06"
+    ):
+        export.single_precision(m, name="far star")

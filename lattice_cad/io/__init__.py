@@ -17,6 +17,7 @@ from lattice_cad.io.exchange import (
     save_beam_lattice,
     save_graph,
     save_mesh,
+    single_precision,
 )
 
 __all__ = [
@@ -34,4 +35,5 @@ __all__ = [
     "save_beam_lattice",
     "save_graph",
     "save_mesh",
+    "single_precision",
 ]

@@ -52,12 +52,74 @@ __all__ = [
     "save_beam_lattice",
     "read_mesh",
     "read_beam_lattice",
+    "single_precision",
 ]
 
 #: Mesh formats written by :func:`save_mesh`.
 MESH_SUFFIXES = suffixes(Kind.MESH)
 #: Graph formats written by :func:`save_graph`.
 GRAPH_SUFFIXES = suffixes(Kind.GRAPH)
+
+
+# ------------------------------------------------------------------ precision
+def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
+    """The mesh as STL and 3MF store it: vertices rounded to float32, still a closed solid.
+
+    Rounding can merge vertices (they are welded) and flatten triangles; the flattened
+    ones are collapsed by manifold3d (its edge collapses and swaps), so a mesh the product
+    built is never refused at write time. Nothing changes for a mesh that survives the
+    rounding as it is (the usual case), except the rounding itself.
+
+    Returns
+    -------
+    mesh : Mesh
+        Float32-exact vertices (stored as float64).
+    repaired : int
+        How many triangles lost a vertex or became flat in the rounding (0 usually);
+        when nonzero the caller should run the full validity check, self-intersections
+        included, before writing.
+
+    Raises
+    ------
+    ExportError
+        The geometry cannot be represented in single precision at all (struts far thinner
+        than the float32 spacing at their coordinates); the message says where.
+    """
+    v, f = _arrays(mesh)
+    v32 = v.astype(np.float32).astype(np.float64)
+    v2, f2 = weld(v32, f)
+    merged = len(f) - len(f2)  # triangles that lost a vertex to rounding
+    bad = _flat_triangles(v2, f2)
+    if bad.any():
+        import manifold3d
+
+        man = manifold3d.Manifold(
+            manifold3d.Mesh(
+                vert_properties=np.ascontiguousarray(v2, dtype=np.float32),
+                tri_verts=np.ascontiguousarray(f2, dtype=np.uint32),
+            )
+        )
+        out = man.to_mesh()
+        v2 = np.asarray(out.vert_properties, dtype=np.float64)[:, :3]
+        f2 = np.asarray(out.tri_verts, dtype=np.int64)
+        still = _flat_triangles(v2, f2)
+        if man.status() != manifold3d.Error.NoError or still.any() or len(f2) == 0:
+            where = v32[f[np.flatnonzero(bad)[0]]].mean(axis=0)
+            raise ExportError(
+                f"{name}: {int(bad.sum())} triangle(s) collapse when coordinates are rounded to "
+                f"single precision (as STL and 3MF store them), e.g. near "
+                f"({where[0]:.6g}, {where[1]:.6g}, {where[2]:.6g}); the struts are too thin "
+                "for coordinates this far from the origin: move the lattice closer to the "
+                "origin or use thicker struts"
+            )
+    return Mesh(vertices=v2, faces=f2), merged + int(bad.sum())
+
+
+def _flat_triangles(v: NDArray[np.float64], f: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """(F,) bool: triangles of zero area (exactly, in the coordinates given)."""
+    t = v[f]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    return ~np.any(n != 0.0, axis=1)
 
 
 # ---------------------------------------------------------------- utilities
