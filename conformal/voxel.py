@@ -32,6 +32,7 @@ Finally the radii are fitted so that the graph stitches (see
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -45,12 +46,12 @@ from conformal.cells import UnitCell, _resolve, tile_arrays
 from conformal.part import Part
 from conformal.radius import FitError, RadiusSpec, fit_radii, resolve_radii
 from lattice_cad.core import config
-from lattice_cad.core.errors import LatticeWarning
+from lattice_cad.core.errors import FillError, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["voxel_lattice", "voxelize", "BuildReport", "Voxels"]
 
-FillMode = Literal["inside", "clip", "conform"]
+FillMode = Literal["auto", "inside", "clip", "conform"]
 FitMode = Literal["shrink", "raise", "off"]
 
 
@@ -68,6 +69,9 @@ class BuildReport:
     removed_dangling: int = 0
     removed_fragments: int = 0
     removed_isolated: int = 0
+    removed_islands: int = 0
+    bodies: int = 0
+    fill: str = ""
     radii_reduced: int = 0
     min_radius: float = float("nan")
     seconds: dict[str, float] = field(default_factory=dict)
@@ -196,8 +200,10 @@ def voxel_lattice(
     radius : float, (M,), (M, 2) or callable
         Strut radius; see :mod:`conformal.radius`. A callable receives the
         (M, 3) strut midpoints (in the part's frame).
-    fill : {"inside", "clip", "conform"}
-        See the module docstring.
+    fill : {"inside", "clip", "conform", "auto"}
+        See the module docstring. ``"auto"``: ``"inside"`` when a whole cell fits, else
+        ``"conform"`` (thin parts: the surface nodes follow the walls, so the lattice stays
+        connected); the report's ``fill`` says which.
     origin : (3,) float, optional
         A lattice grid point, in the lattice frame (default: centred on the
         part's bounding box in that frame).
@@ -234,8 +240,8 @@ def voxel_lattice(
     FitError
         With ``fit="raise"``, when some struts do not fit.
     """
-    if fill not in ("inside", "clip", "conform"):
-        raise ValueError(f"fill must be 'inside', 'clip' or 'conform', got {fill!r}")
+    if fill not in ("auto", "inside", "clip", "conform"):
+        raise ValueError(f"fill must be 'auto', 'inside', 'clip' or 'conform', got {fill!r}")
     if fit not in ("shrink", "raise", "off"):
         raise ValueError(f"fit must be 'shrink', 'raise' or 'off', got {fit!r}")
     if not isinstance(part, Part):
@@ -253,13 +259,13 @@ def voxel_lattice(
     rep.cells_cut = int(vox.cut.sum())
     rep.seconds["voxelize"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    if fill == "auto":
+        fill = "inside" if rep.cells_inside else "conform"
+    rep.fill = fill
     occupied = vox.inside if fill == "inside" else (vox.inside | vox.cut)
     ijk = np.argwhere(occupied).astype(np.int64)
     if not len(ijk):
-        raise ValueError(
-            f"no cell of size {h.tolist()} fits {'inside ' if fill == 'inside' else ''}"
-            f"{part.name}; use smaller cells"
-        )
+        raise _nothing_fits(part, h, radius, f"no cell of size {_mm(h)} fits inside")
     nodes, edges, _ = tile_arrays(c, ijk, cell_size=h, origin=vox.origin)
     rep.seconds["tile"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -271,15 +277,40 @@ def voxel_lattice(
     min_len = float(min_strut) * float(h.min())
     if prune or fill != "inside":
         nodes, edges = _cleanup(nodes, edges, on_surface, min_len, fill != "inside", prune, rep)
+    if len(edges):
+        nodes, edges = keep_main_components(local, nodes, edges, rep)
     rep.seconds["clip"] = time.perf_counter() - t0
     if not len(edges):
-        raise ValueError(f"no strut of the lattice is left inside {part.name}; use smaller cells")
+        raise _nothing_fits(part, h, radius, f"no strut of {_mm(h)} cells is left inside")
     if rot is not None:
         nodes = nodes @ rot.T
     t0 = time.perf_counter()
     graph = _finish(nodes, edges, radius, min_radius, fit, rep)
     rep.seconds["fit"] = time.perf_counter() - t0
     return (graph, rep) if return_report else graph
+
+
+def _mm(h: NDArray[np.float64]) -> str:
+    return "x".join(f"{x:.4g}" for x in h) + " mm" if np.ptp(h) > 0 else f"{h[0]:.4g} mm"
+
+
+def _nothing_fits(part: Part, h: NDArray[np.float64], radius: RadiusSpec, what: str) -> FillError:
+    """A :class:`FillError` that says what would fit the part."""
+    r_in = part.inscribed_radius()
+    thick = 2.0 * r_in
+    # a whole cube of edge c fits in a ball of radius c sqrt(3) / 2
+    cube = 2.0 * r_in / math.sqrt(3.0)
+    r = float(np.min(radius)) if isinstance(radius, (int, float, np.ndarray)) else float("nan")
+    hint = (
+        f"its greatest thickness is about {thick:.3g} mm: cells up to about {cube:.3g} mm fit "
+        "whole, and fill='clip' or 'conform' fills it with any cell size"
+    )
+    if r == r and 2 * r >= thick:
+        hint = (
+            f"its greatest thickness is about {thick:.3g} mm, too thin for struts of radius "
+            f"{r:g}: use a radius below {0.5 * r_in:.3g} mm"
+        )
+    return FillError(f"{what} {part.name}; {hint}")
 
 
 def _homog(r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -479,6 +510,83 @@ def _cleanup(
     used[edges.ravel()] = True
     rep.removed_isolated = int((~used).sum())
     new_id = np.cumsum(used) - 1
+    return nodes[used], new_id[edges].astype(np.int64)
+
+
+def _solid_shells(part: Part) -> list[Part]:
+    """The part's separate solids: its outer shells (positive volume), each as a Part."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    v, f = part.vertices, part.faces
+    n = len(v)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+    k, lab = connected_components(g, directed=False)
+    if k == 1:
+        return [part]
+    flab = lab[f[:, 0]]
+    shells = []
+    for c in range(k):
+        fc = f[flab == c]
+        t = v[fc]
+        if np.einsum("ij,ij->", t[:, 0], np.cross(t[:, 1], t[:, 2])) > 0:
+            shells.append(Part(v, fc, name=f"{part.name} (solid {len(shells)})"))
+    return shells or [part]
+
+
+def keep_main_components(
+    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Keep, in each separate solid of the part, only the largest connected piece.
+
+    Smaller pieces would print as loose islands (inside a skin they would rattle in the
+    cavity). ``rep.removed_islands`` counts the struts removed, ``rep.bodies`` the pieces
+    kept (at most one per solid).
+
+    nodes : (N, 3) float64, edges : (M, 2) int64. Returns the kept nodes and edges
+    (renumbered).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(nodes)
+    g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    k, lab = connected_components(g, directed=False)
+    elab = lab[edges[:, 0]]
+    size = np.bincount(elab, minlength=k)
+    present = np.flatnonzero(size)
+    if len(present) <= 1:
+        rep.bodies = len(present)
+        return nodes, edges
+    shells = _solid_shells(part)
+    # the solid of each piece: the shell that contains the midpoint of its first strut
+    first = np.full(k, -1, dtype=np.int64)
+    first[elab[::-1]] = np.arange(len(edges))[::-1]
+    mids = 0.5 * (nodes[edges[first[present], 0]] + nodes[edges[first[present], 1]])
+    owner = np.zeros(len(present), dtype=np.int64)
+    if len(shells) > 1:
+        for i, shell in enumerate(shells):
+            owner[shell.contains(mids)] = i
+    keep = np.zeros(k, dtype=bool)
+    for o in np.unique(owner):
+        mine = present[owner == o]
+        keep[mine[np.argmax(size[mine])]] = True
+    ok = keep[elab]
+    rep.removed_islands = int((~ok).sum())
+    rep.bodies = int(keep.sum())
+    edges = edges[ok]
+    used = np.zeros(n, dtype=bool)
+    used[edges.ravel()] = True
+    new_id = np.cumsum(used) - 1
+    if rep.removed_islands:
+        warnings.warn(
+            f"{rep.removed_islands} strut(s) in {len(present) - rep.bodies} loose piece(s) "
+            f"were removed: they touched neither the main lattice nor another piece "
+            f"({rep.bodies} body(ies) left, one per separate solid at most)",
+            LatticeWarning,
+            stacklevel=3,
+        )
     return nodes[used], new_id[edges].astype(np.int64)
 
 

@@ -267,9 +267,10 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
     )
     g.add_argument(
         "--fill",
-        choices=("inside", "clip", "conform"),
+        choices=("auto", "inside", "clip", "conform"),
         default=None,
-        help="how cells meet the boundary (default: clip with --skin, else inside); "
+        help="how cells meet the boundary (default: clip with --skin, else auto: inside, or "
+        "conform when no whole cell fits, as in thin parts); "
         "voxel only: an error with --method tet, whose lattice always conforms",
     )
     if skin:

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 __all__ = ["Lattice", "Method", "Fill", "load_graph"]
 
 Method = Literal["voxel", "tet"]
-Fill = Literal["inside", "clip", "conform"]
+Fill = Literal["auto", "inside", "clip", "conform"]
 
 
 def _check_choice(name: str, value: Any, allowed: tuple[str, ...]) -> str:
@@ -178,9 +178,10 @@ class Lattice:
             Strut radius (mm).
         method : {"voxel", "tet"}
             Periodic cells on a grid, or struts along the edges of a tetrahedral mesh.
-        fill : {"inside", "clip", "conform"}, optional
+        fill : {"auto", "inside", "clip", "conform"}, optional
             How the voxel lattice meets the boundary (see ``conformal.voxel_lattice``);
-            default ``"clip"`` with a skin (struts reach into the wall), else ``"inside"``.
+            default ``"clip"`` with a skin (struts reach into the wall), else ``"auto"``
+            (``"inside"``, or ``"conform"`` when no whole cell fits, as in thin parts).
             Voxel only: a tet lattice always conforms (its surface nodes lie on the
             part's surface), so passing ``fill`` with ``method="tet"`` is an error.
         skin : float, optional
@@ -213,8 +214,8 @@ class Lattice:
                     "follows the part's surface by construction (leave them out)"
                 )
         if fill is None:
-            fill = "clip" if skin is not None else "inside"
-        _check_choice("fill", fill, ("inside", "clip", "conform"))
+            fill = "clip" if skin is not None else "auto"
+        _check_choice("fill", fill, ("auto", "inside", "clip", "conform"))
         if not isinstance(cell, str):
             raise TypeError(f"cell must be a cell name, got {type(cell).__name__}")
         from conformal import CELLS

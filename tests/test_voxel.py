@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -232,3 +233,53 @@ def test_bad_arguments(sphere):
         voxel_lattice(sphere, "bcc", 50.0)
     with pytest.raises(TypeError):
         voxel_lattice("part.step")
+
+
+# ------------------------------------------------------- real thin parts (regressions)
+def test_thin_part_default_fill_gives_one_connected_lattice():
+    """Regression: the spanner (10 mm thick) at 1/15 of its length per cell was refused
+    with "no cell fits inside"; the default fill now conforms and stays one piece."""
+    from conformal import load_part, voxel_lattice
+    from tests.conftest import DATA
+
+    part = load_part(DATA / "step" / "dolfiny_spanner25_lo.step")
+    cell = float(part.size.max()) / 15
+    g, rep = voxel_lattice(part, "bcc", cell, cell / 12, fill="auto", return_report=True)
+    assert rep.fill == "conform" and rep.cells_inside == 0
+    assert rep.bodies == 1 and g.num_edges > 50
+
+
+def test_nothing_fits_says_what_would():
+    """A radius larger than half the part's thickness: the error names the thickness and
+    the largest radius that fits; an inside fill names the largest cell that fits whole."""
+    from conformal import load_part, voxel_lattice
+    from lattice_cad.core.errors import FillError
+    from tests.conftest import DATA
+
+    with pytest.warns(LatticeWarning, match="3 solids were united"):
+        part = load_part(DATA / "step" / "kcl_sheet-metal-bracket.step")  # 2.29 mm tabs
+    with pytest.raises(FillError, match=r"greatest thickness is about 2\.\d+ mm, too thin"):
+        voxel_lattice(part, "bcc", 15.0, 1.27, fill="inside")
+    with pytest.raises(FillError, match=r"cells up to about \d\.\d+ mm fit whole"):
+        voxel_lattice(part, "bcc", 15.0, 0.3, fill="inside")
+
+
+def test_islands_are_removed_one_body_per_solid():
+    """Clipped cells of a thin part break into pieces: only the largest piece per separate
+    solid is kept, and the report counts what was removed."""
+    from conformal import load_part, voxel_lattice
+    from tests.conftest import DATA
+
+    part = load_part(DATA / "step" / "dolfiny_spanner25_lo.step")
+    cell = float(part.size.max()) / 15
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        g, rep = voxel_lattice(part, "bcc", cell, cell / 12, fill="clip", return_report=True)
+    assert any("loose piece" in str(w.message) for w in caught)
+    assert rep.bodies == 1 and rep.removed_islands > 0
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = g.num_nodes
+    adj = coo_matrix((np.ones(g.num_edges), (g.edges[:, 0], g.edges[:, 1])), shape=(n, n))
+    assert connected_components(adj, directed=False)[0] == 1

@@ -11,6 +11,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── InvalidGraphError        a graph breaks an input rule (names the node or edge)
     ├── StitchError              a valid graph cannot be stitched (fast_stitch)
     ├── FitError                 struts cannot be made to fit (conformal.radius)
+    ├── FillError                no lattice fits the part (says what would)
     ├── PartError                a part file or shape cannot be used (conformal.part)
     │   └── StepUnitsError       a STEP file's unit disagrees with OCCT's reading of it
     ├── SkinError                a part cannot be hollowed (conformal.skin)
@@ -33,6 +34,7 @@ __all__ = [
     "InvalidGraphError",
     "StitchError",
     "FitError",
+    "FillError",
     "PartError",
     "StepUnitsError",
     "SkinError",
@@ -62,6 +64,12 @@ class StitchError(LatticeError, ValueError):
 
 class FitError(LatticeError, ValueError):
     """Some struts cannot be made to fit (the message lists them)."""
+
+
+class FillError(LatticeError, ValueError):
+    """No lattice of the asked cell size and radius fits the part; the message says what
+    would (the largest cell size that fits whole, the part's thickness, the largest radius).
+    """
 
 
 class PartError(LatticeError, ValueError):
