@@ -43,6 +43,8 @@ __all__ = [
     "fit_problems",
     "check_fit",
     "fit_radii",
+    "repair_graph",
+    "RepairReport",
     "FitError",
 ]
 
@@ -358,3 +360,177 @@ def _clash_struts(
     joint[el[el >= m] - m] = True
     at_joint = np.flatnonzero(joint[edges].any(axis=1))
     return np.union1d(el[el < m], at_joint).astype(np.int64)
+
+
+# ----------------------------------------------------------------- graph repair
+@dataclass
+class RepairReport:
+    """What :func:`repair_graph` changed.
+
+    Attributes
+    ----------
+    merged : int
+        Short struts collapsed (their two nodes merged into one).
+    dropped : int
+        Struts removed because they met a neighbour at too small an angle.
+    thinned : int
+        Struts left thinner than asked (by less than the tolerance).
+    unfit : int
+        Struts that still had to be made thinner than ``tolerance`` times the asked radius
+        (0 after a complete repair); they are thinned down to a tenth at most.
+    where : list of (3,) float
+        Midpoints of up to 10 unfit struts.
+    """
+
+    merged: int = 0
+    dropped: int = 0
+    thinned: int = 0
+    unfit: int = 0
+    where: list[list[float]] | None = None
+
+
+def repair_graph(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    *,
+    surface: NDArray[np.bool_] | None = None,
+    tolerance: float = 0.7,
+    max_rounds: int = 60,
+    max_change: float = 0.15,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64], RepairReport]:
+    """Change the graph, not the radius, where struts cannot be stitched at the radius asked.
+
+    Struts that meet a neighbour at too small an angle for their radius would have to be
+    thinned (a tet mesh has some at almost every node). Thinning a strut to a tenth of its
+    radius is not a fix: here a strut may lose at most ``1 - tolerance`` of its radius.
+    Beyond that, short struts (under a quarter of the median length) are collapsed, their nodes
+    merged (a node on the part's surface keeps its place), and longer ones are dropped, as
+    long as both of their nodes keep at least two struts; the graph stays connected (the
+    largest piece is kept).
+
+    Parameters
+    ----------
+    nodes : (N, 3) float64, edges : (M, 2) int64, radii : (M, 2) float64
+    surface : (N,) bool, optional
+        Nodes on the part's surface (they are never moved).
+    tolerance : float
+        Smallest fraction of the asked radius a strut may be thinned to.
+    max_change : float
+        At most this fraction of the struts is collapsed or dropped; what is still unfit
+        then is thinned (and counted in ``report.unfit``).
+
+    Returns
+    -------
+    nodes : (N', 3) float64, edges : (M', 2) int64, radii : (M', 2) float64
+        The repaired graph with fitted radii: each at least ``tolerance`` times the asked
+        one, except for the ``report.unfit`` struts (listed by ``report.where``).
+    report : RepairReport
+    """
+    nodes = np.array(nodes, dtype=np.float64, copy=True)
+    edges = np.asarray(edges, dtype=np.int64)
+    asked = np.asarray(radii, dtype=np.float64)
+    on_surf = np.zeros(len(nodes), bool) if surface is None else np.asarray(surface, bool).copy()
+    rep = RepairReport()
+    median = float(np.median(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)))
+    budget = max_change * len(edges)  # the repair changes the lattice, it must not replace it
+    for _ in range(max_rounds):
+        if rep.merged + rep.dropped >= budget:
+            break
+        bad = _unfit_at(nodes, edges, tolerance * asked)
+        if not len(bad):
+            break
+        length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+        short = bad[length[bad] < 0.25 * median]
+        if len(short):
+            nodes, edges, asked, on_surf, n = _collapse(nodes, edges, asked, on_surf, short)
+            rep.merged += n
+            continue
+        deg = np.bincount(edges.ravel(), minlength=len(nodes))
+        drop = np.zeros(len(edges), dtype=bool)
+        room = int(budget - rep.merged - rep.dropped)
+        for e in bad[np.argsort(-length[bad])]:  # longest first
+            a, b = edges[e]
+            if deg[a] > 2 and deg[b] > 2 and room > 0:
+                room -= 1
+                drop[e] = True
+                deg[a] -= 1
+                deg[b] -= 1
+        if not drop.any():
+            break
+        rep.dropped += int(drop.sum())
+        edges, asked = edges[~drop], asked[~drop]
+    nodes, edges, asked = _largest_piece(nodes, edges, asked)
+    fitted, unfit = fit_radii(nodes, edges, asked, min_radius=tolerance * float(asked.min()))
+    if len(unfit):  # what the repair could not fix is thinned further, and counted
+        fitted, unfit = fit_radii(nodes, edges, fitted, min_radius=0.1 * float(asked.min()))
+    low = (fitted < tolerance * asked * (1 - 1e-9)).any(axis=1)
+    bad = np.union1d(np.flatnonzero(low), unfit)
+    rep.unfit = len(bad)
+    rep.thinned = int(((fitted < asked * (1 - 1e-9)).any(axis=1)).sum())
+    mids = 0.5 * (nodes[edges[bad, 0]] + nodes[edges[bad, 1]])
+    rep.where = mids[:10].tolist()
+    return nodes, edges, fitted, rep
+
+
+def _unfit_at(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]
+) -> NDArray[np.int64]:
+    """Struts that do not fit at ``radii`` (end profiles meet, or they clash with a strut
+    or joint that shares no node)."""
+    bad, _, _ = misfits(nodes, edges, radii, slack=config.FIT_SLACK)
+    if len(bad):
+        return bad
+    pairs, _, _ = clashes(nodes, edges, radii)
+    return _clash_struts(pairs, edges, len(edges), len(nodes))
+
+
+def _collapse(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    surface: NDArray[np.bool_],
+    which: NDArray[np.int64],
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], int]:
+    """Merge the two nodes of each strut in ``which`` (an independent set of them)."""
+    n = len(nodes)
+    target = np.arange(n)
+    busy = np.zeros(n, dtype=bool)
+    merged = 0
+    for e in which:
+        a, b = (int(x) for x in edges[e])
+        if busy[a] or busy[b]:
+            continue
+        busy[a] = busy[b] = True
+        if surface[b] and not surface[a]:
+            a, b = b, a  # keep the surface node where it is
+        elif not surface[b]:
+            nodes[a] = 0.5 * (nodes[a] + nodes[b]) if not surface[a] else nodes[a]
+        target[b] = a
+        surface[a] |= surface[b]
+        merged += 1
+    e2 = target[edges]
+    keep = e2[:, 0] != e2[:, 1]
+    e2, r2 = np.sort(e2[keep], axis=1), radii[keep]
+    _, first = np.unique(e2, axis=0, return_index=True)
+    first = np.sort(first)
+    return nodes, e2[first], r2[first], surface, merged
+
+
+def _largest_piece(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """The largest connected piece, nodes renumbered (unused nodes dropped)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(nodes)
+    g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, lab = connected_components(g, directed=False)
+    elab = lab[edges[:, 0]]
+    keep = elab == np.argmax(np.bincount(elab))
+    edges, radii = edges[keep], radii[keep]
+    used = np.zeros(n, dtype=bool)
+    used[edges.ravel()] = True
+    new_id = np.cumsum(used) - 1
+    return nodes[used], new_id[edges], radii

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Literal
 
@@ -22,15 +23,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from conformal.part import Part, PartError
-from conformal.radius import RadiusSpec
+from conformal.radius import RadiusSpec, repair_graph, resolve_radii
 from conformal.voxel import BuildReport, FitMode, _finish
 from lattice_cad.core import config
+from lattice_cad.core.errors import LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
 
-__all__ = ["tet_lattice", "tet_mesh"]
+__all__ = ["tet_lattice", "tet_mesh", "tet_edges", "boundary_nodes"]
 
-Algorithm = Literal["delaunay", "hxt"]
-_ALGO = {"delaunay": 1, "hxt": 10}
+Algorithm = Literal["hxt", "delaunay", "frontal"]
+_ALGO = {"hxt": 10, "delaunay": 1, "frontal": 4}
 
 
 def tet_mesh(
@@ -48,10 +50,14 @@ def tet_mesh(
     size : float
         Target edge length (mm).
     algorithm : {"hxt", "delaunay"}
-        gmsh's 3-D algorithm (HXT is parallel and fast).
+        gmsh's 3-D algorithm tried first (HXT is parallel and fast); when it fails, the
+        others are tried.
     surface_angle : float
         For mesh parts: dihedral angle (degrees) above which a mesh edge is a
-        feature edge that the re-meshed surface keeps.
+        feature edge that the re-meshed surface keeps. When the surface cannot be
+        re-parametrised at that angle, a resampled surface (the zero level of the signed
+        distance, spacing ``size / 1.5``) is tried, then 20 and 10 degrees, then the part's
+        own triangles as the boundary.
 
     Returns
     -------
@@ -73,36 +79,79 @@ def tet_mesh(
         raise ValueError(f"algorithm must be one of {sorted(_ALGO)}, got {algorithm!r}")
     if gmsh.isInitialized():
         raise RuntimeError("gmsh is already initialised in this process; finalise it first")
+    order = [algorithm] + [a for a in _ALGO if a != algorithm]
+    surfaces = [("reparametrized", surface_angle), ("resampled", 0.0)]
+    surfaces += [("reparametrized", a) for a in (20.0, 10.0)] + [("discrete", 0.0)]
+    if part.shape is not None:
+        surfaces = [("brep", 0.0)]
+    failures: list[str] = []
+    with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
+        for how, angle in surfaces:
+            for algo in order:
+                try:
+                    tags, xyz, tet_tags = _gmsh_tets(part, Path(tmp), size, how, angle, algo)
+                except _GmshFailure as exc:
+                    failures.append(
+                        f"{how} surface{f' ({angle:g} deg)' if angle else ''}, {algo}: {exc}"
+                    )
+                    if exc.stage == "surface":
+                        break  # the next surface strategy, not the next 3-D algorithm
+                    continue
+                return _compact(tags, xyz, tet_tags)
+    raise PartError(f"{part.name}: gmsh could not mesh the part: " + "; ".join(failures))
+
+
+class _GmshFailure(Exception):
+    def __init__(self, message: str, stage: str) -> None:
+        super().__init__(message)
+        self.stage = stage
+
+
+def _gmsh_tets(
+    part: Part, tmp: Path, size: float, how: str, angle: float, algorithm: str
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
+    """One gmsh run: node tags (N,), coordinates (N, 3), tetrahedra (T, 4) as node tags."""
+    import gmsh
+
+    if gmsh.isInitialized():
+        raise RuntimeError("gmsh is already initialised in this process; finalise it first")
     gmsh.initialize(readConfigFiles=False, interruptible=False)
-    vols: list[int] = []
+    stage = "surface"
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.logger.start()
         gmsh.model.add("part")
-        with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
-            brep = _brep_file(part, Path(tmp))
-            if brep is not None:
-                gmsh.model.occ.importShapes(str(brep))
-                gmsh.model.occ.synchronize()
-            else:
-                stl = Path(tmp) / "part.stl"
-                _write_stl(part, stl)
-                gmsh.merge(str(stl))
-                gmsh.model.mesh.classifySurfaces(math.radians(surface_angle), True, True, math.pi)
+        if how == "brep":
+            brep = _brep_file(part, tmp)
+            if brep is None:
+                raise _GmshFailure("the solids could not be fused into one B-rep", stage)
+            gmsh.model.occ.importShapes(str(brep))
+            gmsh.model.occ.synchronize()
+        else:
+            stl = tmp / f"part_{how}.stl"
+            if not stl.exists():
+                source = _resampled(part, size / 1.5) if how == "resampled" else part
+                _write_stl(source, stl)
+            gmsh.merge(str(stl))
+            if how == "reparametrized":
+                gmsh.model.mesh.classifySurfaces(math.radians(angle), True, True, math.pi)
                 gmsh.model.mesh.createGeometry()
-                surfaces = [t for _, t in gmsh.model.getEntities(2)]
-                loop = gmsh.model.geo.addSurfaceLoop(surfaces)
-                gmsh.model.geo.addVolume([loop])
-                gmsh.model.geo.synchronize()
+            else:  # the triangles as they are (resampled or the part's), as the boundary
+                gmsh.model.mesh.createTopology()
+            loop = gmsh.model.geo.addSurfaceLoop([t for _, t in gmsh.model.getEntities(2)])
+            gmsh.model.geo.addVolume([loop])
+            gmsh.model.geo.synchronize()
         vols = [t for _, t in gmsh.model.getEntities(3)]
         if not vols:
-            raise PartError(f"{part.name}: gmsh found no volume to mesh")
+            raise _GmshFailure("no volume to mesh", stage)
         gmsh.option.setNumber("Mesh.MeshSizeMax", float(size))
         gmsh.option.setNumber("Mesh.MeshSizeMin", 0.1 * float(size))
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
         gmsh.option.setNumber("Mesh.Algorithm3D", _ALGO[algorithm])
         gmsh.option.setNumber("Mesh.Optimize", 1)
+        gmsh.model.mesh.generate(2)
+        stage = "volume"
         gmsh.model.mesh.generate(3)
         tags, coords, _ = gmsh.model.mesh.getNodes()
         etypes, _, enodes = gmsh.model.mesh.getElements(3)
@@ -110,27 +159,29 @@ def tet_mesh(
             np.asarray(n, dtype=np.int64) for t, n in zip(etypes, enodes, strict=True) if t == 4
         ]
         if not tets or not sum(len(t) for t in tets):
-            raise PartError(
-                f"{part.name}: gmsh produced no tetrahedra (volumes {vols}); "
-                "the part may be thinner than the mesh size allows"
-            )
-        tet_tags = np.concatenate(tets).reshape(-1, 4)
-        tags = np.asarray(tags, dtype=np.int64)
-        xyz = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
-    except PartError:
+            raise _GmshFailure(f"no tetrahedra in volume(s) {vols}", stage)
+        return (
+            np.asarray(tags, dtype=np.int64),
+            np.asarray(coords, dtype=np.float64).reshape(-1, 3),
+            np.concatenate(tets).reshape(-1, 4),
+        )
+    except _GmshFailure:
         raise
     except Exception as exc:  # gmsh raises plain Exceptions with its message
-        log = [m for m in gmsh.logger.get() if "Error" in m][-3:]
-        detail = "; ".join(log) if log else ""
-        raise PartError(
-            f"{part.name}: gmsh failed to mesh volume(s) {vols or '(none)'}: {exc}"
-            f"{'; ' + detail if detail and detail not in str(exc) else ''}"
-        ) from None
+        log = [m for m in gmsh.logger.get() if "Error" in m][-2:]
+        detail = "; ".join(m for m in log if m.split(": ", 1)[-1] not in str(exc))
+        raise _GmshFailure(f"{exc}{'; ' + detail if detail else ''}", stage) from None
     finally:
         try:
             gmsh.logger.stop()
         finally:
             gmsh.finalize()
+
+
+def _compact(
+    tags: NDArray[np.int64], xyz: NDArray[np.float64], tet_tags: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Nodes used by the tetrahedra and the tetrahedra as 0-based indices into them."""
     lookup = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
     lookup[tags] = np.arange(len(tags))
     tet = lookup[tet_tags]
@@ -155,6 +206,29 @@ def _brep_file(part: Part, tmp: Path) -> Path | None:
     return path
 
 
+def _resampled(part: Part, h: float) -> Part:
+    """The part's surface re-triangulated at spacing ``h``: the zero level of its signed
+    distance on a grid (exact near the surface), by marching tetrahedra. A clean, even
+    boundary for gmsh when a scanned or dense mesh cannot be re-parametrised."""
+    from scipy.ndimage import binary_dilation, binary_erosion
+
+    from conformal.skin import marching_tets
+
+    pad = 2 * h
+    origin = part.bounds[0] - pad
+    dims = np.ceil((part.size + 2 * pad) / h).astype(np.int64) + 1
+    inside = part.grid_contains(origin, np.full(3, h), dims)
+    field = np.where(inside, 2.0 * h, -2.0 * h)
+    near = np.argwhere(
+        binary_dilation(inside, iterations=2) & ~binary_erosion(inside, iterations=2)
+    )
+    d = part.distance(origin + near * h, max_distance=4 * h)
+    sign = np.where(inside[tuple(near.T)], 1.0, -1.0)
+    field[tuple(near.T)] = sign * np.where(np.isfinite(d), d, 2 * h)
+    v, f = marching_tets(field, origin, h)
+    return Part(v, f, name=part.name)
+
+
 def _write_stl(part: Part, path: Path) -> None:
     import trimesh
 
@@ -176,6 +250,8 @@ def tet_lattice(
     algorithm: Algorithm = "hxt",
     min_radius: float | None = None,
     fit: FitMode = "shrink",
+    repair: bool = True,
+    tolerance: float = 0.7,
     return_report: bool = False,
 ) -> LatticeGraph | tuple[LatticeGraph, BuildReport]:
     """A lattice whose nodes and struts are the vertices and edges of a tet mesh of ``part``.
@@ -192,6 +268,14 @@ def tet_lattice(
     min_radius, fit
         As in :func:`conformal.voxel_lattice`: struts whose end profiles would
         meet (small angles between tet edges) are thinned, or reported.
+    repair : bool
+        First change the graph where struts meet at angles too small for the radius
+        (:func:`conformal.radius.repair_graph`: short struts collapsed, others dropped,
+        the graph kept connected and its surface nodes in place), so that no strut is
+        thinner than ``tolerance`` times the radius asked; the report counts what
+        changed (``merged_nodes``, ``removed_short`` = dropped struts, ``radii_reduced``).
+    tolerance : float
+        Smallest fraction of the asked radius a strut may be thinned to.
     return_report : bool
         Also return a :class:`~conformal.voxel.BuildReport`.
 
@@ -203,6 +287,14 @@ def tet_lattice(
     ------
     PartError
         gmsh failed (its message and the volume tags are included).
+    FitError
+        Some struts cannot be stitched even at a tenth of the radius.
+
+    Warns
+    -----
+    LatticeWarning
+        Some struts had to be made thinner than ``tolerance`` times the radius even after
+        the repair (how many and where; ``report.thinned_beyond_tolerance``).
     """
     if not isinstance(part, Part):
         raise TypeError(f"part must be a conformal.Part (see load_part), got {type(part).__name__}")
@@ -212,6 +304,36 @@ def tet_lattice(
     rep.seconds["mesh"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     edges = tet_edges(tets)
+    if repair:
+        r = resolve_radii(radius, nodes, edges)
+        nodes, edges, fitted, fix = repair_graph(
+            nodes, edges, r, surface=boundary_nodes(tets, len(nodes)), tolerance=tolerance
+        )
+        rep.merged_nodes, rep.removed_short = fix.merged, fix.dropped
+        rep.radii_reduced = fix.thinned
+        if fix.unfit:
+            where = ", ".join("(" + ", ".join(f"{c:.4g}" for c in p) + ")" for p in fix.where[:3])
+            warnings.warn(
+                f"{fix.unfit} strut(s) of the tet lattice of {part.name} had to be made thinner "
+                f"than {tolerance:g} x the radius asked even after the graph repair "
+                f"({fix.merged} struts collapsed, {fix.dropped} dropped), e.g. at {where}; "
+                "a larger size or a thinner radius avoids it",
+                LatticeWarning,
+                stacklevel=2,
+            )
+        rep.thinned_beyond_tolerance = fix.unfit
+        radius = fitted
     graph = _finish(nodes, edges, radius, min_radius, fit, rep)
+    if repair:
+        rep.radii_reduced = max(rep.radii_reduced, fix.thinned)
     rep.seconds["fit"] = time.perf_counter() - t0
     return (graph, rep) if return_report else graph
+
+
+def boundary_nodes(tets: NDArray[np.int64], n_nodes: int) -> NDArray[np.bool_]:
+    """(N,) bool: nodes on the boundary of a tet mesh (on a face used by one tet only)."""
+    faces = np.sort(tets[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3), axis=1)
+    uniq, count = np.unique(faces, axis=0, return_counts=True)
+    out = np.zeros(n_nodes, dtype=bool)
+    out[uniq[count == 1].ravel()] = True
+    return out

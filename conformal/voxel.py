@@ -70,6 +70,7 @@ class BuildReport:
     removed_fragments: int = 0
     removed_isolated: int = 0
     removed_islands: int = 0
+    thinned_beyond_tolerance: int = 0
     bodies: int = 0
     fill: str = ""
     radii_reduced: int = 0
