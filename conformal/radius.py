@@ -448,10 +448,15 @@ def repair_graph(
             continue
         deg = np.bincount(edges.ravel(), minlength=len(nodes))
         drop = np.zeros(len(edges), dtype=bool)
-        room = int(budget - rep.merged - rep.dropped)
+        # struts that would not fit even at a twentieth of the radius (nearly parallel to a
+        # neighbour) go whatever the degree of their nodes
+        hopeless = np.intersect1d(bad, misfits(nodes, edges, 0.05 * asked)[0])
+        drop[hopeless] = True
+        np.subtract.at(deg, edges[hopeless].ravel(), 1)
+        room = int(budget - rep.merged - rep.dropped - len(hopeless))
         for e in bad[np.argsort(-length[bad])]:  # longest first
             a, b = edges[e]
-            if deg[a] > 2 and deg[b] > 2 and room > 0:
+            if not drop[e] and deg[a] > 2 and deg[b] > 2 and room > 0:
                 room -= 1
                 drop[e] = True
                 deg[a] -= 1
@@ -460,6 +465,16 @@ def repair_graph(
             break
         rep.dropped += int(drop.sum())
         edges, asked = edges[~drop], asked[~drop]
+    # struts that cannot be stitched even at a tenth of their radius (nearly parallel to a
+    # neighbour) go in any case, however much has changed
+    for _ in range(max_rounds):
+        hopeless = _unfit_at(nodes, edges, 0.1 * asked)
+        if not len(hopeless):
+            break
+        keep = np.ones(len(edges), dtype=bool)
+        keep[hopeless] = False
+        rep.dropped += len(hopeless)
+        edges, asked = edges[keep], asked[keep]
     nodes, edges, asked = _largest_piece(nodes, edges, asked)
     fitted, unfit = fit_radii(nodes, edges, asked, min_radius=tolerance * float(asked.min()))
     if len(unfit):  # what the repair could not fix is thinned further, and counted

@@ -26,8 +26,9 @@ from conformal.part import Part, PartError
 from conformal.radius import RadiusSpec, repair_graph, resolve_radii
 from conformal.voxel import BuildReport, FitMode, _finish
 from lattice_cad.core import config
-from lattice_cad.core.errors import LatticeWarning
+from lattice_cad.core.errors import ExternalCrash, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.isolate import run_isolated
 
 __all__ = ["tet_lattice", "tet_mesh", "tet_edges", "boundary_nodes"]
 
@@ -41,6 +42,7 @@ def tet_mesh(
     *,
     algorithm: Algorithm = "hxt",
     surface_angle: float = 40.0,
+    timeout: float = 600.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """A tetrahedral mesh of ``part`` with gmsh.
 
@@ -58,6 +60,9 @@ def tet_mesh(
         re-parametrised at that angle, a resampled surface (the zero level of the signed
         distance, spacing ``size / 1.5``) is tried, then 20 and 10 degrees, then the part's
         own triangles as the boundary.
+    timeout : float
+        Seconds one gmsh attempt may take. Each runs in a child process: a crash or a
+        hang of gmsh moves on to the next attempt instead of ending the caller.
 
     Returns
     -------
@@ -89,7 +94,13 @@ def tet_mesh(
         for how, angle in surfaces:
             for algo in order:
                 try:
-                    tags, xyz, tet_tags = _gmsh_tets(part, Path(tmp), size, how, angle, algo)
+                    tags, xyz, tet_tags = run_isolated(
+                        _gmsh_tets, part, Path(tmp), size, how, angle, algo,
+                        timeout=timeout, what=f"gmsh ({how} surface, {algo})",
+                    )  # fmt: skip
+                except ExternalCrash as exc:  # gmsh itself died or hung: try the next way
+                    failures.append(str(exc))
+                    continue
                 except _GmshFailure as exc:
                     failures.append(
                         f"{how} surface{f' ({angle:g} deg)' if angle else ''}, {algo}: {exc}"
@@ -323,6 +334,8 @@ def tet_lattice(
             )
         rep.thinned_beyond_tolerance = fix.unfit
         radius = fitted
+        if min_radius is None:  # the floor is relative to the radius asked, not the fitted one
+            min_radius = 0.1 * float(np.min(r))
     graph = _finish(nodes, edges, radius, min_radius, fit, rep)
     if repair:
         rep.radii_reduced = max(rep.radii_reduced, fix.thinned)

@@ -19,6 +19,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
     ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
+    ├── ExternalCrash            a C++ library crashed or hung in a child process
     └── ReferenceBuildError      the exact reference cannot be built (reference_boolean)
         └── DirtyLatticeError    hubs would overlap, the stacked reference is not exact
 
@@ -42,6 +43,7 @@ __all__ = [
     "SteadyLatticeError",
     "ExportError",
     "OCCTFailure",
+    "ExternalCrash",
     "ReferenceBuildError",
     "DirtyLatticeError",
     "LatticeWarning",
@@ -101,6 +103,10 @@ class OCCTFailure(LatticeError, RuntimeError):
 
     Inside the reference builder it becomes a per-hub status, never an uncaught error.
     """
+
+
+class ExternalCrash(LatticeError, RuntimeError):
+    """OpenCascade or gmsh crashed or hung in a child process (the caller's process lives)."""
 
 
 class ReferenceBuildError(LatticeError, RuntimeError):

@@ -168,26 +168,19 @@ def offset_solid_isolated(
     time on some real parts; in a child, a crash or a timeout is an :class:`OCCTFailure`
     that the caller can fall back from, and the user's process survives.
     """
-    import multiprocessing as mp
-    import sys
-    from concurrent.futures import ProcessPoolExecutor
-    from concurrent.futures import TimeoutError as FutureTimeout
-    from concurrent.futures.process import BrokenProcessPool
+    from lattice_cad.core.errors import ExternalCrash
+    from lattice_cad.core.isolate import run_isolated
 
-    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-    pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
     try:
-        future = pool.submit(_offsets_bytes, to_bytes(solid), tuple(float(d) for d in distances))
-        try:
-            data = future.result(timeout=timeout)
-        except FutureTimeout:
-            raise OCCTFailure(f"the offset did not finish within {timeout:g} s") from None
-        except BrokenProcessPool:
-            raise OCCTFailure("OCCT crashed while offsetting (the child process died)") from None
-    finally:
-        for proc in list(getattr(pool, "_processes", {}).values()):
-            proc.kill()
-        pool.shutdown(wait=False, cancel_futures=True)
+        data = run_isolated(
+            _offsets_bytes,
+            to_bytes(solid),
+            tuple(float(d) for d in distances),
+            timeout=timeout,
+            what="OCCT's offset",
+        )
+    except ExternalCrash as exc:
+        raise OCCTFailure(str(exc)) from None
     return [from_bytes(b) for b in data]
 
 
