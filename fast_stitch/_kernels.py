@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from fast_stitch._check_kernels import _tri_tri
+from fast_stitch._predicates import tri_tri
 
 QSCALE = 1073741824.0  # 2**30: directions are snapped to this grid
 RSCALE = 1099511627776.0  # 2**40: radii (relative to the largest) are keyed on this grid
@@ -1195,7 +1195,7 @@ def clearance(
                     fa = rows_i[p]
                     for q in range(nb):
                         fb = rows_j[q]
-                        if _tri_tri(
+                        if tri_tri(
                             vertices, faces[fa, 0], faces[fa, 1], faces[fa, 2],
                             faces[fb, 0], faces[fb, 1], faces[fb, 2],
                         ):  # fmt: skip

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from fast_stitch._check_kernels import _tri_tri
+from fast_stitch._predicates import tri_tri
 
 ST_OK = 0
 ST_DEGENERATE = 1  # no facets / a point missing from the hull
@@ -799,7 +799,7 @@ def tri_pairs(vertices, faces, order, bounds, pairs, out):
             fa = order[i]
             for j in range(bounds[k], bounds[k + 1]):
                 fb = order[j]
-                if _tri_tri(
+                if tri_tri(
                     vertices, faces[fa, 0], faces[fa, 1], faces[fa, 2],
                     faces[fb, 0], faces[fb, 1], faces[fb, 2],
                 ):  # fmt: skip

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fast_stitch import _kernels
-from fast_stitch._check_kernels import box_stats
+from fast_stitch._predicates import box_stats
 from fast_stitch.mesh import Mesh, stl_size
 from lattice_cad.errors import StitchError
 from lattice_cad.graph import LatticeGraph
