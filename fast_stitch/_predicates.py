@@ -28,14 +28,15 @@ grid, the exact tests of faces that share a vertex or an edge (fold
 tolerance), the touching-boxes shortcut (see :mod:`fast_stitch._check_kernels`).
 
 Because of this sharing, a bug in :func:`tri_tri` (or below it) could hide in
-both: the stitcher would build an overlapping mesh and the checker would not
-see it. The test suite guards against that with checkers that share no code
-with this package: ``independent_check`` / ``assert_valid`` in
-``tests/conftest.py`` judge every stitched mesh with trimesh (watertight,
-consistent winding, outward volume), manifold3d (manifold status) and
-pymeshlab (self-intersecting faces), and ``tests/test_check.py`` compares the
-checker with pymeshlab, trimesh and manifold3d and these predicates with brute
-force and exact rational arithmetic.
+both: the stitcher's clearance check would miss an overlap and the checker
+would miss the same self-intersection. The test suite guards against that with
+checkers that share no code with this package: ``independent_check`` /
+``assert_valid`` in ``tests/conftest.py`` judge every stitched mesh with
+trimesh (watertight, consistent winding, outward volume), manifold3d (manifold
+status) and pymeshlab (self-intersecting faces), and ``tests/test_check.py``
+compares the checker with pymeshlab, trimesh and manifold3d and these
+predicates with brute force and exact rational arithmetic.
+``tests/test_shared_predicates.py`` keeps the sharing to this module.
 
 Everything here is a ``@numba.njit(cache=True)`` function on arrays and
 scalars. Names without a leading underscore are used by other modules of the
