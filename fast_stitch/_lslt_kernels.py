@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from fast_stitch._check_kernels import _tri_tri
+from fast_stitch._predicates import tri_tri
 
 ST_OK = 0
 ST_DEGENERATE = 1  # no facets / a point missing from the hull
@@ -66,6 +66,11 @@ def arc_segments(span, step):
 def node_structure(dirs, rad, P, eps, mitre):
     """Vertices, sections and hole fan of one node.
 
+    Steps: the facets of ``conv({0} U dirs)`` (:func:`_hull_facets`,
+    :func:`_maximal_facets`), their polygons (:func:`_facet_polygons`), one vertex
+    per facet (:func:`_facet_vertices`), the sections around every slot and the hole
+    boundary (:func:`_sections`), the hole fan (:func:`_hole_fan`).
+
     Parameters
     ----------
     dirs : (d, 3) float64
@@ -94,35 +99,100 @@ def node_structure(dirs, rad, P, eps, mitre):
     status : int
     """
     d = dirs.shape[0]
-    step = TWO_PI / P
     empty_v = np.zeros((0, 3))
     empty_i = np.zeros(0, dtype=np.int64)
     empty_f = np.zeros((0, 3), dtype=np.int64)
     if mitre:
-        # one loop on the bisecting plane, shared by both struts
-        e1, e2 = _frame(dirs[0, 0], dirs[0, 1], dirs[0, 2])
-        nrm = dirs[0] - dirs[1]
-        nd = _dot(nrm, dirs[0])
-        rs = max(rad[0], rad[1])
-        verts = np.empty((P, 3))
-        for k in range(P):
-            ph = step * k
-            e = np.cos(ph) * e1 + np.sin(ph) * e2
-            t = -rs * _dot(nrm, e) / nd
-            for c in range(3):
-                verts[k, c] = rs * e[c] + t * dirs[0, c]
-        sec_ptr = np.array([0, P, 2 * P], dtype=np.int64)
-        sec_ids = np.empty(2 * P, dtype=np.int64)
-        for k in range(P):
-            sec_ids[k] = k
-            sec_ids[P + k] = P - 1 - k
+        verts, sec_ptr, sec_ids = _mitre_structure(dirs, rad, P)
         return verts, sec_ptr, sec_ids, empty_f, ST_OK
-
     n = d + 1
     q = np.zeros((n, 3))
     for j in range(d):
         for c in range(3):
             q[j + 1, c] = dirs[j, c]
+    fn, foff, fmask, nf, status = _hull_facets(q, eps)
+    if status != ST_OK:
+        return empty_v, empty_i, empty_i, empty_f, status
+    keep = _maximal_facets(fn, fmask, nf)
+    poly_ptr, poly, emap, hole, status = _facet_polygons(q, fn, fmask, keep, nf, eps)
+    if status != ST_OK:
+        return empty_v, empty_i, empty_i, empty_f, status
+    cap_v = nf + 1 + 2 * (d + 1) * (P + 4) + 8 * n
+    verts, fvid, nv, status = _facet_vertices(fn, foff, keep, poly_ptr, poly, rad, nf, cap_v)
+    if status != ST_OK:
+        return empty_v, empty_i, empty_i, empty_f, status
+    sec_ptr, sec_ids, ns, hole_ids, nh, nv, status = _sections(
+        dirs, rad, P, hole, verts, nv, fvid, poly_ptr, poly, emap, nf
+    )
+    if status != ST_OK:
+        return empty_v, empty_i, empty_i, empty_f, status
+    fan, nv, status = _hole_fan(verts, nv, hole_ids, nh, rad, hole)
+    if status != ST_OK:
+        return empty_v, empty_i, empty_i, empty_f, status
+    return verts[:nv].copy(), sec_ptr, sec_ids[:ns].copy(), fan, ST_OK
+
+
+@njit(cache=True, error_model="numpy")
+def _mitre_structure(dirs, rad, P):
+    """One section on the bisecting plane of a degree-2 node, shared by both struts.
+
+    Parameters
+    ----------
+    dirs : (2, 3) float64
+    rad : (2,) float64
+    P : int
+
+    Returns
+    -------
+    verts : (P, 3) float64
+    sec_ptr : (3,) int64
+    sec_ids : (2 P,) int64
+        The loop counter-clockwise around ``dirs[0]``, then around ``dirs[1]``.
+    """
+    step = TWO_PI / P
+    e1, e2 = _frame(dirs[0, 0], dirs[0, 1], dirs[0, 2])
+    nrm = dirs[0] - dirs[1]
+    nd = _dot(nrm, dirs[0])
+    rs = max(rad[0], rad[1])
+    verts = np.empty((P, 3))
+    for k in range(P):
+        ph = step * k
+        e = np.cos(ph) * e1 + np.sin(ph) * e2
+        t = -rs * _dot(nrm, e) / nd
+        for c in range(3):
+            verts[k, c] = rs * e[c] + t * dirs[0, c]
+    sec_ptr = np.array([0, P, 2 * P], dtype=np.int64)
+    sec_ids = np.empty(2 * P, dtype=np.int64)
+    for k in range(P):
+        sec_ids[k] = k
+        sec_ids[P + k] = P - 1 - k
+    return verts, sec_ptr, sec_ids
+
+
+@njit(cache=True, error_model="numpy")
+def _hull_facets(q, eps):
+    """Supporting planes of ``conv(q)`` through three points, one per point set.
+
+    Parameters
+    ----------
+    q : (n, 3) float64
+        The origin (point 0) and the unit directions, n <= 64.
+    eps : float
+        Coplanarity tolerance.
+
+    Returns
+    -------
+    fn : (cap, 3) float64
+        Unit outward normals (the first ``nf`` rows are set).
+    foff : (cap,) float64
+        Offsets: the plane is ``fn[f] . x == foff[f]``.
+    fmask : (cap,) uint64
+        Bit mask of the points within ``eps`` of the plane.
+    nf : int
+    status : int
+        ``ST_CAPACITY`` or ``ST_DEGENERATE`` (no facet) on failure.
+    """
+    n = q.shape[0]
     cap = 4 * n + 8
     fn = np.empty((cap, 3))
     foff = np.empty(cap)
@@ -166,7 +236,7 @@ def node_structure(dirs, rad, P, eps, mitre):
                     if dup:
                         continue
                     if nf >= cap:
-                        return empty_v, empty_i, empty_i, empty_f, ST_CAPACITY
+                        return fn, foff, fmask, nf, ST_CAPACITY
                     fn[nf, 0] = vx
                     fn[nf, 1] = vy
                     fn[nf, 2] = vz
@@ -174,8 +244,14 @@ def node_structure(dirs, rad, P, eps, mitre):
                     fmask[nf] = mask
                     nf += 1
     if nf == 0:
-        return empty_v, empty_i, empty_i, empty_f, ST_DEGENERATE
-    # drop facets whose point set is a strict subset of another (eps inconsistencies)
+        return fn, foff, fmask, nf, ST_DEGENERATE
+    return fn, foff, fmask, nf, ST_OK
+
+
+@njit(cache=True, error_model="numpy")
+def _maximal_facets(fn, fmask, nf):
+    """(nf,) bool: facets whose point set is not a strict subset of a facet of about the
+    same normal (``fn``, ``fmask`` from :func:`_hull_facets`; eps inconsistencies)."""
     keep = np.ones(nf, dtype=np.bool_)
     for f in range(nf):
         for g in range(nf):
@@ -183,7 +259,38 @@ def node_structure(dirs, rad, P, eps, mitre):
                 if fn[f, 0] * fn[g, 0] + fn[f, 1] * fn[g, 1] + fn[f, 2] * fn[g, 2] > 0.5:
                     keep[f] = False
                     break
-    # convex polygons of the facets, ccw seen from outside
+    return keep
+
+
+@njit(cache=True, error_model="numpy")
+def _facet_polygons(q, fn, fmask, keep, nf, eps):
+    """Convex polygons of the kept facets, counter-clockwise seen from outside.
+
+    Parameters
+    ----------
+    q : (n, 3) float64
+    fn : (cap, 3) float64
+    fmask : (cap,) uint64
+    keep : (nf,) bool
+    nf : int
+    eps : float
+
+    Returns
+    -------
+    poly_ptr : (nf + 1,) int64
+    poly : (nf * n,) int64
+        Polygon of facet f: ``poly[poly_ptr[f]:poly_ptr[f + 1]]`` (point indices; the
+        origin only where it is a corner).
+    emap : (n, n) int64
+        Facet of each directed polygon edge ``(a, b)``, -1 if none.
+    hole : bool
+        The origin is a corner of some facet (part of the node sphere is uncovered).
+    status : int
+        ``ST_TOPOLOGY`` (inconsistent polygons) or ``ST_DEGENERATE`` (a slot is not a
+        corner) on failure.
+    """
+    n = q.shape[0]
+    one = np.uint64(1)
     poly_ptr = np.zeros(nf + 1, dtype=np.int64)
     poly = np.empty(nf * n, dtype=np.int64)
     emap = np.full((n, n), -1, dtype=np.int64)
@@ -208,7 +315,7 @@ def node_structure(dirs, rad, P, eps, mitre):
                 cz += q[m, 2]
                 k += 1
         if k < 3:
-            return empty_v, empty_i, empty_i, empty_f, ST_TOPOLOGY
+            return poly_ptr, poly, emap, False, ST_TOPOLOGY
         cx /= k
         cy /= k
         cz /= k
@@ -220,57 +327,94 @@ def node_structure(dirs, rad, P, eps, mitre):
             ang[i] = np.arctan2(
                 rx * e2[0] + ry * e2[1] + rz * e2[2], rx * e1[0] + ry * e1[1] + rz * e1[2]
             )
-        for i in range(1, k):  # insertion sort by angle
-            j = i
-            while j > 0 and ang[j] < ang[j - 1]:
-                ta = ang[j]
-                ang[j] = ang[j - 1]
-                ang[j - 1] = ta
-                tp = pts[j]
-                pts[j] = pts[j - 1]
-                pts[j - 1] = tp
-                j -= 1
-        # the origin is the only point that may be non-extreme
-        kk = 0
-        for i in range(k):
-            m = pts[i]
-            if m == 0:
-                a = pts[(i - 1 + k) % k]
-                b = pts[(i + 1) % k]
-                ux = q[0, 0] - q[a, 0]
-                uy = q[0, 1] - q[a, 1]
-                uz = q[0, 2] - q[a, 2]
-                wx = q[b, 0] - q[0, 0]
-                wy = q[b, 1] - q[0, 1]
-                wz = q[b, 2] - q[0, 2]
-                turn = (
-                    (uy * wz - uz * wy) * v[0]
-                    + (uz * wx - ux * wz) * v[1]
-                    + (ux * wy - uy * wx) * v[2]
-                )
-                if turn <= eps:
-                    continue
-            poly[poly_ptr[f] + kk] = m
-            kk += 1
+        _sort_by_angle(pts, ang, k)
+        kk = _drop_inner_origin(q, v, pts, k, eps, poly[poly_ptr[f] :])
         poly_ptr[f + 1] = poly_ptr[f] + kk
         for i in range(kk):
             a = poly[poly_ptr[f] + i]
             b = poly[poly_ptr[f] + (i + 1) % kk]
             if emap[a, b] != -1:
-                return empty_v, empty_i, empty_i, empty_f, ST_TOPOLOGY
+                return poly_ptr, poly, emap, False, ST_TOPOLOGY
             emap[a, b] = f
             is_vertex[a] = True
     for a in range(n):
         for b in range(n):
             if emap[a, b] >= 0 and emap[b, a] < 0:
-                return empty_v, empty_i, empty_i, empty_f, ST_TOPOLOGY
+                return poly_ptr, poly, emap, False, ST_TOPOLOGY
     for m in range(1, n):
         if not is_vertex[m]:
-            return empty_v, empty_i, empty_i, empty_f, ST_DEGENERATE
-    hole = is_vertex[0]
+            return poly_ptr, poly, emap, False, ST_DEGENERATE
+    return poly_ptr, poly, emap, is_vertex[0], ST_OK
 
-    # facet vertices
-    cap_v = nf + 1 + 2 * (d + 1) * (P + 4) + 8 * n
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sort_by_angle(pts, ang, k):
+    """Insertion sort of ``pts[:k]`` (int64) by ``ang[:k]`` (float64), in place."""
+    for i in range(1, k):
+        j = i
+        while j > 0 and ang[j] < ang[j - 1]:
+            ta = ang[j]
+            ang[j] = ang[j - 1]
+            ang[j - 1] = ta
+            tp = pts[j]
+            pts[j] = pts[j - 1]
+            pts[j - 1] = tp
+            j -= 1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _drop_inner_origin(q, v, pts, k, eps, out):
+    """Copy the facet polygon ``pts[:k]`` (normal ``v``) to ``out``, without the origin
+    where it is not a corner (the only point that may be non-extreme); returns its size."""
+    kk = 0
+    for i in range(k):
+        m = pts[i]
+        if m == 0:
+            a = pts[(i - 1 + k) % k]
+            b = pts[(i + 1) % k]
+            ux = q[0, 0] - q[a, 0]
+            uy = q[0, 1] - q[a, 1]
+            uz = q[0, 2] - q[a, 2]
+            wx = q[b, 0] - q[0, 0]
+            wy = q[b, 1] - q[0, 1]
+            wz = q[b, 2] - q[0, 2]
+            turn = (
+                (uy * wz - uz * wy) * v[0] + (uz * wx - ux * wz) * v[1] + (ux * wy - uy * wx) * v[2]
+            )
+            if turn <= eps:
+                continue
+        out[kk] = m
+        kk += 1
+    return kk
+
+
+@njit(cache=True, error_model="numpy")
+def _facet_vertices(fn, foff, keep, poly_ptr, poly, rad, nf, cap_v):
+    """One vertex per facet: its normal scaled to the largest radius it needs.
+
+    A facet through the node gives a mandatory vertex (Eq. 1) at the radius of its
+    struts; any other facet gives a Voronoi vertex, equidistant from its struts.
+
+    Parameters
+    ----------
+    fn : (cap, 3) float64
+    foff : (cap,) float64
+    keep : (nf,) bool
+    poly_ptr, poly : int64
+        Facet polygons (see :func:`_facet_polygons`).
+    rad : (d,) float64
+    nf, cap_v : int
+        Facets, vertex capacity.
+
+    Returns
+    -------
+    verts : (cap_v, 3) float64
+        The first ``nv`` rows are set.
+    fvid : (nf,) int64
+        Vertex of each facet, -1 for dropped facets.
+    nv : int
+    status : int
+    """
     verts = np.empty((cap_v, 3))
     nv = 0
     fvid = np.full(nf, -1, dtype=np.int64)
@@ -286,7 +430,7 @@ def node_structure(dirs, rad, P, eps, mitre):
         else:  # Voronoi vertex: equidistant from its struts
             sin_t = np.sqrt(max(0.0, 1.0 - foff[f] * foff[f]))
             if sin_t < 1e-12:
-                return empty_v, empty_i, empty_i, empty_f, ST_DEGENERATE
+                return verts, fvid, nv, ST_DEGENERATE
             for i in range(poly_ptr[f], poly_ptr[f + 1]):
                 m = poly[i]
                 if m > 0:
@@ -295,8 +439,48 @@ def node_structure(dirs, rad, P, eps, mitre):
             verts[nv, c] = s * fn[f, c]
         fvid[f] = nv
         nv += 1
+    return verts, fvid, nv, ST_OK
 
-    # arcs: samples stored once, in the owner's ccw direction
+
+@njit(cache=True, error_model="numpy")
+def _sections(dirs, rad, P, hole, verts, nv, fvid, poly_ptr, poly, emap, nf):
+    """Sections of the slots and boundary of the hole, sampling the arcs between facets.
+
+    Around each point ``x`` (slots first, then the origin if ``hole``), the facets
+    are visited in order (:func:`_facet_cycle`); between two consecutive facet
+    vertices lies the arc shared with neighbour ``y``, sampled once by its owner
+    (:func:`_sample_arc`) and walked backwards by the other side.
+
+    Parameters
+    ----------
+    dirs : (d, 3) float64
+    rad : (d,) float64
+    P : int
+    hole : bool
+    verts : (cap_v, 3) float64
+        Vertex buffer, ``nv`` rows set (facet vertices); arc samples are appended.
+    nv : int
+    fvid : (nf,) int64
+    poly_ptr, poly, emap : int64
+        Facet polygons (see :func:`_facet_polygons`).
+    nf : int
+
+    Returns
+    -------
+    sec_ptr : (d + 1,) int64
+    sec_ids : (cap,) int64
+        Sections (first ``ns`` entries set).
+    ns : int
+    hole_ids : (cap,) int64
+        Hole boundary, counter-clockwise seen from outside (first ``nh`` set).
+    nh : int
+    nv : int
+        Vertices now in ``verts``.
+    status : int
+    """
+    d = dirs.shape[0]
+    n = d + 1
+    step = TWO_PI / P
     arc_start = np.full((n, n), -1, dtype=np.int64)
     arc_cnt = np.zeros((n, n), dtype=np.int64)
     sec_ptr = np.zeros(d + 1, dtype=np.int64)
@@ -307,44 +491,19 @@ def node_structure(dirs, rad, P, eps, mitre):
     cyc_y = np.empty(nf + 1, dtype=np.int64)
     hole_ids = np.empty(sec_cap, dtype=np.int64)
     nh = 0
+    e1 = np.zeros(3)
+    e2 = np.zeros(3)
+    j = 0
     for x in range(1, n + 1):
         xx = x if x < n else 0  # slots first, the hole (point 0) last
         if xx == 0 and not hole:
             break
-        # cw traversal of the facets around point xx
-        f0 = -1
-        for f in range(nf):
-            for i in range(poly_ptr[f], poly_ptr[f + 1]):
-                if poly[i] == xx:
-                    f0 = f
-                    break
-            if f0 >= 0:
-                break
-        if f0 < 0:
-            return empty_v, empty_i, empty_i, empty_f, ST_DEGENERATE
-        mcyc = 0
-        f = f0
-        while True:
-            kf = poly_ptr[f + 1] - poly_ptr[f]
-            y = -1
-            for i in range(kf):
-                if poly[poly_ptr[f] + i] == xx:
-                    y = poly[poly_ptr[f] + (i + 1) % kf]
-                    break
-            if mcyc >= nf:
-                return empty_v, empty_i, empty_i, empty_f, ST_TOPOLOGY
-            cyc_f[mcyc] = f
-            cyc_y[mcyc] = y
-            mcyc += 1
-            f = emap[y, xx]
-            if f < 0:
-                return empty_v, empty_i, empty_i, empty_f, ST_TOPOLOGY
-            if f == f0:
-                break
+        mcyc, status = _facet_cycle(xx, poly_ptr, poly, emap, nf, cyc_f, cyc_y)
+        if status != ST_OK:
+            return sec_ptr, sec_ids, ns, hole_ids, nh, nv, status
         if xx > 0:
             j = xx - 1
-            dj = dirs[j]
-            e1, e2 = _frame(dj[0], dj[1], dj[2])
+            e1, e2 = _frame(dirs[j, 0], dirs[j, 1], dirs[j, 2])
         # ccw: vertices F_0, F_{m-1}, ..., arc F_{-s} -> F_{-s-1} across y_{-s-1}
         start_ns = ns
         for s in range(mcyc):
@@ -361,49 +520,20 @@ def node_structure(dirs, rad, P, eps, mitre):
             hi = max(xx, y)
             own = (xx == lo and lo > 0) or (lo == 0 and xx == hi)
             if own:
-                pa = verts[fvid[fa]]
-                pb = verts[fvid[fb]]
-                aa = _az(pa, e1, e2)
-                span = _az(pb, e1, e2) - aa
-                if span < 0.0:
-                    span += TWO_PI
-                if span <= 1e-12:
-                    return empty_v, empty_i, empty_i, empty_f, ST_ARC
-                m = arc_segments(span, step)
                 arc_start[lo, hi] = nv
+                m, nv, status = _sample_arc(
+                    dirs, rad, j, y, e1, e2, step, verts, fvid[fa], fvid[fb], nv
+                )
+                if status != ST_OK:
+                    return sec_ptr, sec_ids, ns, hole_ids, nh, nv, status
                 arc_cnt[lo, hi] = m - 1
-                if y == 0:
-                    rs = rad[j]
-                else:
-                    k2 = y - 1
-                    rs = max(rad[j], rad[k2])
-                    nx = dj[0] - dirs[k2, 0]
-                    ny = dj[1] - dirs[k2, 1]
-                    nz = dj[2] - dirs[k2, 2]
-                    nd = nx * dj[0] + ny * dj[1] + nz * dj[2]
-                for i in range(1, m):
-                    ph = aa + span * i / m
-                    cp = np.cos(ph)
-                    sp = np.sin(ph)
-                    ex = cp * e1[0] + sp * e2[0]
-                    ey = cp * e1[1] + sp * e2[1]
-                    ez = cp * e1[2] + sp * e2[2]
-                    t = 0.0
-                    if y != 0:
-                        t = -rs * (nx * ex + ny * ey + nz * ez) / nd
-                    if nv >= cap_v:
-                        return empty_v, empty_i, empty_i, empty_f, ST_CAPACITY
-                    verts[nv, 0] = rs * ex + t * dj[0]
-                    verts[nv, 1] = rs * ey + t * dj[1]
-                    verts[nv, 2] = rs * ez + t * dj[2]
-                    nv += 1
                 for i in range(m - 1):
                     sec_ids[ns] = arc_start[lo, hi] + i
                     ns += 1
             else:
                 st = arc_start[lo, hi]
                 if st < 0:
-                    return empty_v, empty_i, empty_i, empty_f, ST_TOPOLOGY
+                    return sec_ptr, sec_ids, ns, hole_ids, nh, nv, ST_TOPOLOGY
                 for i in range(arc_cnt[lo, hi] - 1, -1, -1):
                     if xx > 0:
                         sec_ids[ns] = st + i
@@ -413,44 +543,176 @@ def node_structure(dirs, rad, P, eps, mitre):
                         nh += 1
         if xx > 0:
             sec_ptr[j + 1] = ns
-            # the section must turn once around dirs[j], counter-clockwise
-            tot = 0.0
-            cnt = ns - start_ns
-            for i in range(cnt):
-                a0 = _az(verts[sec_ids[start_ns + i]], e1, e2)
-                a1 = _az(verts[sec_ids[start_ns + (i + 1) % cnt]], e1, e2)
-                da = a1 - a0
-                if da < 0.0:
-                    da += TWO_PI
-                if da <= 0.0 or da > np.pi + 1e-9:
-                    return empty_v, empty_i, empty_i, empty_f, ST_ARC
-                tot += da
-            if abs(tot - TWO_PI) > 1e-6:
-                return empty_v, empty_i, empty_i, empty_f, ST_ARC
-    fan = np.empty((nh, 3), dtype=np.int64)
-    if hole:
-        gx = 0.0
-        gy = 0.0
-        gz = 0.0
-        for i in range(nh):
-            gx += verts[hole_ids[i], 0]
-            gy += verts[hole_ids[i], 1]
-            gz += verts[hole_ids[i], 2]
-        gn = np.sqrt(gx * gx + gy * gy + gz * gz)
-        rmax = 0.0
-        for j in range(d):
-            rmax = max(rmax, rad[j])
-        if gn <= 1e-9 * rmax * nh:
-            return empty_v, empty_i, empty_i, empty_f, ST_HOLE
-        verts[nv, 0] = rmax * gx / gn  # barycentre pushed onto the node sphere (Eq. 16)
-        verts[nv, 1] = rmax * gy / gn
-        verts[nv, 2] = rmax * gz / gn
-        for i in range(nh):
-            fan[i, 0] = nv
-            fan[i, 1] = hole_ids[i]
-            fan[i, 2] = hole_ids[(i + 1) % nh]
+            if not _turns_once(verts, sec_ids[start_ns:ns], e1, e2):
+                return sec_ptr, sec_ids, ns, hole_ids, nh, nv, ST_ARC
+    return sec_ptr, sec_ids, ns, hole_ids, nh, nv, ST_OK
+
+
+@njit(cache=True, error_model="numpy")
+def _facet_cycle(xx, poly_ptr, poly, emap, nf, cyc_f, cyc_y):
+    """The facets around point ``xx``, clockwise seen from outside.
+
+    Fills ``cyc_f[:mcyc]`` (facets) and ``cyc_y[:mcyc]`` (the point after ``xx`` in each
+    facet's polygon, i.e. the neighbour across the next seam); returns ``(mcyc, status)``.
+    """
+    f0 = -1
+    for f in range(nf):
+        for i in range(poly_ptr[f], poly_ptr[f + 1]):
+            if poly[i] == xx:
+                f0 = f
+                break
+        if f0 >= 0:
+            break
+    if f0 < 0:
+        return 0, ST_DEGENERATE
+    mcyc = 0
+    f = f0
+    while True:
+        kf = poly_ptr[f + 1] - poly_ptr[f]
+        y = -1
+        for i in range(kf):
+            if poly[poly_ptr[f] + i] == xx:
+                y = poly[poly_ptr[f] + (i + 1) % kf]
+                break
+        if mcyc >= nf:
+            return mcyc, ST_TOPOLOGY
+        cyc_f[mcyc] = f
+        cyc_y[mcyc] = y
+        mcyc += 1
+        f = emap[y, xx]
+        if f < 0:
+            return mcyc, ST_TOPOLOGY
+        if f == f0:
+            break
+    return mcyc, ST_OK
+
+
+@njit(cache=True, error_model="numpy")
+def _sample_arc(dirs, rad, j, y, e1, e2, step, verts, va, vb, nv):
+    """Interior samples of the arc of slot ``j`` from vertex ``va`` to ``vb`` (ccw).
+
+    The arc borders the hole (``y == 0``: on the circle of radius ``rad[j]``) or the
+    seam with slot ``y - 1`` (pushed along ``dirs[j]`` onto the bisecting plane, Eq. 10,
+    at the larger radius of the two). Samples are no more than ``step`` apart in
+    azimuth about ``dirs[j]`` (frame ``e1, e2``); they are appended to ``verts`` from
+    row ``nv``.
+
+    Returns
+    -------
+    m : int
+        Segments of the arc (``m - 1`` samples).
+    nv : int
+        Vertices now in ``verts``.
+    status : int
+        ``ST_ARC`` (empty arc) or ``ST_CAPACITY`` on failure.
+    """
+    cap_v = verts.shape[0]
+    pa = verts[va]
+    pb = verts[vb]
+    aa = _az(pa, e1, e2)
+    span = _az(pb, e1, e2) - aa
+    if span < 0.0:
+        span += TWO_PI
+    if span <= 1e-12:
+        return 0, nv, ST_ARC
+    m = arc_segments(span, step)
+    dj = dirs[j]
+    nx = 0.0
+    ny = 0.0
+    nz = 0.0
+    nd = 0.0
+    if y == 0:
+        rs = rad[j]
+    else:
+        k2 = y - 1
+        rs = max(rad[j], rad[k2])
+        nx = dj[0] - dirs[k2, 0]
+        ny = dj[1] - dirs[k2, 1]
+        nz = dj[2] - dirs[k2, 2]
+        nd = nx * dj[0] + ny * dj[1] + nz * dj[2]
+    for i in range(1, m):
+        ph = aa + span * i / m
+        cp = np.cos(ph)
+        sp = np.sin(ph)
+        ex = cp * e1[0] + sp * e2[0]
+        ey = cp * e1[1] + sp * e2[1]
+        ez = cp * e1[2] + sp * e2[2]
+        t = 0.0
+        if y != 0:
+            t = -rs * (nx * ex + ny * ey + nz * ez) / nd
+        if nv >= cap_v:
+            return m, nv, ST_CAPACITY
+        verts[nv, 0] = rs * ex + t * dj[0]
+        verts[nv, 1] = rs * ey + t * dj[1]
+        verts[nv, 2] = rs * ez + t * dj[2]
         nv += 1
-    return verts[:nv].copy(), sec_ptr, sec_ids[:ns].copy(), fan, ST_OK
+    return m, nv, ST_OK
+
+
+@njit(cache=True, error_model="numpy")
+def _turns_once(verts, ids, e1, e2):
+    """The loop ``verts[ids]`` turns once counter-clockwise about ``e1 x e2``, in steps
+    of more than 0 and at most pi of azimuth."""
+    tot = 0.0
+    cnt = ids.shape[0]
+    for i in range(cnt):
+        a0 = _az(verts[ids[i]], e1, e2)
+        a1 = _az(verts[ids[(i + 1) % cnt]], e1, e2)
+        da = a1 - a0
+        if da < 0.0:
+            da += TWO_PI
+        if da <= 0.0 or da > np.pi + 1e-9:
+            return False
+        tot += da
+    return not abs(tot - TWO_PI) > 1e-6  # (NaN passes, as it always has)
+
+
+@njit(cache=True, error_model="numpy")
+def _hole_fan(verts, nv, hole_ids, nh, rad, hole):
+    """Fan closing the hole: its barycentre pushed onto the node sphere (Eq. 16).
+
+    Parameters
+    ----------
+    verts : (cap_v, 3) float64
+        The apex is appended at row ``nv``.
+    hole_ids : (cap,) int64
+        Hole boundary (first ``nh`` entries), counter-clockwise seen from outside.
+    rad : (d,) float64
+    hole : bool
+        False: no hole, empty fan.
+
+    Returns
+    -------
+    fan : (nh, 3) int64
+    nv : int
+    status : int
+        ``ST_HOLE`` if the barycentre is (nearly) the node.
+    """
+    fan = np.empty((nh, 3), dtype=np.int64)
+    if not hole:
+        return fan, nv, ST_OK
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for i in range(nh):
+        gx += verts[hole_ids[i], 0]
+        gy += verts[hole_ids[i], 1]
+        gz += verts[hole_ids[i], 2]
+    gn = np.sqrt(gx * gx + gy * gy + gz * gz)
+    rmax = 0.0
+    for j in range(rad.shape[0]):
+        rmax = max(rmax, rad[j])
+    if gn <= 1e-9 * rmax * nh:
+        return fan, nv, ST_HOLE
+    verts[nv, 0] = rmax * gx / gn  # barycentre pushed onto the node sphere (Eq. 16)
+    verts[nv, 1] = rmax * gy / gn
+    verts[nv, 2] = rmax * gz / gn
+    for i in range(nh):
+        fan[i, 0] = nv
+        fan[i, 1] = hole_ids[i]
+        fan[i, 2] = hole_ids[(i + 1) % nh]
+    nv += 1
+    return fan, nv, ST_OK
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -799,7 +1061,7 @@ def tri_pairs(vertices, faces, order, bounds, pairs, out):
             fa = order[i]
             for j in range(bounds[k], bounds[k + 1]):
                 fb = order[j]
-                if _tri_tri(
+                if tri_tri(
                     vertices, faces[fa, 0], faces[fa, 1], faces[fa, 2],
                     faces[fb, 0], faces[fb, 1], faces[fb, 2],
                 ):  # fmt: skip

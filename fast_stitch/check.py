@@ -4,8 +4,17 @@
 ``trimesh.Trimesh``, or a ``(vertices, faces)`` tuple) and returns a
 :class:`CheckReport`: boundary / non-manifold / inconsistently oriented edges,
 non-manifold vertices, zero-area faces, components, signed volume and
-self-intersecting face pairs. It shares no code with the stitcher, so it can be
-used to test it.
+self-intersecting face pairs.
+
+It shares only its geometric predicates with the stitchers: the exact
+triangle/triangle test (with the exact orientation signs below it) and the
+bounding box of a set of boxes, in :mod:`fast_stitch._predicates`, which the
+stitchers use for their clearance checks. Everything else (topology,
+components, orientation, degenerate faces, the broadphase, the tests of faces
+sharing a vertex or an edge) is the checker's own, so it can be used to test
+the stitchers. A bug in the shared predicates could hide in both; the test
+suite guards against it with independent checkers (trimesh, manifold3d and
+pymeshlab: ``independent_check`` and ``assert_valid`` in ``tests/conftest.py``).
 
 Topology is purely index based: two faces share a vertex only if they use the
 same vertex *index*; coincident vertices with different indices are distinct
@@ -64,6 +73,7 @@ from numba.core.errors import NumbaWarning
 from numpy.typing import NDArray
 
 from fast_stitch import _check_kernels as _k
+from fast_stitch._predicates import box_stats
 
 __all__ = ["check", "CheckReport"]
 
@@ -413,7 +423,7 @@ def _self_intersections(
         return 0, 0, empty
     # Work on a spatially sorted copy (Morton order of the boxes, vertices renumbered in
     # order of first use): the grid scan is then cache friendly whatever the input order.
-    lo, hi = _k.box_stats(boxes[:, :3], boxes[:, 3:], active)
+    lo, hi = box_stats(boxes[:, :3], boxes[:, 3:], active)
     extent = float((hi - lo).max())
     scale = (2.0**21 - 1.0) / extent if extent > 0.0 else 0.0
     keys = _k.morton_keys(boxes, active, lo, scale)

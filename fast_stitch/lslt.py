@@ -257,20 +257,111 @@ def _stitch(
     seed: int,
     cb: ProgressCallback | None,
 ) -> Mesh:
-    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
-    m, n_nodes = graph.num_edges, graph.num_nodes
-    offsets, inc_edge, inc_side = graph.incidence
-    degree = graph.degree
+    """LSLT mesh of a graph with struts (the arguments are checked by :func:`stitch_lslt`).
+
+    Steps: the sections and hole fans made at every node (:func:`_node_parts`), the
+    layout of the tubes between them (:func:`_tube_layout`), the tubes themselves
+    (``_lslt_kernels.build_tubes``), then the validation of the result.
+    """
     axis, fu, fv = _frames(graph, seed)
+    _check_max_degree(graph.degree)
+    mitre_sin = 1.0 / (1.0 + chord_error)  # mitre when sin(alpha / 2) >= this
+    node_v, sec_ptr, sec_ids, fans, fan_node, fan_own = _node_parts(
+        graph, axis, fu, fv, P, mitre_sin, cb
+    )
+    ext, n_inter, inter_cnt_ptr, inter_cnt, inter_vstart, face_start, tube_f, n_vertices = (
+        _tube_layout(graph, axis, node_v, sec_ptr, sec_ids, sections)
+    )
+
+    # ------------------------------------------------------------------ tubes
+    n_tube = int(tube_f.sum())
+    vertices = np.empty((n_vertices, 3))
+    vertices[: len(node_v)] = node_v
+    faces = np.empty((n_tube + len(fans), 3), dtype=np.int64)
+    faces[n_tube:] = fans
+    if cb is not None:
+        cb("tubes", 0, 1)
+    _k.build_tubes(
+        graph.nodes, graph.degree, graph.edges, axis, fu, fv, graph.radii, sec_ptr, sec_ids,
+        n_inter, inter_cnt_ptr, inter_cnt, inter_vstart, face_start, vertices, faces,
+    )  # fmt: skip
+
+    # ------------------------------------------------------------- validation
+    if cb is not None:
+        cb("check", 0, 1)
+    _check_local(graph, axis, sec_ptr, sec_ids, face_start, face_start + tube_f, vertices, faces,
+                 n_tube, fan_node, ext)  # fmt: skip
+    mesh = Mesh(vertices=vertices, faces=faces)
+    _check_clearance(graph, mesh, tube_f, n_tube, fan_own)
+    _check_closed(mesh)
+    if cb is not None:
+        cb("done", 1, 1)
+    return mesh
+
+
+def _check_max_degree(degree: NDArray[np.int64]) -> None:
+    """StitchError naming the first node of over ``config.MAX_DEGREE`` struts; degree (N,)."""
     too_big = np.flatnonzero(degree > config.MAX_DEGREE)
     if len(too_big):
         n = int(too_big[0])
         raise StitchError(
             f"node {n} has {int(degree[n])} struts; LSLT supports at most {config.MAX_DEGREE}"
         )
-    mitre_sin = 1.0 / (1.0 + chord_error)  # mitre when sin(alpha / 2) >= this
 
-    # ------------------------------------------------------------ node structures
+
+def _node_parts(
+    graph: LatticeGraph,
+    axis: NDArray[np.float64],
+    fu: NDArray[np.float64],
+    fv: NDArray[np.float64],
+    P: int,
+    mitre_sin: float,
+    cb: ProgressCallback | None,
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+]:
+    """The vertices made at the nodes, the end section of every strut and the node faces.
+
+    Nodes of degree 1 get a ring of ``P`` vertices and a flat cap (:func:`_end_cap`);
+    nodes of degree >= 2 get their LSLT node structure (:func:`_joint_structure`),
+    computed once per distinct canonical node (:func:`_canonical_slots`) and translated.
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+        ``M`` struts, ``N`` nodes.
+    axis, fu, fv : (M, 3) float64
+        Unit strut axes and profile frames (see :func:`_frames`).
+    P : int
+        Segments per section.
+    mitre_sin : float
+        Degree-2 nodes with ``sin(alpha / 2) >= mitre_sin`` are mitred.
+    cb : callable or None
+        Progress callback, called as ``cb("nodes", n, N)``.
+
+    Returns
+    -------
+    node_v : (Vn, 3) float64
+        The vertices made at the nodes (ids ``0..Vn-1`` of the mesh).
+    sec_ptr : (2 M + 1,) int64
+    sec_ids : (S,) int64
+        Section of the end ``side`` of strut ``e``:
+        ``sec_ids[sec_ptr[2 e + side]:sec_ptr[2 e + side + 1]]``.
+    fans : (H, 3) int64
+        Hole fans and end caps, node by node.
+    fan_node : (H,) int64
+        Node of each hole-fan triangle, -1 for the end caps.
+    fan_own : (H,) int64
+        A strut at the node of each triangle (whose capsule covers it in the clearance check).
+    """
+    nodes, radii = graph.nodes, graph.radii
+    m, n_nodes = graph.num_edges, graph.num_nodes
+    offsets, inc_edge, inc_side = graph.incidence
     verts_blocks: list[NDArray[np.float64]] = []
     fan_blocks: list[NDArray[np.int64]] = []
     fan_nodes: list[NDArray[np.int64]] = []
@@ -278,7 +369,6 @@ def _stitch(
     sec_lists: list[NDArray[np.int64] | None] = [None] * (2 * m)
     nv = 0
     cache: dict[bytes, tuple[Any, ...]] = {}
-    ring = np.arange(P)
     for n in range(n_nodes):
         lo, hi = int(offsets[n]), int(offsets[n + 1])
         d = hi - lo
@@ -286,60 +376,22 @@ def _stitch(
             continue
         es = inc_edge[lo:hi]
         ss = inc_side[lo:hi]
-        sgn = np.where(ss == 0, 1.0, -1.0)
-        dirs = axis[es] * sgn[:, None]
         rad = radii[es, ss]
         if d == 1:
             e, side = int(es[0]), int(ss[0])
-            ang = 2.0 * np.pi * ring / P
-            pts = nodes[n] + rad[0] * (np.cos(ang)[:, None] * fu[e] + np.sin(ang)[:, None] * fv[e])
-            ids = nv + (ring if side == 0 else ring[::-1])
+            pts, ids, cap = _end_cap(nodes[n], rad[0], fu[e], fv[e], side, P, nv)
             verts_blocks.append(pts)
-            sec_lists[2 * e + side] = ids.astype(np.int64)
-            # flat cap, outward = -(outward direction of the strut)
-            cap = np.column_stack([np.full(P - 2, ids[0]), ids[2:], ids[1:-1]])
-            fan_blocks.append(cap.astype(np.int64))
+            sec_lists[2 * e + side] = ids
+            fan_blocks.append(cap)
             fan_nodes.append(np.full(P - 2, -1, dtype=np.int64))
             fan_owner.append(np.full(P - 2, e, dtype=np.int64))
             nv += P
             continue
-        # canonical slot order (translated nodes share one structure)
-        q = np.rint(dirs * 2.0**30).astype(np.int64)
-        order = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
-        q, dirs, rad, es, ss = q[order], dirs[order], rad[order], es[order], ss[order]
-        cosm = dirs @ dirs.T - 2.0 * np.eye(d)
-        if cosm.max() > 1.0 - 1e-12:
-            i, j = np.unravel_index(int(np.argmax(cosm)), cosm.shape)
-            a, b = sorted((int(es[i]), int(es[j])))
-            raise StitchError(
-                f"node {n}: struts {a} and {b} leave it in the same direction (parallel)"
-            )
-        rq = np.rint(rad / float(rad.max()) * 2.0**40).astype(np.int64)
-        key = q.tobytes() + rq.tobytes() + np.float64(rad.max()).tobytes()
+        sgn = np.where(ss == 0, 1.0, -1.0)
+        dirs, rad, es, ss, cosm, key = _canonical_slots(n, axis[es] * sgn[:, None], rad, es, ss)
         hit = cache.get(key)
         if hit is None:
-            if d >= 3:  # nearly planar node: make it exactly planar (no sliver of a hole)
-                nrm = np.linalg.svd(dirs)[2][-1]
-                h = dirs @ nrm
-                if np.abs(h).max() < config.FLAT_EPS:
-                    dirs = dirs - h[:, None] * nrm
-                    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
-            mitre = d == 2 and math.sqrt(max(0.0, 0.5 * (1.0 - float(cosm[0, 1])))) >= mitre_sin
-            status = _k.ST_DEGENERATE
-            for eps in config.COPLANAR_EPS_RETRY:  # near-degenerate nodes: merge more generously
-                lv, sp, sid, fan, status = _k.node_structure(
-                    np.ascontiguousarray(dirs), np.ascontiguousarray(rad), P, eps, mitre
-                )
-                if status == _k.ST_OK and _node_ok(lv, sp, sid, fan, rad):
-                    break
-                status = status if status != _k.ST_OK else _k.ST_ARC
-            if status != _k.ST_OK:
-                raise StitchError(
-                    f"node {n}: could not build the LSLT node structure (status {status}) from its "
-                    f"{d} struts {sorted(int(e) for e in es)}; this is a bug or an extremely "
-                    "degenerate configuration, please report it with the graph"
-                )
-            hit = (lv, sp, sid, fan)
+            hit = _joint_structure(n, dirs, rad, es, cosm, P, mitre_sin)
             cache[key] = hit
         lv, sp, sid, fan = hit
         verts_blocks.append(nodes[n] + lv)
@@ -358,8 +410,232 @@ def _stitch(
     np.cumsum(sizes, out=sec_ptr[1:])
     sec_ids = np.concatenate(sec_lists).astype(np.int64)  # type: ignore[arg-type]
     node_v = np.concatenate(verts_blocks) if verts_blocks else np.zeros((0, 3))
+    fans = np.concatenate(fan_blocks) if fan_blocks else np.zeros((0, 3), dtype=np.int64)
+    fan_node = np.concatenate(fan_nodes) if fan_nodes else np.zeros(0, dtype=np.int64)
+    fan_own = np.concatenate(fan_owner) if fan_owner else np.zeros(0, dtype=np.int64)
+    return node_v, sec_ptr, sec_ids, fans, fan_node, fan_own
 
-    # ------------------------------------------------------------------ tubes
+
+def _end_cap(
+    centre: NDArray[np.float64],
+    r: float,
+    u: NDArray[np.float64],
+    w: NDArray[np.float64],
+    side: int,
+    P: int,
+    nv: int,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
+    """Section and flat cap of a strut end at a node of degree 1.
+
+    Parameters
+    ----------
+    centre : (3,) float64
+        The node.
+    r : float
+        Strut radius at this end.
+    u, w : (3,) float64
+        Profile frame of the strut.
+    side : int
+        0 if the node is the strut's first node, 1 if it is its second.
+    P : int
+        Segments of the section.
+    nv : int
+        Mesh id of the first new vertex.
+
+    Returns
+    -------
+    pts : (P, 3) float64
+        The section's vertices (ids ``nv..nv+P-1``).
+    ids : (P,) int64
+        The section as oriented for the tube (counter-clockwise around the strut axis).
+    cap : (P - 2, 3) int64
+        Fan closing the section, outward = away from the strut.
+    """
+    ring = np.arange(P)
+    ang = 2.0 * np.pi * ring / P
+    pts = centre + r * (np.cos(ang)[:, None] * u + np.sin(ang)[:, None] * w)
+    ids = nv + (ring if side == 0 else ring[::-1])
+    cap = np.column_stack([np.full(P - 2, ids[0]), ids[2:], ids[1:-1]])
+    return pts, ids.astype(np.int64), cap.astype(np.int64)
+
+
+def _canonical_slots(
+    n: int,
+    dirs: NDArray[np.float64],
+    rad: NDArray[np.float64],
+    es: NDArray[np.int64],
+    ss: NDArray[np.int64],
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.float64],
+    bytes,
+]:
+    """The struts of node ``n`` (degree ``d >= 2``) in canonical slot order, and its key.
+
+    Slots are sorted by quantised direction, so that nodes that are translates of each
+    other get the same order and the same key (and share one structure).
+
+    Parameters
+    ----------
+    n : int
+        The node (for error messages).
+    dirs : (d, 3) float64
+        Unit outward directions of its struts.
+    rad : (d,) float64
+        Their radii at the node.
+    es, ss : (d,) int64
+        The struts and which of their ends is at the node.
+
+    Returns
+    -------
+    dirs, rad, es, ss
+        The inputs in slot order.
+    cosm : (d, d) float64
+        Cosines between the slots' directions, minus 2 on the diagonal.
+    key : bytes
+        Quantised directions and relative radii, and the largest radius.
+
+    Raises
+    ------
+    StitchError
+        Two struts leave the node in the same direction.
+    """
+    d = len(dirs)
+    q = np.rint(dirs * 2.0**30).astype(np.int64)
+    order = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+    q, dirs, rad, es, ss = q[order], dirs[order], rad[order], es[order], ss[order]
+    cosm = dirs @ dirs.T - 2.0 * np.eye(d)
+    if cosm.max() > 1.0 - 1e-12:
+        i, j = np.unravel_index(int(np.argmax(cosm)), cosm.shape)
+        a, b = sorted((int(es[i]), int(es[j])))
+        raise StitchError(f"node {n}: struts {a} and {b} leave it in the same direction (parallel)")
+    rq = np.rint(rad / float(rad.max()) * 2.0**40).astype(np.int64)
+    key = q.tobytes() + rq.tobytes() + np.float64(rad.max()).tobytes()
+    return dirs, rad, es, ss, cosm, key
+
+
+def _joint_structure(
+    n: int,
+    dirs: NDArray[np.float64],
+    rad: NDArray[np.float64],
+    es: NDArray[np.int64],
+    cosm: NDArray[np.float64],
+    P: int,
+    mitre_sin: float,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """LSLT structure of node ``n`` (degree ``d >= 2``, slots from :func:`_canonical_slots`).
+
+    Nearly planar nodes are made exactly planar first; the coplanarity tolerances of
+    ``config.COPLANAR_EPS_RETRY`` are tried in turn until the structure has no near-duplicate
+    section vertices and no sliver in its hole fan (:func:`_node_ok`).
+
+    Parameters
+    ----------
+    n : int
+        The node (for error messages).
+    dirs : (d, 3) float64
+        Unit outward strut directions, in slot order.
+    rad : (d,) float64
+        Strut radii at the node.
+    es : (d,) int64
+        The struts (for error messages).
+    cosm : (d, d) float64
+        Cosines between the directions (see :func:`_canonical_slots`).
+    P : int
+        Segments per section.
+    mitre_sin : float
+        A degree-2 node with ``sin(alpha / 2) >= mitre_sin`` is mitred.
+
+    Returns
+    -------
+    lv, sp, sid, fan
+        Vertex offsets from the node ``(V, 3) float64``, section pointers ``(d + 1,)
+        int64`` and ids ``(S,) int64``, hole fan ``(H, 3) int64`` (local ids; see
+        ``_lslt_kernels.node_structure``).
+
+    Raises
+    ------
+    StitchError
+        No valid structure with any tolerance.
+    """
+    d = len(dirs)
+    if d >= 3:  # nearly planar node: make it exactly planar (no sliver of a hole)
+        nrm = np.linalg.svd(dirs)[2][-1]
+        h = dirs @ nrm
+        if np.abs(h).max() < config.FLAT_EPS:
+            dirs = dirs - h[:, None] * nrm
+            dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    mitre = d == 2 and math.sqrt(max(0.0, 0.5 * (1.0 - float(cosm[0, 1])))) >= mitre_sin
+    status = _k.ST_DEGENERATE
+    for eps in config.COPLANAR_EPS_RETRY:  # near-degenerate nodes: merge more generously
+        lv, sp, sid, fan, status = _k.node_structure(
+            np.ascontiguousarray(dirs), np.ascontiguousarray(rad), P, eps, mitre
+        )
+        if status == _k.ST_OK and _node_ok(lv, sp, sid, fan, rad):
+            break
+        status = status if status != _k.ST_OK else _k.ST_ARC
+    if status != _k.ST_OK:
+        raise StitchError(
+            f"node {n}: could not build the LSLT node structure (status {status}) from its "
+            f"{d} struts {sorted(int(e) for e in es)}; this is a bug or an extremely "
+            "degenerate configuration, please report it with the graph"
+        )
+    return lv, sp, sid, fan
+
+
+def _tube_layout(
+    graph: LatticeGraph,
+    axis: NDArray[np.float64],
+    node_v: NDArray[np.float64],
+    sec_ptr: NDArray[np.int64],
+    sec_ids: NDArray[np.int64],
+    sections: int | str | None,
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    int,
+]:
+    """Intermediary sections of every tube and where its vertices and faces go.
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+        ``M`` struts.
+    axis : (M, 3) float64
+        Unit strut axes.
+    node_v, sec_ptr, sec_ids
+        Node vertices and end sections (see :func:`_node_parts`).
+    sections : int, "auto" or None
+        Intermediary sections per strut (see :func:`stitch_lslt`).
+
+    Returns
+    -------
+    ext : (M, 2) float64
+        Axial reach of each end section from its node.
+    n_inter : (M,) int64
+        Intermediary sections of each strut.
+    inter_cnt_ptr : (M + 1,) int64
+    inter_cnt : (K,) int64
+        Vertex count of each intermediary section, strut by strut:
+        ``inter_cnt[inter_cnt_ptr[e]:inter_cnt_ptr[e + 1]]``.
+    inter_vstart : (M,) int64
+        Mesh id of the first intermediary vertex of each strut.
+    face_start, tube_f : (M,) int64
+        First face and face count of each tube.
+    n_vertices : int
+        Vertices of the whole mesh.
+    """
+    m = graph.num_edges
+    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    sizes = np.diff(sec_ptr)
     na, nb = sizes[0::2], sizes[1::2]
     ext = np.zeros((m, 2))  # axial reach of each end section from its node
     end_of = np.repeat(np.arange(2 * m), sizes)
@@ -386,32 +662,8 @@ def _stitch(
     tube_f = na + nb + 2 * inter_v
     face_start = np.zeros(m, dtype=np.int64)
     face_start[1:] = np.cumsum(tube_f)[:-1]
-    n_tube = int(tube_f.sum())
-    fans = np.concatenate(fan_blocks) if fan_blocks else np.zeros((0, 3), dtype=np.int64)
-    fan_node = np.concatenate(fan_nodes) if fan_nodes else np.zeros(0, dtype=np.int64)
-    fan_own = np.concatenate(fan_owner) if fan_owner else np.zeros(0, dtype=np.int64)
-    vertices = np.empty((len(node_v) + int(inter_v.sum()), 3))
-    vertices[: len(node_v)] = node_v
-    faces = np.empty((n_tube + len(fans), 3), dtype=np.int64)
-    faces[n_tube:] = fans
-    if cb is not None:
-        cb("tubes", 0, 1)
-    _k.build_tubes(
-        nodes, degree, edges, axis, fu, fv, radii, sec_ptr, sec_ids, n_inter, inter_cnt_ptr,
-        inter_cnt, inter_vstart, face_start, vertices, faces,
-    )  # fmt: skip
-
-    # ------------------------------------------------------------- validation
-    if cb is not None:
-        cb("check", 0, 1)
-    _check_local(graph, axis, sec_ptr, sec_ids, face_start, face_start + tube_f, vertices, faces,
-                 n_tube, fan_node, ext)  # fmt: skip
-    mesh = Mesh(vertices=vertices, faces=faces)
-    _check_clearance(graph, mesh, tube_f, n_tube, fan_own)
-    _check_closed(mesh)
-    if cb is not None:
-        cb("done", 1, 1)
-    return mesh
+    n_vertices = len(node_v) + int(inter_v.sum())
+    return ext, n_inter, inter_cnt_ptr, inter_cnt, inter_vstart, face_start, tube_f, n_vertices
 
 
 def _node_ok(

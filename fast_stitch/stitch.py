@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fast_stitch import _kernels
-from fast_stitch._check_kernels import box_stats
+from fast_stitch._predicates import box_stats
 from lattice_cad.core import config
 from lattice_cad.core.checks import (
     Progress,
