@@ -466,9 +466,10 @@ def repair_graph(
         rep.dropped += int(drop.sum())
         edges, asked = edges[~drop], asked[~drop]
     # struts that cannot be stitched even at a tenth of their radius (nearly parallel to a
-    # neighbour) go in any case, however much has changed
-    for _ in range(max_rounds):
-        hopeless = _unfit_at(nodes, edges, 0.1 * asked)
+    # neighbour, or crossing another) go in any case, however much has changed
+    floor = 0.1 * float(asked.min())
+    for _ in range(10):
+        _, hopeless = fit_radii(nodes, edges, asked, min_radius=floor)
         if not len(hopeless):
             break
         keep = np.ones(len(edges), dtype=bool)
@@ -478,7 +479,7 @@ def repair_graph(
     nodes, edges, asked = _largest_piece(nodes, edges, asked)
     fitted, unfit = fit_radii(nodes, edges, asked, min_radius=tolerance * float(asked.min()))
     if len(unfit):  # what the repair could not fix is thinned further, and counted
-        fitted, unfit = fit_radii(nodes, edges, fitted, min_radius=0.1 * float(asked.min()))
+        fitted, unfit = fit_radii(nodes, edges, fitted, min_radius=floor)
     low = (fitted < tolerance * asked * (1 - 1e-9)).any(axis=1)
     bad = np.union1d(np.flatnonzero(low), unfit)
     rep.unfit = len(bad)

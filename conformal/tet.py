@@ -93,9 +93,13 @@ def tet_mesh(
     with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
         for how, angle in surfaces:
             for algo in order:
+                source = _gmsh_input(part, Path(tmp), how, size)
+                if source is None:
+                    failures.append("the solids could not be fused into one B-rep")
+                    break
                 try:
                     tags, xyz, tet_tags = run_isolated(
-                        _gmsh_tets, part, Path(tmp), size, how, angle, algo,
+                        _gmsh_tets, str(source), size, how, angle, algo,
                         timeout=timeout, what=f"gmsh ({how} surface, {algo})",
                     )  # fmt: skip
                 except ExternalCrash as exc:  # gmsh itself died or hung: try the next way
@@ -118,10 +122,21 @@ class _GmshFailure(Exception):
         self.stage = stage
 
 
+def _gmsh_input(part: Part, tmp: Path, how: str, size: float) -> Path | None:
+    """The file gmsh meshes for a strategy: the fused B-rep, or the (resampled) surface."""
+    if how == "brep":
+        return _brep_file(part, tmp)
+    stl = tmp / f"part_{how}.stl"
+    if not stl.exists():
+        _write_stl(_resampled(part, size / 1.5) if how == "resampled" else part, stl)
+    return stl
+
+
 def _gmsh_tets(
-    part: Part, tmp: Path, size: float, how: str, angle: float, algorithm: str
+    source: str, size: float, how: str, angle: float, algorithm: str
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
-    """One gmsh run: node tags (N,), coordinates (N, 3), tetrahedra (T, 4) as node tags."""
+    """One gmsh run on a file (run in a child process): node tags (N,), coordinates (N, 3),
+    tetrahedra (T, 4) as node tags."""
     import gmsh
 
     if gmsh.isInitialized():
@@ -133,17 +148,10 @@ def _gmsh_tets(
         gmsh.logger.start()
         gmsh.model.add("part")
         if how == "brep":
-            brep = _brep_file(part, tmp)
-            if brep is None:
-                raise _GmshFailure("the solids could not be fused into one B-rep", stage)
-            gmsh.model.occ.importShapes(str(brep))
+            gmsh.model.occ.importShapes(source)
             gmsh.model.occ.synchronize()
         else:
-            stl = tmp / f"part_{how}.stl"
-            if not stl.exists():
-                source = _resampled(part, size / 1.5) if how == "resampled" else part
-                _write_stl(source, stl)
-            gmsh.merge(str(stl))
+            gmsh.merge(source)
             if how == "reparametrized":
                 gmsh.model.mesh.classifySurfaces(math.radians(angle), True, True, math.pi)
                 gmsh.model.mesh.createGeometry()

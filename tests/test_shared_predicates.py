@@ -13,7 +13,8 @@ import ast
 import importlib
 
 import pytest
-from conftest import ROOT
+
+from tests.conftest import ROOT
 
 STITCHER = ["_kernels", "_lslt_kernels", "stitch", "lslt"]
 CHECKER = ["check", "_check_kernels"]

@@ -5,7 +5,6 @@ offsets, gmsh) is an exception the caller can handle, not the end of the user's 
 from __future__ import annotations
 
 import multiprocessing as mp
-import sys
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
@@ -19,20 +18,12 @@ __all__ = ["run_isolated"]
 T = TypeVar("T")
 
 
-_PENDING: tuple[Callable[..., Any], tuple[Any, ...]] | None = None
-
-
-def _call_pending() -> Any:
-    assert _PENDING is not None
-    fn, args = _PENDING
-    return fn(*args)
-
-
 def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) -> T:
-    """``fn(*args)`` in a forked child process; its result is pickled back.
+    """``fn(*args)`` in a child process; its result is pickled back.
 
-    The call is inherited through ``fork`` (the arguments need not be picklable: OCCT
-    shapes are not). Where ``fork`` is not available the call runs in this process.
+    ``fn`` must be a module-level function and ``args`` picklable. Children come from a
+    fork server (a fresh interpreter, so a child never inherits the OpenMP runtime that
+    numba or a library already started here: libgomp refuses to run after ``fork``).
 
     Raises
     ------
@@ -42,14 +33,11 @@ def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) ->
     Exception
         Whatever ``fn`` raised, re-raised here.
     """
-    global _PENDING
-    if not sys.platform.startswith("linux"):
-        return fn(*args)
-    ctx = mp.get_context("fork")
-    _PENDING = (fn, args)
+    method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+    ctx = mp.get_context(method)
     pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
     try:
-        future = pool.submit(_call_pending)
+        future = pool.submit(fn, *args)
         try:
             return future.result(timeout=timeout)
         except FutureTimeout:
@@ -57,7 +45,6 @@ def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) ->
         except BrokenProcessPool:
             raise ExternalCrash(f"{what} crashed (the child process died)") from None
     finally:
-        _PENDING = None
         for proc in list(getattr(pool, "_processes", {}).values()):
             proc.kill()
         pool.shutdown(wait=False, cancel_futures=True)
