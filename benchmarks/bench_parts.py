@@ -27,7 +27,8 @@ could not be loaded here), ``invalid`` (a file was written but a check rejects i
 ``timeout``. For every run the table gives the wall time of the fill command, the number
 of struts (parsed from the "N struts, M nodes" line the CLI prints; ``--quiet`` would
 suppress it, so it is not passed), the triangles of the written file, the bodies
-(connected components over shared edges) and the error: the CLI's ``error:`` line (or the
+(connected components over shared edges that enclose positive volume: a cavity's wall is
+not a body) and the error: the CLI's ``error:`` line (or the
 problems ``lattice-cad check`` lists, or what the independent check found), cut to 90
 characters in the table and complete in the JSON.
 
@@ -314,9 +315,14 @@ def independent_check(path: Path) -> tuple[str, int, int]:
         return "empty mesh", 0, 0
     mesh = trimesh.Trimesh(vertices=raw.vertices, faces=raw.faces, process=True)  # merges
     del raw
-    bodies = len(
-        trimesh.graph.connected_components(mesh.face_adjacency, nodes=np.arange(len(mesh.faces)))
+    # bodies: connected surface pieces that enclose positive volume (a cavity's wall is a
+    # piece of its own, with negative volume, and belongs to the body around it)
+    pieces = trimesh.graph.connected_components(
+        mesh.face_adjacency, nodes=np.arange(len(mesh.faces))
     )
+    tri = mesh.vertices[mesh.faces]
+    signed = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    bodies = sum(1 for p in pieces if signed[p].sum() > 0)
     problems = []
     if not mesh.is_watertight:
         problems.append("not watertight")

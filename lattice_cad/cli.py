@@ -137,10 +137,25 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             else ""
         )
     )
+    rep = lat.build_report
+    if rep is not None:
+        notes = [f"fill {rep.fill}"] if rep.fill else []
+        if rep.removed_islands:
+            notes.append(f"{rep.removed_islands} strut(s) in loose pieces removed")
+        if rep.merged_nodes or rep.removed_short:
+            notes.append(f"{rep.merged_nodes} merged, {rep.removed_short} removed")
+        if rep.radii_reduced:
+            notes.append(f"{rep.radii_reduced} strut(s) thinned (min radius {rep.min_radius:.4g})")
+        if rep.thinned_beyond_tolerance:
+            notes.append(f"{rep.thinned_beyond_tolerance} below 0.7 x the radius asked")
+        if notes:
+            con.say("; ".join(notes))
     if out.suffix.lower() in suffixes(Kind.MESH) and not args.beam_lattice:
         with con.step("mesh" + (" + skin" if args.skin else "")):
             mesh = lat.mesh()
         con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3")
+        if lat.skin_report is not None:
+            con.say(lat.skin_report.summary())
     with con.step(f"write {out.suffix.lstrip('.')}"):
         lat.save(out, beam_lattice=args.beam_lattice)
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")

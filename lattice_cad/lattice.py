@@ -77,8 +77,8 @@ def _fill_graph(
     fill: str,
     origin: Any,
     rotation: Any,
-) -> LatticeGraph:
-    """Call the conformal engine (imported lazily) for ``method``."""
+) -> tuple[LatticeGraph, Any]:
+    """Call the conformal engine (imported lazily) for ``method``: the graph and its report."""
     import conformal
 
     built: Any
@@ -91,12 +91,14 @@ def _fill_graph(
             fill=cast(Any, fill),
             origin=origin,
             rotation=rotation,
+            return_report=True,
         )
     else:
-        built = conformal.tet_lattice(part, size=cell_size, radius=radius)
-    if not isinstance(built, LatticeGraph):  # narrows the engines' report-returning overload
-        raise TypeError(f"the {method} engine returned {type(built).__name__}, not a graph")
-    return built
+        built = conformal.tet_lattice(part, size=cell_size, radius=radius, return_report=True)
+    graph, report = built
+    if not isinstance(graph, LatticeGraph):
+        raise TypeError(f"the {method} engine returned {type(graph).__name__}, not a graph")
+    return graph, report
 
 
 class Lattice:
@@ -144,6 +146,8 @@ class Lattice:
         self.skin = skin
         #: How the skin was made and its measured wall (set when the mesh is built).
         self.skin_report: Any = None
+        #: What the lattice builder did (``conformal.BuildReport``; set by :meth:`fill`).
+        self.build_report: Any = None
         self.segments = int(segments)
         self.progress: bool = False
 
@@ -227,7 +231,7 @@ class Lattice:
         if skin is not None:
             skin = _positive("skin", skin)
         the_part = _load_part(part)
-        graph = _fill_graph(
+        graph, report = _fill_graph(
             the_part,
             method=method,
             cell=cell,
@@ -237,7 +241,9 @@ class Lattice:
             origin=origin,
             rotation=rotation,
         )
-        return cls(graph, part=the_part, skin=skin, segments=segments)
+        lat = cls(graph, part=the_part, skin=skin, segments=segments)
+        lat.build_report = report
+        return lat
 
     def __repr__(self) -> str:
         part = f", part={getattr(self.part, 'name', 'part')!r}" if self.part is not None else ""

@@ -99,7 +99,8 @@ BRACKET = Path(__file__).parents[1] / "examples" / "bracket.step"
 def test_fill_tet_bracket_is_valid(tmp_path):
     from lattice_cad.core.errors import LatticeWarning
 
-    with pytest.warns(LatticeWarning, match="thinned"):  # crowded tet edges are thinned
+    # crowded tet edges: the graph repair drops some, a few are still thinned (and said so)
+    with pytest.warns(LatticeWarning, match="had to be made thinner than 0.7 x the radius"):
         lat = Lattice.fill(BRACKET, cell_size=5.0, radius=0.4, method="tet")
     rep = check(lat.mesh())
     assert rep.valid, str(rep)

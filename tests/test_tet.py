@@ -53,7 +53,7 @@ def test_tet_stitches(cyl):
 def test_tet_realistic_radius_stitches(cyl):
     # 6 mm tets at radius 0.4: flat tets put opposite edges closer than 0.8, which
     # used to pass the fit check and then fail in stitch's clearance check
-    raw = tet_lattice(cyl, 6.0, 0.4, fit="off")
+    raw = tet_lattice(cyl, 6.0, 0.4, fit="off", repair=False)
     old, unfit = fit_radii(raw.nodes, raw.edges, raw.radii, min_radius=0.04, clearance=False)
     assert len(unfit) == 0
     g0 = LatticeGraph(raw.nodes, raw.edges, old)  # what the node-only fit check gave
@@ -61,9 +61,10 @@ def test_tet_realistic_radius_stitches(cyl):
     assert probs and all(isinstance(p, StrutClash) for p in probs)
     with pytest.raises(fast_stitch.StitchError, match="share no node"):
         fast_stitch.stitch(g0)
-    with pytest.warns(LatticeWarning, match="thinned"):
-        g = tet_lattice(cyl, 6.0, 0.4)
+    # with the graph repair (the default) no strut is thinner than 0.7 of the radius
+    g, rep = tet_lattice(cyl, 6.0, 0.4, return_report=True)
     assert check_fit(g) == []
+    assert rep.thinned_beyond_tolerance == 0 and g.radii.min() >= 0.7 * 0.4 - 1e-12
     assert g.radii.max() == pytest.approx(0.4)
     assert np.median(g.radii) == pytest.approx(0.4)  # only the crowded struts are thinned
     assert_valid(fast_stitch.stitch(g))
@@ -84,12 +85,23 @@ def test_mesh_part_tet():
 def test_gmsh_failure_is_parterror(cyl, monkeypatch):
     import gmsh
 
-    def boom(dim=3):
-        raise Exception("No elements in volume 1")
+    import conformal.tet
 
+    generate = gmsh.model.mesh.generate
+
+    def boom(dim=3):
+        if dim == 3:
+            raise Exception("No elements in volume 1")
+        generate(dim)
+
+    # in this process instead of a child, so that the patched gmsh is the one that runs
+    monkeypatch.setattr(conformal.tet, "run_isolated", lambda fn, *a, **kw: fn(*a))
     monkeypatch.setattr(gmsh.model.mesh, "generate", boom)
-    with pytest.raises(PartError, match=r"gmsh failed to mesh volume\(s\) \[1\]: No elements"):
+    with pytest.raises(
+        PartError, match=r"gmsh could not mesh the part: brep surface, hxt: No elements"
+    ) as info:
         tet_lattice(cyl, 5.0)
+    assert "delaunay: No elements" in str(info.value)  # every 3-D algorithm was tried
     assert not gmsh.isInitialized()
 
 

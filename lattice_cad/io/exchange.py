@@ -65,9 +65,9 @@ GRAPH_SUFFIXES = suffixes(Kind.GRAPH)
 def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
     """The mesh as STL and 3MF store it: vertices rounded to float32, still a closed solid.
 
-    Rounding can merge vertices (they are welded) and flatten triangles; the flattened
-    ones are collapsed by manifold3d (its edge collapses and swaps), so a mesh the product
-    built is never refused at write time. Nothing changes for a mesh that survives the
+    Rounding can merge vertices (they are welded) and flatten triangles; each flattened
+    one loses its shortest edge (the two vertices merged), so a mesh the product built is
+    never refused at write time. Nothing changes for a mesh that survives the
     rounding as it is (the usual case), except the rounding itself.
 
     Returns
@@ -91,19 +91,8 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
     merged = len(f) - len(f2)  # triangles that lost a vertex to rounding
     bad = _flat_triangles(v2, f2)
     if bad.any():
-        import manifold3d
-
-        man = manifold3d.Manifold(
-            manifold3d.Mesh(
-                vert_properties=np.ascontiguousarray(v2, dtype=np.float32),
-                tri_verts=np.ascontiguousarray(f2, dtype=np.uint32),
-            )
-        )
-        out = man.to_mesh()
-        v2 = np.asarray(out.vert_properties, dtype=np.float64)[:, :3]
-        f2 = np.asarray(out.tri_verts, dtype=np.int64)
-        still = _flat_triangles(v2, f2)
-        if man.status() != manifold3d.Error.NoError or still.any() or len(f2) == 0:
+        v2, f2 = _collapse_flat(v2, f2)
+        if _flat_triangles(v2, f2).any() or not _closed_manifold(f2) or len(f2) == 0:
             where = v32[f[np.flatnonzero(bad)[0]]].mean(axis=0)
             raise ExportError(
                 f"{name}: {int(bad.sum())} triangle(s) collapse when coordinates are rounded to "
@@ -113,6 +102,45 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
                 "origin or use thicker struts"
             )
     return Mesh(vertices=v2, faces=f2), merged + int(bad.sum())
+
+
+def _collapse_flat(
+    v: NDArray[np.float64], f: NDArray[np.int64], rounds: int = 20
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Collapse the shortest edge of every flat triangle (its two vertices merged), which
+    removes it and its neighbour across that edge, until none is flat."""
+    for _ in range(rounds):
+        bad = np.flatnonzero(_flat_triangles(v, f))
+        if not len(bad):
+            break
+        t = v[f[bad]]
+        lengths = np.stack([np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)])
+        k = np.argmin(lengths, axis=0)
+        a = f[bad, k]
+        b = f[bad, (k + 1) % 3]
+        target = np.arange(len(v))
+        busy = np.zeros(len(v), dtype=bool)
+        for x, y in zip(a.tolist(), b.tolist(), strict=True):
+            if not (busy[x] or busy[y]):
+                busy[x] = busy[y] = True
+                target[max(x, y)] = min(x, y)
+        f = target[f]
+        keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
+        f = f[keep]
+        used = np.zeros(len(v), dtype=bool)
+        used[f.ravel()] = True
+        new_id = np.cumsum(used) - 1
+        v, f = v[used], new_id[f]
+    return v, f
+
+
+def _closed_manifold(f: NDArray[np.int64]) -> bool:
+    """Every edge used exactly twice, once in each direction."""
+    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    und, cnt = np.unique(np.sort(he, axis=1), axis=0, return_counts=True)
+    if not (cnt == 2).all():
+        return False
+    return len(np.unique(he, axis=0)) == len(he)
 
 
 def _flat_triangles(v: NDArray[np.float64], f: NDArray[np.int64]) -> NDArray[np.bool_]:
