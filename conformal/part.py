@@ -201,7 +201,7 @@ class Part:
         )
         h = min(float(self.size.max()) / resolution, 0.5 * abs(self.volume) / max(area, 1e-300))
         h = max(h, (float(np.prod(self.size + 3 * h)) / 8e6) ** (1 / 3))  # at most ~8M points
-        origin = self.bounds[0] - h
+        origin = self.bounds[0] - h + 0.5017 * h  # off the round coordinates of CAD faces
         dims = np.ceil(self.size / h).astype(np.int64) + 3
         inside = self.grid_contains(origin, np.full(3, h), dims)
         if not inside.any():

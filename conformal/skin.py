@@ -120,6 +120,10 @@ class SkinResult:
     report: SkinReport
 
 
+#: Fraction of a grid step by which sampling grids are shifted off round coordinates.
+_GRID_SHIFT = 0.5017
+
+
 # ------------------------------------------------------------------ conversion
 def shape_mesh(
     shape: Any, tolerance: float = 0.01, angular: float = 0.2
@@ -280,7 +284,9 @@ def _distance_field(
     from scipy.ndimage import distance_transform_edt
 
     pad = 2 * h
-    origin = part.bounds[0] - pad
+    # off the round positions a CAD part's faces sit on: a vertical ray of the inside test
+    # along a face would be ambiguous
+    origin = part.bounds[0] - pad + _GRID_SHIFT * h
     dims = tuple(int(n) for n in np.ceil((part.size + 2 * pad) / h).astype(np.int64) + 1)
     inside = part.grid_contains(origin, np.full(3, h), dims)
     depth = distance_transform_edt(inside, sampling=h) - 0.5 * h

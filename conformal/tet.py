@@ -231,10 +231,12 @@ def _resampled(part: Part, h: float) -> Part:
     boundary for gmsh when a scanned or dense mesh cannot be re-parametrised."""
     from scipy.ndimage import binary_dilation, binary_erosion
 
-    from conformal.skin import marching_tets
+    from conformal.skin import _GRID_SHIFT, marching_tets
 
     pad = 2 * h
-    origin = part.bounds[0] - pad
+    # off the round positions a CAD part's faces sit on: a vertical ray of the inside test
+    # along a face would be ambiguous
+    origin = part.bounds[0] - pad + _GRID_SHIFT * h
     dims = np.ceil((part.size + 2 * pad) / h).astype(np.int64) + 1
     inside = part.grid_contains(origin, np.full(3, h), dims)
     field = np.where(inside, 2.0 * h, -2.0 * h)

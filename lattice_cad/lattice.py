@@ -101,6 +101,22 @@ def _fill_graph(
     return graph, report
 
 
+def _collapse_folds(mesh: Mesh, report: Any) -> Mesh:
+    """Collapse the zero-area faces and the smaller face of each self-intersecting pair
+    (manifold3d's booleans leave needles that rounding to float32 can fold)."""
+    from lattice_cad import io
+    from lattice_cad.core.mesh import Mesh
+
+    v, f = mesh.vertices, mesh.faces
+    pairs = np.asarray(report.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)
+    t = v[f]
+    area = np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    smaller = np.where(area[pairs[:, 0]] <= area[pairs[:, 1]], pairs[:, 0], pairs[:, 1])
+    which = np.union1d(np.asarray(report.zero_area_faces, dtype=np.int64), smaller)
+    v2, f2 = io.collapse_faces(v, f, which)
+    return Mesh(vertices=v2, faces=f2)
+
+
 class Lattice:
     """A lattice graph, optionally with the part it fills and a skin.
 
@@ -278,8 +294,15 @@ class Lattice:
         from lattice_cad import io
 
         mesh, repaired = io.single_precision(self._solid_mesh, name="the lattice")
-        if repaired:  # rounding flattened triangles: check everything before anyone writes
+        # a stitched lattice keeps its clearances through the rounding; a skin (manifold3d
+        # booleans) can have surfaces a float32 step apart, so it is checked in full
+        if repaired or self.skin is not None:
             report = fast_stitch.check(mesh)
+            for _ in range(6):  # tiny folds where the booleans left needles: collapse them
+                if report.valid or self.skin is None:
+                    break
+                mesh = _collapse_folds(mesh, report)
+                report = fast_stitch.check(mesh)
             if not report.valid:
                 raise ExportError(
                     f"the lattice cannot be written in single precision (STL, 3MF): rounding "

@@ -53,6 +53,7 @@ __all__ = [
     "read_mesh",
     "read_beam_lattice",
     "single_precision",
+    "collapse_faces",
 ]
 
 #: Mesh formats written by :func:`save_mesh`.
@@ -107,31 +108,42 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
 def _collapse_flat(
     v: NDArray[np.float64], f: NDArray[np.int64], rounds: int = 20
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Collapse the shortest edge of every flat triangle (its two vertices merged), which
-    removes it and its neighbour across that edge, until none is flat."""
+    """Collapse the shortest edge of every flat triangle until none is flat."""
     for _ in range(rounds):
         bad = np.flatnonzero(_flat_triangles(v, f))
         if not len(bad):
             break
-        t = v[f[bad]]
-        lengths = np.stack([np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)])
-        k = np.argmin(lengths, axis=0)
-        a = f[bad, k]
-        b = f[bad, (k + 1) % 3]
-        target = np.arange(len(v))
-        busy = np.zeros(len(v), dtype=bool)
-        for x, y in zip(a.tolist(), b.tolist(), strict=True):
-            if not (busy[x] or busy[y]):
-                busy[x] = busy[y] = True
-                target[max(x, y)] = min(x, y)
-        f = target[f]
-        keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
-        f = f[keep]
-        used = np.zeros(len(v), dtype=bool)
-        used[f.ravel()] = True
-        new_id = np.cumsum(used) - 1
-        v, f = v[used], new_id[f]
+        v, f = collapse_faces(v, f, bad)
     return v, f
+
+
+def collapse_faces(
+    v: NDArray[np.float64], f: NDArray[np.int64], which: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Collapse the shortest edge of each face in ``which`` (an independent subset of them).
+
+    The two vertices of the edge become one (the lower index, in place), which removes the
+    face and its neighbour across that edge; unused vertices are dropped.
+    vertices : (V, 3) float64, faces : (F, 3) int64, which : (K,) int64.
+    """
+    t = v[f[which]]
+    lengths = np.stack([np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)])
+    k = np.argmin(lengths, axis=0)
+    a = f[which, k]
+    b = f[which, (k + 1) % 3]
+    target = np.arange(len(v))
+    busy = np.zeros(len(v), dtype=bool)
+    for x, y in zip(a.tolist(), b.tolist(), strict=True):
+        if not (busy[x] or busy[y]):
+            busy[x] = busy[y] = True
+            target[max(x, y)] = min(x, y)
+    f = target[f]
+    keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
+    f = f[keep]
+    used = np.zeros(len(v), dtype=bool)
+    used[f.ravel()] = True
+    new_id = np.cumsum(used) - 1
+    return v[used], new_id[f]
 
 
 def _closed_manifold(f: NDArray[np.int64]) -> bool:
