@@ -298,7 +298,7 @@ class Lattice:
         # booleans) can have surfaces a float32 step apart, so it is checked in full
         if repaired or self.skin is not None:
             report = fast_stitch.check(mesh)
-            for _ in range(6):  # tiny folds where the booleans left needles: collapse them
+            for _ in range(20):  # tiny folds where the booleans left needles: collapse them
                 if report.valid or self.skin is None:
                     break
                 mesh = _collapse_folds(mesh, report)
