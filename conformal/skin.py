@@ -460,9 +460,11 @@ def build_skin(
     p = _as_part(part)
     (outer, mid, inner), used, fallback, h = _surfaces(p, thickness, method, voxel)
     if inner.is_empty():
+        thick = 2.0 * p.inscribed_radius()
         raise SkinError(
             f"the part is nowhere thicker than twice the skin thickness {thickness:g}: "
-            "no room for a lattice (use a thinner skin)"
+            f"no room for a lattice; its greatest thickness is about {thick:.3g} mm, so a "
+            f"skin thinner than about {0.4 * thick:.3g} mm leaves a cavity"
         )
     t1 = time.perf_counter()
     lat = as_manifold(lattice, name="lattice mesh")
