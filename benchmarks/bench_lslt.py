@@ -14,7 +14,7 @@ lattice:
 
 Set-up (the paper's Table 1 for the bunny: 7 mm cells, R = 0.5 mm):
 
-* bunny: ``/work/shared/data/meshes/bunny_closed_odedstein.obj`` (vertices
+* bunny: ``../shared/data/meshes/bunny_closed_odedstein.obj`` (beside the repository) (vertices
   merged), bounding-box minimum moved to the origin and scaled uniformly so
   that its largest extent is 100 mm; a block of 7 mm BCC cells covering it,
   keeping the cells whose centre is inside (``trimesh.Trimesh.contains``);
@@ -41,7 +41,9 @@ from conformal.cells import tile
 from fast_stitch.lslt import segments_for_chord_error, stitch_lslt, triangle_quality
 from lattice_cad import LatticeGraph
 
-BUNNY_PATH = Path("/work/shared/data/meshes/bunny_closed_odedstein.obj")
+#: The shared test data beside the repository root (../shared), never an absolute path.
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+BUNNY_PATH = DATA / "meshes" / "bunny_closed_odedstein.obj"
 ERRORS = (0.01, 0.02, 0.05, 0.10)
 
 

@@ -43,7 +43,7 @@ How to run
     python benchmarks/bench_parts.py                       # all parts, all settings
     python benchmarks/bench_parts.py --parts kcl_ bunny --settings bcc tet
     python benchmarks/bench_parts.py --jobs 2 --timeout 300 --json results.json
-    python benchmarks/bench_parts.py --out /tmp/lattices   # keep the STL files
+    python benchmarks/bench_parts.py --out out/lattices    # keep the STL files
 
 Rows are printed as the runs complete; at the end the whole table is printed again,
 sorted by part and setting, followed by one summary line per setting. Ctrl-C (or SIGTERM)

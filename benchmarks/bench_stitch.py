@@ -42,7 +42,9 @@ from lattice_cad.core.graph import LatticeGraph
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
-BUNNY_PATH = Path("/work/shared/data/meshes/bunny_closed_odedstein.obj")
+#: The shared test data beside the repository root (../shared), never an absolute path.
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+BUNNY_PATH = DATA / "meshes" / "bunny_closed_odedstein.obj"
 
 P_DEFAULT = 6
 #: Bunny: cells whose centre is inside; the bunny is scaled so that 1 mm BCC cells
