@@ -318,14 +318,14 @@ def _voxel_surfaces(part: Any, thickness: float, h: float) -> tuple[Any, Any, An
 
 
 def wall_thickness(inner: Any, outer: Any) -> NDArray[np.float64]:
-    """(V,) float64: distance from each vertex of the inner surface to the outer surface."""
-    from conformal.part import Part
+    """(V,) float64: distance from each vertex of the inner surface to the outer surface.
 
+    ``outer`` may be a Manifold, a mesh or a Part (whose distance bins are then reused).
+    """
     iv, _ = to_arrays(inner)
-    ov, of = to_arrays(outer)
     if len(iv) == 0:
         return np.zeros(0)
-    return Part(ov, of, name="outer wall").distance(iv)
+    return _as_part(outer).distance(iv)
 
 
 # ------------------------------------------------------------------- public API
@@ -390,15 +390,12 @@ def _keep_attached(solid: Any, outer: Any) -> tuple[Any, int, int]:
     """Drop the pieces that do not reach the outer surface (lattice islands).
 
     Returns the kept solid, the number of bodies, and the number of islands removed.
-    Negative-volume components (cavity walls) are always kept.
+    Negative-volume components (cavity walls) are always kept. ``outer``: Manifold or Part.
     """
-    from conformal.part import Part
-
     pieces = solid.decompose()
     if len(pieces) <= 1:
         return solid, len(pieces), 0
-    ov, of = to_arrays(outer)
-    surface = Part(ov, of, name="outer wall")
+    surface = _as_part(outer)
     tol = 1e-4 * float(np.linalg.norm(surface.size))
     keep, bodies, islands = [], 0, 0
     for piece in pieces:
@@ -469,9 +466,10 @@ def build_skin(
     t1 = time.perf_counter()
     lat = as_manifold(lattice, name="lattice mesh")
     solid = (outer - inner) + (lat ^ mid)
-    solid, bodies, islands = _keep_attached(solid, outer)
+    surface = _as_part(outer)  # one distance structure for the islands and the wall
+    solid, bodies, islands = _keep_attached(solid, surface)
     t2 = time.perf_counter()
-    wall = wall_thickness(inner, outer)
+    wall = wall_thickness(inner, surface)
     stats = {
         "min": float(wall.min()),
         "p01": float(np.percentile(wall, 1)),

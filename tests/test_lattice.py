@@ -21,6 +21,8 @@ from lattice_cad.lattice import Lattice
 def box():
     import cadquery as cq
 
+    import lattice_cad.plugin  # noqa: F401  (adds Workplane.lattice, as users do)
+
     return cq.Workplane("XY").box(20, 16, 12)
 
 

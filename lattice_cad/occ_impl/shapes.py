@@ -236,7 +236,6 @@ def face_triangulations(
     deflection: float,
     angular: float = 0.25,
     *,
-    relative: bool = False,
     parallel: bool = True,
 ) -> Iterator[tuple[TopoDS_Face, NDArray[np.float64], NDArray[np.int64]]]:
     """Triangulate ``shape`` with BRepMesh and yield each face's triangulation.
@@ -256,7 +255,7 @@ def face_triangulations(
     OCCTFailure
         BRepMesh is not done, or leaves a face without triangulation.
     """
-    mesher = BRepMesh_IncrementalMesh(shape, float(deflection), relative, float(angular), parallel)
+    mesher = BRepMesh_IncrementalMesh(shape, float(deflection), False, float(angular), parallel)
     if not mesher.IsDone():
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
     exp = TopExp_Explorer(shape, TopAbs_FACE)
