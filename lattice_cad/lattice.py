@@ -130,6 +130,9 @@ class Lattice:
         united with the lattice (see :mod:`conformal.skin`).
     segments : int
         Sides of every strut's polygonal profile in the stitched mesh (>= 3).
+    trim : bool
+        Cut the lattice by the part's surface (with a part and no skin), so the printable
+        solid never lies outside the part (see :mod:`conformal.trim`). Default True.
 
     Attributes
     ----------
@@ -146,6 +149,7 @@ class Lattice:
         part: Any = None,
         skin: float | None = None,
         segments: int = config.DEFAULT_SEGMENTS,
+        trim: bool = True,
     ) -> None:
         if not isinstance(graph, LatticeGraph):
             raise TypeError(f"graph must be a LatticeGraph, got {type(graph).__name__}")
@@ -165,6 +169,12 @@ class Lattice:
         #: What the lattice builder did (``conformal.BuildReport``; set by :meth:`fill`).
         self.build_report: Any = None
         self.segments = int(segments)
+        if not isinstance(trim, (bool, np.bool_)):
+            raise TypeError(f"trim must be True or False, got {trim!r}")
+        self.trim = bool(trim)
+        #: How the lattice was cut to the part (``conformal.trim.TrimReport``; set when the
+        #: mesh is built, None when there was nothing to trim against).
+        self.trim_report: Any = None
         self.progress: bool = False
 
     # ---------------------------------------------------------------- build
@@ -182,6 +192,7 @@ class Lattice:
         segments: int = config.DEFAULT_SEGMENTS,
         origin: Any = None,
         rotation: Any = None,
+        trim: bool = True,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -211,6 +222,9 @@ class Lattice:
         origin, rotation : optional
             Placement of the cell grid (passed to ``conformal.voxel_lattice``; voxel only).
             ``cell`` is ignored by ``method="tet"``.
+        trim : bool
+            Cut struts by the part's surface so the printable solid keeps the part's size
+            (default; with a skin the struts end inside the wall instead).
 
         Returns
         -------
@@ -257,7 +271,7 @@ class Lattice:
             origin=origin,
             rotation=rotation,
         )
-        lat = cls(graph, part=the_part, skin=skin, segments=segments)
+        lat = cls(graph, part=the_part, skin=skin, segments=segments, trim=trim)
         lat.build_report = report
         return lat
 
@@ -278,10 +292,22 @@ class Lattice:
 
     @cached_property
     def _solid_mesh(self) -> Mesh:
-        if self.skin is None:
-            return self._lattice_mesh
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
+
+        if self.skin is None:
+            if self.part is None or not self.trim or self.graph.num_edges == 0:
+                return self._lattice_mesh
+            from conformal.trim import trim_to_part
+
+            trimmed = trim_to_part(
+                self._lattice_mesh, self.part, radius=float(self.graph.radii.max())
+            )
+            self.trim_report = trimmed.report
+            if not trimmed.report.trimmed:
+                return self._lattice_mesh
+            v, f = _skin.to_arrays(trimmed.solid)
+            return Mesh(vertices=v, faces=f)
 
         result = _skin.build_skin(self._lattice_mesh, self.part, self.skin)
         self.skin_report = result.report
@@ -293,13 +319,15 @@ class Lattice:
         import fast_stitch
         from lattice_cad import io
 
-        mesh, repaired = io.single_precision(self._solid_mesh, name="the lattice")
-        # a stitched lattice keeps its clearances through the rounding; a skin (manifold3d
-        # booleans) can have surfaces a float32 step apart, so it is checked in full
-        if repaired or self.skin is not None:
+        solid = self._solid_mesh
+        # a stitched lattice keeps its clearances through the rounding; a skin or a trim
+        # (manifold3d booleans) can have surfaces a float32 step apart: checked in full
+        boolean = solid is not self._lattice_mesh
+        mesh, repaired = io.single_precision(solid, name="the lattice")
+        if repaired or boolean:
             report = fast_stitch.check(mesh)
             for _ in range(20):  # tiny folds where the booleans left needles: collapse them
-                if report.valid or self.skin is None:
+                if report.valid or not boolean:
                     break
                 mesh = _collapse_folds(mesh, report)
                 report = fast_stitch.check(mesh)
@@ -320,12 +348,14 @@ class Lattice:
         Parameters
         ----------
         lattice_only : bool
-            Without the skin even if the lattice has one.
+            The stitched lattice as the graph gives it: without the skin and not trimmed
+            to the part.
 
         Returns
         -------
         fast_stitch.Mesh
-            The stitched lattice, or (with a skin) the union of skin and lattice.
+            The stitched lattice cut by the part's surface (when the part is known; see
+            ``trim``), or (with a skin) the union of skin and lattice.
         """
         return self._lattice_mesh if lattice_only else self._printable_mesh
 
@@ -465,9 +495,11 @@ class Lattice:
         -------
         dict
             ``nodes``, ``struts``, ``vertices`` and ``triangles`` (of the stitched
-            lattice, exact before building it), ``volume`` (mm^3: of the mesh if built,
-            else the strut-volume estimate), ``volume_exact`` (whether it is the mesh's),
-            ``part_volume`` and ``relative_density`` (when the part is known), ``skin``,
+            lattice, exact before building it), ``volume`` (mm^3: of the printable mesh if
+            built, else the strut-volume estimate), ``volume_exact`` (whether it is the
+            mesh's), ``part_volume`` and ``relative_density`` (when the part is known: the
+            printable mesh is then built, so both are exact and the density is at most 1),
+            ``skin``,
             and ``file_bytes``: estimated sizes of ``stl``, ``3mf``, ``ply``, ``obj``
             and ``3mf_beam`` files of the lattice (without skin).
         """
@@ -476,7 +508,9 @@ class Lattice:
 
         g = self.graph
         est = fast_stitch.estimate(g, self.segments)
-        built = "_solid_mesh" in self.__dict__ or (
+        # the relative density is a fraction of the part: from the printable solid itself
+        # (a union, trimmed to the part), never from a sum of overlapping strut volumes
+        built = self.part is not None or "_printable_mesh" in self.__dict__ or (
             self.skin is None and "_lattice_mesh" in self.__dict__
         )
         volume = self.mesh().volume if built else self.strut_volume()

@@ -133,3 +133,7 @@ DEFAULT_SAMPLES = 50_000
 
 #: Largest lattice for which :meth:`Lattice.to_workplane` builds B-rep solids by default.
 MAX_BREP_STRUTS = 2_000
+
+#: A lattice trimmed to its part lies outside the part's surface by at most this fraction of
+#: the largest strut radius (``conformal.trim``; checked on every vertex and reported).
+TRIM_RTOL = 0.01

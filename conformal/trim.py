@@ -1,0 +1,229 @@
+"""Trim a lattice to its part: the printable solid never lies outside the part's surface.
+
+A lattice graph fills a part with struts whose *axes* lie inside it (fill ``"clip"``,
+``"conform"`` and tet lattices put nodes on the surface itself), so a stitched strut of
+radius ``r`` reaches up to ``r`` beyond the surface: the printed part would be too big.
+:func:`trim_to_part` intersects the stitched lattice with the part (manifold3d, whose
+results are guaranteed 2-manifold), so every strut that reaches the boundary is cut by the
+part's surface, and measures the protrusion before and after on the vertices.
+
+Cutting can leave pieces that were joined only outside the part; as for the graph (see
+``conformal.voxel.keep_main_components``), each separate solid of the part keeps its largest
+piece and the others are removed and counted.
+
+The protrusion is measured against the part's tessellation (the surface the lattice is cut
+by); the tessellation itself follows the exact B-rep within the part's chord tolerance.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lattice_cad.core import config
+
+__all__ = ["TrimReport", "TrimResult", "trim_to_part", "protrusion"]
+
+
+@dataclass(frozen=True)
+class TrimReport:
+    """What :func:`trim_to_part` did.
+
+    Attributes
+    ----------
+    trimmed : bool
+        Whether the lattice reached outside the part (else it is returned unchanged).
+    protrusion_before, protrusion_after : float
+        Largest distance (mm) of a mesh vertex outside the part's surface (0 when none is
+        outside), before and after trimming.
+    tolerance : float
+        The stated bound on ``protrusion_after`` (mm): ``config.TRIM_RTOL`` times the
+        largest strut radius, but never below float32 rounding of the coordinates.
+    volume_removed : float
+        Volume (mm^3) cut away, including removed pieces.
+    bodies : int
+        Connected bodies of the result (at most one per solid of the part).
+    pieces_removed : int
+        Pieces cut loose by the trim and removed.
+    seconds : float
+    """
+
+    trimmed: bool
+    protrusion_before: float
+    protrusion_after: float
+    tolerance: float
+    volume_removed: float
+    bodies: int
+    pieces_removed: int
+    seconds: float
+
+    @property
+    def within_tolerance(self) -> bool:
+        return self.protrusion_after <= self.tolerance
+
+    def summary(self) -> str:
+        if not self.trimmed:
+            return (
+                f"trim: the lattice lies inside the part (largest protrusion "
+                f"{self.protrusion_before:.3g} mm)"
+            )
+        removed = f", {self.pieces_removed} loose piece(s) removed" if self.pieces_removed else ""
+        return (
+            f"trim: cut to the part's surface: protrusion {self.protrusion_before:.3g} mm -> "
+            f"{self.protrusion_after:.2g} mm (tolerance {self.tolerance:.2g} mm), "
+            f"{self.volume_removed:.4g} mm^3 removed{removed}, {self.bodies} body(ies), "
+            f"{self.seconds:.1f} s"
+        )
+
+
+@dataclass(frozen=True)
+class TrimResult:
+    """``solid``: the trimmed lattice (``manifold3d.Manifold``); ``report``: a TrimReport."""
+
+    solid: Any
+    report: TrimReport
+
+
+def protrusion(part: Any, vertices: NDArray[np.float64]) -> float:
+    """Largest distance (mm) of ``vertices`` outside the part's surface, 0 if none is.
+
+    Parameters
+    ----------
+    part : conformal.Part
+    vertices : (V, 3) float64
+
+    Returns
+    -------
+    float
+    """
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    if len(v) == 0:
+        return 0.0
+    outside = ~part.contains(v)
+    if not outside.any():
+        return 0.0
+    return float(part.distance(v[outside]).max())
+
+
+def part_solid(part: Any) -> Any:
+    """The part as one ``manifold3d.Manifold``: its solids united, its voids cut out.
+
+    Assemblies often hold solids that touch (share faces) or overlap; their tessellation
+    then has coincident faces, which a boolean would carry into the result. Uniting the
+    solids (manifold3d's union merges touching faces) gives the region the part occupies.
+
+    Parameters
+    ----------
+    part : conformal.Part
+
+    Returns
+    -------
+    manifold3d.Manifold
+    """
+    import manifold3d
+
+    from conformal.skin import _manifold, as_manifold, to_arrays
+
+    name = f"the part {getattr(part, 'name', '')}".strip()
+    shape = as_manifold(part, name=name)
+    comps = shape.decompose()
+    if len(comps) <= 1:
+        return shape
+    solids = [c for c in comps if c.volume() > 0]
+    voids = []
+    for c in comps:
+        if c.volume() < 0:  # an inner shell: the solid of the void, to subtract
+            v, f = to_arrays(c)
+            voids.append(_manifold(v, np.ascontiguousarray(f[:, ::-1]), f"a void of {name}"))
+    add, subtract = manifold3d.OpType.Add, manifold3d.OpType.Subtract
+    out = manifold3d.Manifold.batch_boolean(solids, add)
+    if voids:
+        out = manifold3d.Manifold.batch_boolean([out, *voids], subtract)
+    return out
+
+
+def _tolerance(radius: float, extent: float) -> float:
+    # float32 output moves a coordinate by up to half a unit in the last place
+    rounding = float(np.spacing(np.float32(max(extent, 1.0)))) * 2.0
+    return max(config.TRIM_RTOL * radius, rounding)
+
+
+def trim_to_part(lattice: Any, part: Any, *, radius: float) -> TrimResult:
+    """Intersect a stitched lattice with its part.
+
+    Parameters
+    ----------
+    lattice : Mesh, Manifold or mesh-like
+        The stitched lattice (closed, 2-manifold).
+    part : conformal.Part
+    radius : float
+        The largest strut radius (mm): the tolerance is stated relative to it.
+
+    Returns
+    -------
+    TrimResult
+        The lattice unchanged (as a Manifold) when no vertex lies outside the part and
+        nothing is cut; otherwise the intersection, in each solid of the part its largest
+        piece.
+    """
+    from conformal.skin import as_manifold, to_arrays
+    from conformal.voxel import _solid_shells
+
+    t0 = time.perf_counter()
+    lat = as_manifold(lattice, name="the lattice mesh")
+    v0, _ = to_arrays(lat)
+    extent = float(np.abs(part.bounds).max()) if len(part.vertices) else 1.0
+    tol = _tolerance(radius, extent)
+    before = protrusion(part, v0)
+    shape = part_solid(part)
+    outside = lat - shape
+    if outside.is_empty():
+        report = TrimReport(
+            trimmed=False,
+            protrusion_before=before,
+            protrusion_after=before,
+            tolerance=tol,
+            volume_removed=0.0,
+            bodies=len(lat.decompose()),
+            pieces_removed=0,
+            seconds=time.perf_counter() - t0,
+        )
+        return TrimResult(solid=lat, report=report)
+    cut = lat ^ shape
+    pieces = cut.decompose()
+    removed = 0
+    if len(pieces) > 1:
+        shells = _solid_shells(part)
+        vols = np.array([p.volume() for p in pieces])
+        owner = np.zeros(len(pieces), dtype=np.int64)
+        if len(shells) > 1:
+            for i, p in enumerate(pieces):
+                pv, _ = to_arrays(p)
+                inside = [int(s.contains(pv[:64]).sum()) for s in shells]
+                owner[i] = int(np.argmax(inside))
+        keep = []
+        for o in np.unique(owner):
+            mine = np.flatnonzero(owner == o)
+            keep.append(int(mine[np.argmax(vols[mine])]))
+        removed = len(pieces) - len(keep)
+        if removed:
+            import manifold3d
+
+            cut = manifold3d.Manifold.compose([pieces[i] for i in sorted(keep)])
+            pieces = [pieces[i] for i in sorted(keep)]
+    v1, _ = to_arrays(cut)
+    report = TrimReport(
+        trimmed=True,
+        protrusion_before=before,
+        protrusion_after=protrusion(part, v1),
+        tolerance=tol,
+        volume_removed=float(lat.volume() - cut.volume()),
+        bodies=len(pieces),
+        pieces_removed=removed,
+        seconds=time.perf_counter() - t0,
+    )
+    return TrimResult(solid=cut, report=report)
