@@ -128,15 +128,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             segments=args.segments,
         )
     lat.progress = not con.quiet
-    info = lat.info()
-    con.say(
-        f"{info['struts']:,} struts, {info['nodes']:,} nodes"
-        + (
-            f", relative density {info['relative_density']:.3f}"
-            if "relative_density" in info
-            else ""
-        )
-    )
+    con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
     rep = lat.build_report
     if rep is not None:
         notes = [f"fill {rep.fill}"] if rep.fill else []
@@ -153,9 +145,14 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     if out.suffix.lower() in suffixes(Kind.MESH) and not args.beam_lattice:
         with con.step("mesh" + (" + skin" if args.skin else "")):
             mesh = lat.mesh()
-        con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3")
+        density = ""
+        if lat.part is not None and lat.part.volume > 0:
+            density = f", relative density {mesh.volume / lat.part.volume:.3f}"
+        con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3{density}")
         if lat.skin_report is not None:
             con.say(lat.skin_report.summary())
+        if lat.trim_report is not None:
+            con.say(lat.trim_report.summary())
     with con.step(f"write {out.suffix.lstrip('.')}"):
         lat.save(out, beam_lattice=args.beam_lattice)
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
