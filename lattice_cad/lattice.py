@@ -117,6 +117,30 @@ def _collapse_folds(mesh: Mesh, report: Any) -> Mesh:
     return Mesh(vertices=v2, faces=f2)
 
 
+def _self_supporting_rotation(
+    method: str, cell: str, rotation: Any, direction: Any, critical_angle: float
+) -> Any:
+    """The grid rotation that makes ``cell`` self-supporting along ``direction``, or refuse."""
+    from conformal.printability import best_orientation, self_supporting_cells
+    from lattice_cad.core.errors import PrintabilityError
+
+    if method != "voxel":
+        raise PrintabilityError(
+            "self_supporting applies to method='voxel' (a tet lattice has no cell to orient)"
+        )
+    if rotation is not None:
+        raise PrintabilityError("give either rotation or self_supporting=True, not both")
+    best = best_orientation(cell, direction)
+    if best.min_angle < critical_angle - config.ANGLE_EPS_DEG:
+        cells = ", ".join(self_supporting_cells(direction, critical_angle)) or "none"
+        raise PrintabilityError(
+            f"no orientation makes {cell!r} self-supporting at {critical_angle:g} deg: its "
+            f"best leaves struts at {best.min_angle:.4g} deg; cells that are: {cells} "
+            "(or use remove_overhangs, or a smaller critical angle)"
+        )
+    return best.rotation
+
+
 class Lattice:
     """A lattice graph, optionally with the part it fills and a skin.
 
@@ -137,6 +161,14 @@ class Lattice:
     part : conformal.Part or None
     skin : float or None
     segments : int
+    build_direction : (3,) float
+        Printability settings used by :meth:`printability` and :meth:`info` (defaults
+        +Z, ``config.OVERHANG_ANGLE_DEG``, ``config.MIN_STRUT_DIAMETER``; set by
+        :meth:`fill` or by hand).
+    critical_angle : float
+    min_diameter : float
+    overhang_removal : conformal.printability.OverhangRemoval or None
+        What ``fill(..., remove_overhangs=True)`` removed.
     """
 
     def __init__(
@@ -166,6 +198,10 @@ class Lattice:
         self.build_report: Any = None
         self.segments = int(segments)
         self.progress: bool = False
+        self.build_direction: Any = config.BUILD_DIRECTION
+        self.critical_angle: float = config.OVERHANG_ANGLE_DEG
+        self.min_diameter: float = config.MIN_STRUT_DIAMETER
+        self.overhang_removal: Any = None
 
     # ---------------------------------------------------------------- build
     @classmethod
@@ -182,6 +218,11 @@ class Lattice:
         segments: int = config.DEFAULT_SEGMENTS,
         origin: Any = None,
         rotation: Any = None,
+        build_direction: Any = None,
+        critical_angle: float | None = None,
+        min_diameter: float | None = None,
+        remove_overhangs: bool = False,
+        self_supporting: bool = False,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -211,6 +252,21 @@ class Lattice:
         origin, rotation : optional
             Placement of the cell grid (passed to ``conformal.voxel_lattice``; voxel only).
             ``cell`` is ignored by ``method="tet"``.
+        build_direction : (3,) float, optional
+            Direction the layers grow in (any non-zero vector; default +Z), for the
+            printability report (:meth:`printability`) and the options below.
+        critical_angle : float, optional
+            Struts below this angle to the build plate (degrees) are overhangs (default 35).
+        min_diameter : float, optional
+            Struts thinner than this (mm) are reported as thin (default 0.4).
+        remove_overhangs : bool
+            Remove the overhanging struts, then the loose pieces that leaves (see
+            ``conformal.remove_overhangs``); ``overhang_removal`` says what went.
+        self_supporting : bool
+            Voxel only: rotate the cell grid so that the cell's smallest strut angle to the
+            build plate is largest (``conformal.best_orientation``; e.g. cubic with a body
+            diagonal along the build direction). Refused with ``rotation``, and when even
+            the best orientation leaves struts below the critical angle.
 
         Returns
         -------
@@ -220,6 +276,9 @@ class Lattice:
         ------
         conformal.PartError
             The part cannot be read or is not a closed solid.
+        PrintabilityError
+            A zero build direction, an angle outside 0..90, a cell that no rotation makes
+            self-supporting, or nothing left after removing the overhangs.
         ValueError, TypeError
             An option out of range (named in the message).
         """
@@ -246,6 +305,19 @@ class Lattice:
         radius = _positive("radius", radius)
         if skin is not None:
             skin = _positive("skin", skin)
+        from conformal import printability as _pr
+
+        direction = _pr.as_build_direction(
+            config.BUILD_DIRECTION if build_direction is None else build_direction
+        )
+        crit = _pr.as_critical_angle(
+            config.OVERHANG_ANGLE_DEG if critical_angle is None else critical_angle
+        )
+        dmin = _pr.as_min_diameter(
+            config.MIN_STRUT_DIAMETER if min_diameter is None else min_diameter
+        )
+        if self_supporting:
+            rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         the_part = _load_part(part)
         graph, report = _fill_graph(
             the_part,
@@ -257,9 +329,41 @@ class Lattice:
             origin=origin,
             rotation=rotation,
         )
+        removal = None
+        if remove_overhangs:
+            graph, removal = _pr.remove_overhangs(
+                graph, build_direction=direction, critical_angle=crit, part=the_part
+            )
         lat = cls(graph, part=the_part, skin=skin, segments=segments)
         lat.build_report = report
+        lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
+        lat.overhang_removal = removal
         return lat
+
+    def printability(
+        self,
+        *,
+        build_direction: Any = None,
+        critical_angle: float | None = None,
+        min_diameter: float | None = None,
+    ) -> Any:
+        """Overhanging and thin struts, unsupported nodes (``conformal.printability``).
+
+        Options left out take the lattice's ``build_direction``, ``critical_angle`` and
+        ``min_diameter``.
+
+        Returns
+        -------
+        conformal.PrintabilityReport
+        """
+        from conformal.printability import printability
+
+        return printability(
+            self.graph,
+            build_direction=self.build_direction if build_direction is None else build_direction,
+            critical_angle=self.critical_angle if critical_angle is None else critical_angle,
+            min_diameter=self.min_diameter if min_diameter is None else min_diameter,
+        )
 
     def __repr__(self) -> str:
         part = f", part={getattr(self.part, 'name', 'part')!r}" if self.part is not None else ""
@@ -391,7 +495,19 @@ class Lattice:
         """
         from lattice_cad.validate import validate
 
-        return validate(self.graph, self.segments, report=report, **options)
+        rep = validate(self.graph, self.segments, report=None, **options)
+        pr = self.printability()
+        rep.extra[
+            f"Printability (build direction {pr.direction_label}, critical angle "
+            f"{pr.critical_angle:g} deg)"
+        ] = pr.to_records()
+        if self.overhang_removal is not None:
+            rep.extra["Overhang removal"] = [
+                {"quantity": "removed", "value": str(self.overhang_removal)}
+            ]
+        if report is not None:
+            rep.save(report)
+        return rep
 
     def _brep_compound(self, max_struts: int) -> Any:
         if self.graph.num_edges > max_struts:
@@ -469,7 +585,10 @@ class Lattice:
             else the strut-volume estimate), ``volume_exact`` (whether it is the mesh's),
             ``part_volume`` and ``relative_density`` (when the part is known), ``skin``,
             and ``file_bytes``: estimated sizes of ``stl``, ``3mf``, ``ply``, ``obj``
-            and ``3mf_beam`` files of the lattice (without skin).
+            and ``3mf_beam`` files of the lattice (without skin); ``printability``: the
+            :meth:`printability` report (overhangs, thin struts, unsupported nodes; print
+            it for a summary) and ``overhang_removal`` (what ``remove_overhangs`` removed,
+            or None).
         """
         import fast_stitch
         from lattice_cad import io as export
@@ -502,4 +621,6 @@ class Lattice:
         out["file_bytes"]["3mf_beam"] = export.estimate_bytes(
             ".3mf", n_used, 0, n_beams=g.num_edges
         )
+        out["printability"] = self.printability()
+        out["overhang_removal"] = self.overhang_removal
         return out
