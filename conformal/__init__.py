@@ -12,12 +12,21 @@ properties.
 - :func:`voxel_lattice`, :func:`tet_lattice`: parts -> :class:`lattice_cad.LatticeGraph`.
 - :mod:`conformal.radius`: radius specifications and the stitch-fit check.
 - :mod:`conformal.skin`: hollow a part to a wall and unite it with a lattice.
+- :mod:`conformal.printability`: overhanging and thin struts for a build direction
+  (``conformal.printability.printability``), overhang removal, self-supporting cells
+  and orientations.
 - :class:`Similarity`, :class:`SteadyLattice`: steady (programmed) lattices with
   closed-form integral properties (Gupta et al.).
 """
 
 from conformal.cells import CELLS, UnitCell, block, cell_counts, tile, tile_arrays
 from conformal.part import Part, load_part
+from conformal.printability import (
+    PrintabilityReport,
+    best_orientation,
+    remove_overhangs,
+    self_supporting_cells,
+)
 from conformal.radius import check_fit, fit_radii, graded_by_distance
 from conformal.similarity import Canonical, Similarity
 from conformal.steady import SteadyLattice
@@ -26,6 +35,7 @@ from conformal.voxel import BuildReport, voxel_lattice, voxelize
 from lattice_cad.core.errors import (
     FitError,
     PartError,
+    PrintabilityError,
     SimilarityError,
     SteadyLatticeError,
     StepUnitsError,
@@ -56,4 +66,9 @@ __all__ = [
     "Canonical",
     "SteadyLattice",
     "SteadyLatticeError",
+    "PrintabilityReport",
+    "PrintabilityError",
+    "remove_overhangs",
+    "self_supporting_cells",
+    "best_orientation",
 ]

@@ -49,7 +49,7 @@ from lattice_cad.core import config
 from lattice_cad.core.errors import FillError, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
 
-__all__ = ["voxel_lattice", "voxelize", "BuildReport", "Voxels"]
+__all__ = ["voxel_lattice", "voxelize", "BuildReport", "Voxels", "main_components"]
 
 FillMode = Literal["auto", "inside", "clip", "conform"]
 FitMode = Literal["shrink", "raise", "off"]
@@ -536,31 +536,41 @@ def _solid_shells(part: Part) -> list[Part]:
     return shells or [part]
 
 
-def keep_main_components(
-    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Keep, in each separate solid of the part, only the largest connected piece.
+def main_components(
+    part: Part | None, nodes: NDArray[np.float64], edges: NDArray[np.int64]
+) -> tuple[NDArray[np.bool_], int, int]:
+    """Which struts belong to the largest connected piece of each separate solid.
 
-    Smaller pieces would print as loose islands (inside a skin they would rattle in the
-    cavity). ``rep.removed_islands`` counts the struts removed, ``rep.bodies`` the pieces
-    kept (at most one per solid).
+    Parameters
+    ----------
+    part : Part or None
+        The part; None treats the lattice as lying in one solid (keep the largest piece).
+    nodes : (N, 3) float64
+    edges : (M, 2) int64
 
-    nodes : (N, 3) float64, edges : (M, 2) int64. Returns the kept nodes and edges
-    (renumbered).
+    Returns
+    -------
+    keep : (M,) bool
+        The struts of the kept pieces.
+    pieces : int
+        Connected pieces that have struts.
+    bodies : int
+        Pieces kept (at most one per separate solid of the part).
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     n = len(nodes)
+    if not len(edges):
+        return np.zeros(0, dtype=bool), 0, 0
     g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
     k, lab = connected_components(g, directed=False)
     elab = lab[edges[:, 0]]
     size = np.bincount(elab, minlength=k)
     present = np.flatnonzero(size)
     if len(present) <= 1:
-        rep.bodies = len(present)
-        return nodes, edges
-    shells = _solid_shells(part)
+        return np.ones(len(edges), dtype=bool), len(present), len(present)
+    shells = _solid_shells(part) if part is not None else []
     # the solid of each piece: the shell that contains the midpoint of its first strut
     first = np.full(k, -1, dtype=np.int64)
     first[elab[::-1]] = np.arange(len(edges))[::-1]
@@ -573,16 +583,34 @@ def keep_main_components(
     for o in np.unique(owner):
         mine = present[owner == o]
         keep[mine[np.argmax(size[mine])]] = True
-    ok = keep[elab]
+    return keep[elab], len(present), int(keep.sum())
+
+
+def keep_main_components(
+    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Keep, in each separate solid of the part, only the largest connected piece.
+
+    Smaller pieces would print as loose islands (inside a skin they would rattle in the
+    cavity). ``rep.removed_islands`` counts the struts removed, ``rep.bodies`` the pieces
+    kept (at most one per solid). See :func:`main_components`.
+
+    nodes : (N, 3) float64, edges : (M, 2) int64. Returns the kept nodes and edges
+    (renumbered).
+    """
+    n = len(nodes)
+    ok, pieces, bodies = main_components(part, nodes, edges)
+    rep.bodies = bodies
+    if pieces <= 1:
+        return nodes, edges
     rep.removed_islands = int((~ok).sum())
-    rep.bodies = int(keep.sum())
     edges = edges[ok]
     used = np.zeros(n, dtype=bool)
     used[edges.ravel()] = True
     new_id = np.cumsum(used) - 1
     if rep.removed_islands:
         warnings.warn(
-            f"{rep.removed_islands} strut(s) in {len(present) - rep.bodies} loose piece(s) "
+            f"{rep.removed_islands} strut(s) in {pieces - rep.bodies} loose piece(s) "
             f"were removed: they touched neither the main lattice nor another piece "
             f"({rep.bodies} body(ies) left, one per separate solid at most)",
             LatticeWarning,

@@ -3,7 +3,9 @@
 ::
 
     lattice-cad fill PART -o OUT [--cell --cell-size --radius --method --fill --skin
-                                  --segments --beam-lattice --report DIR]
+                                  --segments --beam-lattice --report DIR
+                                  --build-direction X,Y,Z --critical-angle DEG
+                                  --min-diameter MM --remove-overhangs --self-supporting]
     lattice-cad stitch GRAPH -o OUT [--segments]
     lattice-cad reference GRAPH -o OUT
     lattice-cad validate GRAPH_OR_PART --report DIR
@@ -93,6 +95,82 @@ def _segments(text: str) -> int:
     return value
 
 
+def _direction(text: str) -> tuple[float, float, float]:
+    try:
+        values = tuple(float(x) for x in text.replace(" ", "").split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z (3 numbers), got {text!r}") from None
+    if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z (3 finite numbers), got {text!r}")
+    if not any(values):
+        raise argparse.ArgumentTypeError("the build direction must not be 0,0,0")
+    return (values[0], values[1], values[2])
+
+
+def _angle(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected degrees, got {text!r}") from None
+    if not 0.0 <= value <= 90.0:
+        raise argparse.ArgumentTypeError(f"expected an angle in 0..90 degrees, got {text!r}")
+    return value
+
+
+def _nonnegative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
+def _print_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The printability options of ``fill`` / ``validate`` as ``Lattice.fill`` keywords."""
+    return {
+        "build_direction": args.build_direction,
+        "critical_angle": args.critical_angle,
+        "min_diameter": args.min_diameter,
+        "remove_overhangs": args.remove_overhangs,
+        "self_supporting": args.self_supporting,
+    }
+
+
+def _graph_print_options(lat: Any, args: argparse.Namespace) -> None:
+    """Apply the printability options to a lattice read from a graph file (no part)."""
+    from conformal import printability as pr
+    from lattice_cad.core.errors import PrintabilityError
+
+    if args.self_supporting:
+        raise PrintabilityError("--self-supporting orients the cells of a fill, not a graph")
+    for name in ("build_direction", "critical_angle", "min_diameter"):
+        if getattr(args, name) is not None:
+            setattr(lat, name, getattr(args, name))
+    if args.remove_overhangs:
+        lat.graph, lat.overhang_removal = pr.remove_overhangs(
+            lat.graph, build_direction=lat.build_direction, critical_angle=lat.critical_angle
+        )
+
+
+def _say_printability(con: _Console, lat: Any) -> None:
+    """The printability summary of the ``fill`` output."""
+    if lat.overhang_removal is not None:
+        con.say(str(lat.overhang_removal))
+    rep = lat.printability()
+    for line in rep.lines():
+        con.say(line)
+    if rep.overhang_count:
+        from conformal.printability import self_supporting_cells
+
+        cells = self_supporting_cells(rep.build_direction, rep.critical_angle)
+        con.say(
+            f"  self-supporting cells along {rep.direction_label} at {rep.critical_angle:g} "
+            f"deg: {', '.join(cells) or 'none'} (or --remove-overhangs, --self-supporting)"
+        )
+
+
 # ------------------------------------------------------------------ commands
 def _load_graph(path: str) -> Any:
     from lattice_cad.core.graph import LatticeGraph
@@ -126,6 +204,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             fill=args.fill,
             skin=args.skin,
             segments=args.segments,
+            **_print_kwargs(args),
         )
     lat.progress = not con.quiet
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
@@ -142,6 +221,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             notes.append(f"{rep.thinned_beyond_tolerance} below 0.7 x the radius asked")
         if notes:
             con.say("; ".join(notes))
+    _say_printability(con, lat)
     if out.suffix.lower() in suffixes(Kind.MESH) and not args.beam_lattice:
         with con.step("mesh" + (" + skin" if args.skin else "")):
             mesh = lat.mesh()
@@ -200,6 +280,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
     src = Path(args.input)
     if src.suffix.lower() in suffixes(Kind.GRAPH, action="read"):
         lat = Lattice(_load_graph(args.input), segments=args.segments)
+        _graph_print_options(lat, args)
     else:
         with con.step("load + lattice"):
             lat = Lattice.fill(
@@ -210,6 +291,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
                 method=args.method,
                 fill=args.fill,
                 segments=args.segments,
+                **_print_kwargs(args),
             )
     _write_report(con, lat, args.report)
     return 0
@@ -302,6 +384,43 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
     )
 
 
+def _add_print_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("printability")
+    g.add_argument(
+        "--build-direction",
+        type=_direction,
+        default=None,
+        metavar="X,Y,Z",
+        help="direction the layers grow in (any non-zero vector; default 0,0,1)",
+    )
+    g.add_argument(
+        "--critical-angle",
+        type=_angle,
+        default=None,
+        metavar="DEG",
+        help=f"struts below this angle to the build plate are overhangs "
+        f"(default {config.OVERHANG_ANGLE_DEG:g})",
+    )
+    g.add_argument(
+        "--min-diameter",
+        type=_nonnegative_float,
+        default=None,
+        metavar="MM",
+        help=f"struts thinner than this are reported (default {config.MIN_STRUT_DIAMETER:g})",
+    )
+    g.add_argument(
+        "--remove-overhangs",
+        action="store_true",
+        help="remove the overhanging struts and the loose pieces that leaves",
+    )
+    g.add_argument(
+        "--self-supporting",
+        action="store_true",
+        help="voxel: rotate the cell grid so that the cell's struts are as steep as "
+        "possible (refused when the cell cannot reach the critical angle)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``lattice-cad`` (one sub-parser per command)."""
     common = argparse.ArgumentParser(add_help=False)
@@ -333,6 +452,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with a .3mf output: write the 3MF Beam Lattice extension (tiny file)",
     )
     p.add_argument("--report", metavar="DIR", help="also write a validation report and pictures")
+    _add_print_options(p)
     p.set_defaults(func=_cmd_fill)
 
     p = sub.add_parser(
@@ -376,6 +496,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", metavar="GRAPH_OR_PART", help="graph (.json/.npz) or part file")
     p.add_argument("--report", required=True, metavar="DIR", help="directory for the report")
     _add_lattice_options(p, skin=False)
+    _add_print_options(p)
     p.set_defaults(func=_cmd_validate)
 
     p = sub.add_parser(

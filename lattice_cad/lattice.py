@@ -117,6 +117,30 @@ def _collapse_folds(mesh: Mesh, report: Any) -> Mesh:
     return Mesh(vertices=v2, faces=f2)
 
 
+def _self_supporting_rotation(
+    method: str, cell: str, rotation: Any, direction: Any, critical_angle: float
+) -> Any:
+    """The grid rotation that makes ``cell`` self-supporting along ``direction``, or refuse."""
+    from conformal.printability import best_orientation, self_supporting_cells
+    from lattice_cad.core.errors import PrintabilityError
+
+    if method != "voxel":
+        raise PrintabilityError(
+            "self_supporting applies to method='voxel' (a tet lattice has no cell to orient)"
+        )
+    if rotation is not None:
+        raise PrintabilityError("give either rotation or self_supporting=True, not both")
+    best = best_orientation(cell, direction)
+    if best.min_angle < critical_angle - config.ANGLE_EPS_DEG:
+        cells = ", ".join(self_supporting_cells(direction, critical_angle)) or "none"
+        raise PrintabilityError(
+            f"no orientation makes {cell!r} self-supporting at {critical_angle:g} deg: its "
+            f"best leaves struts at {best.min_angle:.4g} deg; cells that are: {cells} "
+            "(or use remove_overhangs, or a smaller critical angle)"
+        )
+    return best.rotation
+
+
 class Lattice:
     """A lattice graph, optionally with the part it fills and a skin.
 
@@ -140,6 +164,14 @@ class Lattice:
     part : conformal.Part or None
     skin : float or None
     segments : int
+    build_direction : (3,) float
+        Printability settings used by :meth:`printability` and :meth:`info` (defaults
+        +Z, ``config.OVERHANG_ANGLE_DEG``, ``config.MIN_STRUT_DIAMETER``; set by
+        :meth:`fill` or by hand).
+    critical_angle : float
+    min_diameter : float
+    overhang_removal : conformal.printability.OverhangRemoval or None
+        What ``fill(..., remove_overhangs=True)`` removed.
     """
 
     def __init__(
@@ -176,6 +208,10 @@ class Lattice:
         #: mesh is built, None when there was nothing to trim against).
         self.trim_report: Any = None
         self.progress: bool = False
+        self.build_direction: Any = config.BUILD_DIRECTION
+        self.critical_angle: float = config.OVERHANG_ANGLE_DEG
+        self.min_diameter: float = config.MIN_STRUT_DIAMETER
+        self.overhang_removal: Any = None
 
     # ---------------------------------------------------------------- build
     @classmethod
@@ -193,6 +229,11 @@ class Lattice:
         origin: Any = None,
         rotation: Any = None,
         trim: bool = True,
+        build_direction: Any = None,
+        critical_angle: float | None = None,
+        min_diameter: float | None = None,
+        remove_overhangs: bool = False,
+        self_supporting: bool = False,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -225,6 +266,21 @@ class Lattice:
         trim : bool
             Cut struts by the part's surface so the printable solid keeps the part's size
             (default; with a skin the struts end inside the wall instead).
+        build_direction : (3,) float, optional
+            Direction the layers grow in (any non-zero vector; default +Z), for the
+            printability report (:meth:`printability`) and the options below.
+        critical_angle : float, optional
+            Struts below this angle to the build plate (degrees) are overhangs (default 35).
+        min_diameter : float, optional
+            Struts thinner than this (mm) are reported as thin (default 0.4).
+        remove_overhangs : bool
+            Remove the overhanging struts, then the loose pieces that leaves (see
+            ``conformal.remove_overhangs``); ``overhang_removal`` says what went.
+        self_supporting : bool
+            Voxel only: rotate the cell grid so that the cell's smallest strut angle to the
+            build plate is largest (``conformal.best_orientation``; e.g. cubic with a body
+            diagonal along the build direction). Refused with ``rotation``, and when even
+            the best orientation leaves struts below the critical angle.
 
         Returns
         -------
@@ -234,6 +290,9 @@ class Lattice:
         ------
         conformal.PartError
             The part cannot be read or is not a closed solid.
+        PrintabilityError
+            A zero build direction, an angle outside 0..90, a cell that no rotation makes
+            self-supporting, or nothing left after removing the overhangs.
         ValueError, TypeError
             An option out of range (named in the message).
         """
@@ -260,6 +319,19 @@ class Lattice:
         radius = _positive("radius", radius)
         if skin is not None:
             skin = _positive("skin", skin)
+        from conformal import printability as _pr
+
+        direction = _pr.as_build_direction(
+            config.BUILD_DIRECTION if build_direction is None else build_direction
+        )
+        crit = _pr.as_critical_angle(
+            config.OVERHANG_ANGLE_DEG if critical_angle is None else critical_angle
+        )
+        dmin = _pr.as_min_diameter(
+            config.MIN_STRUT_DIAMETER if min_diameter is None else min_diameter
+        )
+        if self_supporting:
+            rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         the_part = _load_part(part)
         graph, report = _fill_graph(
             the_part,
@@ -271,9 +343,41 @@ class Lattice:
             origin=origin,
             rotation=rotation,
         )
+        removal = None
+        if remove_overhangs:
+            graph, removal = _pr.remove_overhangs(
+                graph, build_direction=direction, critical_angle=crit, part=the_part
+            )
         lat = cls(graph, part=the_part, skin=skin, segments=segments, trim=trim)
         lat.build_report = report
+        lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
+        lat.overhang_removal = removal
         return lat
+
+    def printability(
+        self,
+        *,
+        build_direction: Any = None,
+        critical_angle: float | None = None,
+        min_diameter: float | None = None,
+    ) -> Any:
+        """Overhanging and thin struts, unsupported nodes (``conformal.printability``).
+
+        Options left out take the lattice's ``build_direction``, ``critical_angle`` and
+        ``min_diameter``.
+
+        Returns
+        -------
+        conformal.PrintabilityReport
+        """
+        from conformal.printability import printability
+
+        return printability(
+            self.graph,
+            build_direction=self.build_direction if build_direction is None else build_direction,
+            critical_angle=self.critical_angle if critical_angle is None else critical_angle,
+            min_diameter=self.min_diameter if min_diameter is None else min_diameter,
+        )
 
     def __repr__(self) -> str:
         part = f", part={getattr(self.part, 'name', 'part')!r}" if self.part is not None else ""
@@ -421,7 +525,19 @@ class Lattice:
         """
         from lattice_cad.validate import validate
 
-        return validate(self.graph, self.segments, report=report, **options)
+        rep = validate(self.graph, self.segments, report=None, **options)
+        pr = self.printability()
+        rep.extra[
+            f"Printability (build direction {pr.direction_label}, critical angle "
+            f"{pr.critical_angle:g} deg)"
+        ] = pr.to_records()
+        if self.overhang_removal is not None:
+            rep.extra["Overhang removal"] = [
+                {"quantity": "removed", "value": str(self.overhang_removal)}
+            ]
+        if report is not None:
+            rep.save(report)
+        return rep
 
     def _brep_compound(self, max_struts: int) -> Any:
         if self.graph.num_edges > max_struts:
@@ -501,7 +617,10 @@ class Lattice:
             printable mesh is then built, so both are exact and the density is at most 1),
             ``skin``,
             and ``file_bytes``: estimated sizes of ``stl``, ``3mf``, ``ply``, ``obj``
-            and ``3mf_beam`` files of the lattice (without skin).
+            and ``3mf_beam`` files of the lattice (without skin); ``printability``: the
+            :meth:`printability` report (overhangs, thin struts, unsupported nodes; print
+            it for a summary) and ``overhang_removal`` (what ``remove_overhangs`` removed,
+            or None).
         """
         import fast_stitch
         from lattice_cad import io as export
@@ -536,4 +655,6 @@ class Lattice:
         out["file_bytes"]["3mf_beam"] = export.estimate_bytes(
             ".3mf", n_used, 0, n_beams=g.num_edges
         )
+        out["printability"] = self.printability()
+        out["overhang_removal"] = self.overhang_removal
         return out

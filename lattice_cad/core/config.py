@@ -17,6 +17,29 @@ DEFAULT_RADIUS = 0.4
 DEFAULT_SEGMENTS = 6
 
 
+# --------------------------------------------------------- Printability (conformal.printability)
+
+#: Build direction (the direction layers grow in) when the user gives none: +Z.
+BUILD_DIRECTION = (0.0, 0.0, 1.0)
+
+#: Struts whose angle to the build plate is below this (degrees) are overhangs. 35 degrees
+#: is a common lower limit for unsupported struts in laser powder-bed fusion (45 is common
+#: for FDM); BCC struts along +Z stand at asin(1/sqrt(3)) = 35.26 degrees, so they pass.
+OVERHANG_ANGLE_DEG = 35.0
+
+#: Smallest strut diameter (mm) a printer can make: one line of a 0.4 mm FDM nozzle, also
+#: about the smallest reliable strut of desktop resin printers (LPBF reaches ~0.2 mm).
+MIN_STRUT_DIAMETER = 0.4
+
+#: A strut counts as overhanging only when below the critical angle by more than this
+#: (degrees), so that a strut built at exactly the critical angle is not flagged by rounding.
+ANGLE_EPS_DEG = 1e-9
+
+#: Nodes within this distance (relative to the lattice's extent along the build direction)
+#: of the lattice's lowest point stand on the build plate.
+PLATE_RTOL = 1e-9
+
+
 # ------------------------------------------------------------------------------- File limits
 
 #: Files estimated above this size raise an :class:`ExportWarning`.

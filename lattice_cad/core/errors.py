@@ -17,6 +17,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── SkinError                a part cannot be hollowed (conformal.skin)
     ├── SimilarityError          invalid similarity parameters (conformal.similarity)
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
+    ├── PrintabilityError        invalid build direction, angle or diameter (conformal.printability)
     ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
     ├── ExternalCrash            a C++ library crashed or hung in a child process
@@ -41,6 +42,7 @@ __all__ = [
     "SkinError",
     "SimilarityError",
     "SteadyLatticeError",
+    "PrintabilityError",
     "ExportError",
     "OCCTFailure",
     "ExternalCrash",
@@ -92,6 +94,11 @@ class SimilarityError(LatticeError, ValueError):
 
 class SteadyLatticeError(LatticeError, ValueError):
     """Invalid steady-lattice input; the message names the ball, rack or index at fault."""
+
+
+class PrintabilityError(LatticeError, ValueError):
+    """Invalid printability options: a zero or non-finite build direction, a critical angle
+    outside 0..90 degrees, a negative minimum diameter (the message names the option)."""
 
 
 class ExportError(LatticeError, ValueError):
