@@ -35,6 +35,7 @@ def lattice(
     segments: int = config.DEFAULT_SEGMENTS,
     origin: Any = None,
     rotation: Any = None,
+    **options: Any,
 ) -> Lattice:
     """Fill the solids on the workplane's stack with a lattice.
 
@@ -42,6 +43,9 @@ def lattice(
     ----------
     cell, cell_size, radius, method, fill, skin, segments, origin, rotation
         See :meth:`lattice_cad.Lattice.fill`.
+    **options
+        Every other keyword of :meth:`lattice_cad.Lattice.fill` (``trim``,
+        ``build_direction``, ``remove_overhangs``, ...).
 
     Returns
     -------
@@ -75,6 +79,7 @@ def lattice(
         segments=segments,
         origin=origin,
         rotation=rotation,
+        **options,
     )
 
 
