@@ -18,6 +18,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── SimilarityError          invalid similarity parameters (conformal.similarity)
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
     ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
+    ├── SelectionError           a selector picks no face or node (names the selector)
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
     ├── ExternalCrash            a C++ library crashed or hung in a child process
     └── ReferenceBuildError      the exact reference cannot be built (reference_boolean)
@@ -42,6 +43,7 @@ __all__ = [
     "SimilarityError",
     "SteadyLatticeError",
     "ExportError",
+    "SelectionError",
     "OCCTFailure",
     "ExternalCrash",
     "ReferenceBuildError",
@@ -96,6 +98,11 @@ class SteadyLatticeError(LatticeError, ValueError):
 
 class ExportError(LatticeError, ValueError):
     """A mesh cannot be written faithfully in the requested format."""
+
+
+class SelectionError(LatticeError, ValueError):
+    """A selector (face, plane, box or node list) cannot be resolved or picks nothing; the
+    message names the selector and says what is near (for example the closest node)."""
 
 
 class OCCTFailure(LatticeError, RuntimeError):
