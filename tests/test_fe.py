@@ -378,8 +378,8 @@ def test_ccx_on_a_real_part_from_the_cli(ccx, tmp_path, capsys):
     ccx solves it without errors and the part has a finite, positive stiffness."""
     from lattice_cad.cli import main
 
-    part = DATA / "step" / "kcl_flange-with-patterns.step"
-    out = tmp_path / "flange.inp"
+    part = DATA / "step" / "dolfiny_spanner25_lo.step"  # 55 x 280 x 10 mm, flat in z
+    out = tmp_path / "spanner.inp"
     argv = ["fill", str(part), "-o", str(out), "--cell-size", "10", "--radius", "0.8",
             "--fill", "conform", "--node-set", "fixed=<Z", "--node-set", "load=>Z"]  # fmt: skip
     code = main(argv)
@@ -407,7 +407,7 @@ RF
     assert np.isfinite(u).all()
     stiffness = n_load / -u[:, 2].mean()
     print(
-        f"flange: {len(f['nodes'])} nodes, {len(f['elements'])} elements, load set {n_load} "
+        f"spanner: {len(f['nodes'])} nodes, {len(f['elements'])} elements, load set {n_load} "
         f"nodes, ccx {seconds:.1f} s, stiffness {stiffness:.4g} N/mm, reaction {rf}"
     )
     assert 0 < stiffness < np.inf

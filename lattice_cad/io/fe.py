@@ -286,7 +286,7 @@ def _node_tolerance(graph: LatticeGraph, tol: float | None) -> NDArray[np.float6
 
 
 def distance_to_triangles(
-    points: ArrayLike, triangles: ArrayLike, *, chunk: int = 2_000_000
+    points: ArrayLike, triangles: ArrayLike, *, chunk: int = 250_000
 ) -> NDArray[np.float64]:
     """Distance of every point to the nearest of the triangles (exact, numpy).
 
