@@ -319,6 +319,20 @@ def test_ccx_tapered_cantilever_matches_beam_theory(ccx, tmp_path):
     assert abs(err) < 0.02
 
 
+def test_ccx_runs_the_example_step_of_the_file(ccx, tmp_path):
+    g = block("bcc", (2, 2, 1), cell_size=5.0, radius=0.4)
+    model = tmp_path / "ex.inp"
+    fe.save_inp(g, model, node_sets={"fixed": "<Z", "load": ">Z"})
+    text = model.read_text()
+    head, example = text.split("** Example analysis", 1)
+    step = "\n".join(ln[3:] for ln in example.splitlines()[3:])
+    assert step.startswith("*BOUNDARY\nfixed, 1, 6\n*STEP")
+    blocks, _ = run_ccx(ccx, tmp_path, model, step)
+    u = block_of(blocks, "displacements", "NJOINT").values
+    top = g.nodes[:, 2] == 5.0
+    assert np.isfinite(u).all() and np.all(u[top, 2] < 0)
+
+
 def bcc_stiffness(ccx, tmp_path, a, r, **kw) -> float:
     """A BCC cell between a clamped base and a top held in x, y and rotation, pushed down
     with 1 N: its stiffness (N/mm)."""

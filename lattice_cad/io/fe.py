@@ -816,19 +816,17 @@ def _render(
     names = list(model.node_sets)
     fix = names[0] if names else "FIXED"
     load = names[1] if len(names) > 1 else (names[0] if names else "LOAD")
-    w("** Example analysis (remove the '** ' to use; sets from node_sets): hold the first")
-    w("** set, push the second with 1 N per node in -z, print its displacements and the")
-    w("** reaction force (loads as forces: see lattice_cad.io.fe on prescribed displacements)")
+    w("** Example analysis (remove the '** ' to use): hold the first node set, push the")
+    w("** second with 1 N per node in -z, print the displacements. Load with forces, and take")
+    w("** no RF of skew beams from ccx (see lattice_cad.io.fe).")
     w("** *BOUNDARY")
     w(f"** {fix}, 1, 6")
     w("** *STEP")
     w("** *STATIC")
     w("** *CLOAD")
     w(f"** {load}, 3, -1.0")
-    w(f"** *NODE PRINT, NSET={load}")
+    w("** *NODE PRINT, NSET=NJOINT")
     w("** U")
-    w(f"** *NODE PRINT, NSET={fix}, TOTALS=ONLY")
-    w("** RF")
     w("** *END STEP")
     return "\n".join(out) + "\n"
 
