@@ -36,7 +36,7 @@ __all__ = ["main", "build_parser"]
 
 _OUTPUT_HELP = (
     "output file; the format follows the suffix: .stl .3mf .ply .obj (mesh), "
-    ".json .npz (graph), .step (exact B-rep)"
+    ".json .npz (graph), .step (exact B-rep), .inp (CalculiX/Abaqus beam model)"
 )
 
 
@@ -190,10 +190,47 @@ def _write_report(con: _Console, lat: Any, directory: str) -> None:
     con.say(f"report: {d / 'report.html'}")
 
 
+def _fe_options(args: argparse.Namespace, out: Path) -> dict[str, Any] | None:
+    """The beam-model options of ``fill`` (None unless the output is ``.inp``); refuses FE
+    options with another output before any work."""
+    given = [f for f, v in (("--node-set", args.node_set), ("--material", args.material)) if v]
+    if out.suffix.lower() not in suffixes(Kind.FE_MODEL):
+        if given:
+            raise ValueError(f"{' and '.join(given)} apply to .inp output, not {out.name}")
+        return None
+    sets: dict[str, str] = {}
+    for item in args.node_set:
+        name, sep, selector = item.partition("=")
+        if not sep or not name.strip() or not selector.strip():
+            raise ValueError(f"--node-set {item!r}: expected NAME=SELECTOR, e.g. fixed='<Z'")
+        if name.strip() in sets:
+            raise ValueError(f"--node-set {name.strip()!r} is given twice")
+        sets[name.strip()] = selector.strip()
+    material: dict[str, str | float] = {}
+    for item in (args.material or "").split(","):
+        if not item.strip():
+            continue
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"--material {item!r}: expected KEY=VALUE (E, nu, density, name)")
+        k = key.strip()
+        try:
+            material[k] = value.strip() if k.lower() == "name" else float(value)
+        except ValueError:
+            raise ValueError(f"--material {item!r}: {value.strip()!r} is not a number") from None
+    return {
+        "node_sets": sets,
+        "material": material or None,
+        "dialect": args.fe_dialect,
+        "elements_per_strut": args.elements_per_strut,
+    }
+
+
 def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     from lattice_cad.lattice import Lattice
 
     out = Path(args.output)
+    fe_options = _fe_options(args, out)
     with con.step("load + lattice"):
         lat = Lattice.fill(
             args.part,
@@ -234,8 +271,13 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         if lat.trim_report is not None:
             con.say(lat.trim_report.summary())
     with con.step(f"write {out.suffix.lstrip('.')}"):
-        lat.save(out, beam_lattice=args.beam_lattice)
+        if fe_options is not None:
+            lat.save_inp(out, **fe_options)
+        else:
+            lat.save(out, beam_lattice=args.beam_lattice)
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
+    if fe_options is not None:
+        con.say(lat.fe_model.summary())
     if args.report:
         _write_report(con, lat, args.report)
     return 0
@@ -421,6 +463,49 @@ def _add_print_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _at_least_one(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value}")
+    return value
+
+
+def _add_fe_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("beam FE model (-o NAME.inp, CalculiX/Abaqus)")
+    g.add_argument(
+        "--node-set",
+        action="append",
+        default=[],
+        metavar="NAME=SELECTOR",
+        help="a named node set for supports and loads (repeatable): a CadQuery face selector "
+        "on a STEP part ('<Z', '>Z', '%%CYLINDER'), 'plane:x,y,z,nx,ny,nz' or "
+        "'box:x0,y0,z0,x1,y1,z1'; nodes within one strut radius of the faces",
+    )
+    g.add_argument(
+        "--material",
+        metavar="E=MPA,nu=NU,density=T/MM3",
+        help=f"material (keys E, nu, density, name; default {config.FE_MATERIAL}: "
+        f"E={config.FE_YOUNGS_MODULUS:g} MPa, nu={config.FE_POISSON:g}, "
+        f"density={config.FE_DENSITY:g} t/mm^3)",
+    )
+    g.add_argument(
+        "--fe-dialect",
+        choices=("calculix", "abaqus"),
+        default="calculix",
+        help="circular sections as CalculiX (diameter) or Abaqus (radius) read them",
+    )
+    g.add_argument(
+        "--elements-per-strut",
+        type=_at_least_one,
+        default=config.FE_ELEMENTS_PER_STRUT,
+        metavar="K",
+        help=f"quadratic beam elements per strut (default {config.FE_ELEMENTS_PER_STRUT})",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``lattice-cad`` (one sub-parser per command)."""
     common = argparse.ArgumentParser(add_help=False)
@@ -453,6 +538,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--report", metavar="DIR", help="also write a validation report and pictures")
     _add_print_options(p)
+    _add_fe_options(p)
     p.set_defaults(func=_cmd_fill)
 
     p = sub.add_parser(

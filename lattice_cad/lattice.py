@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
+from collections.abc import Mapping
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, cast
@@ -24,8 +26,8 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 
 from lattice_cad.core import config
-from lattice_cad.core.errors import ExportError, LatticeError, OCCTFailure
-from lattice_cad.core.formats import Kind, resolve
+from lattice_cad.core.errors import ExportError, LatticeError, LatticeWarning, OCCTFailure
+from lattice_cad.core.formats import Kind, format_for, resolve, suffixes
 from lattice_cad.core.graph import LatticeGraph
 
 if TYPE_CHECKING:
@@ -212,6 +214,8 @@ class Lattice:
         self.critical_angle: float = config.OVERHANG_ANGLE_DEG
         self.min_diameter: float = config.MIN_STRUT_DIAMETER
         self.overhang_removal: Any = None
+        #: The beam FE model last written by :meth:`save_inp` (``lattice_cad.io.fe.BeamModel``).
+        self.fe_model: Any = None
 
     # ---------------------------------------------------------------- build
     @classmethod
@@ -464,18 +468,30 @@ class Lattice:
         return self._lattice_mesh if lattice_only else self._printable_mesh
 
     # ---------------------------------------------------------------- files
-    def save(self, path: str | os.PathLike[str], *, beam_lattice: bool = False) -> Path:
+    def save(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        beam_lattice: bool = False,
+        node_sets: Mapping[str, Any] | None = None,
+        material: Mapping[str, Any] | None = None,
+    ) -> Path:
         """Write the lattice; the format is chosen by the suffix.
 
         Parameters
         ----------
         path : path-like
             ``.stl``, ``.3mf``, ``.ply``, ``.obj``: the printable mesh;
-            ``.json``, ``.npz``: the graph; ``.step``/``.stp``: the exact B-rep reference.
+            ``.json``, ``.npz``: the graph; ``.step``/``.stp``: the exact B-rep reference;
+            ``.inp``: a CalculiX/Abaqus beam model (see :meth:`save_inp`).
         beam_lattice : bool
             With ``.3mf``: write the 3MF Beam Lattice extension (beams, balls and the
             part as clipping mesh) instead of triangles. A skin is then written as
             a separate mesh object.
+        node_sets, material : mapping, optional
+            With ``.inp``: named node sets by face selector (``{"fixed": "<Z"}``) and the
+            material (``{"E": 3500, "nu": 0.36, "density": 1.24e-9}``); see
+            :meth:`save_inp`.
 
         Returns
         -------
@@ -484,6 +500,11 @@ class Lattice:
         from lattice_cad import io
 
         p = Path(path)
+        if p.suffix.lower() in suffixes(Kind.FE_MODEL) and not beam_lattice:
+            self.save_inp(p, node_sets=node_sets, material=material)
+            return p
+        if node_sets is not None or material is not None:
+            raise ValueError(f"node_sets and material apply to .inp beam models, not {p.name}")
         if beam_lattice:
             io.format_for(p, Kind.BEAM_LATTICE)
             clip = None
@@ -496,6 +517,71 @@ class Lattice:
         if kind is Kind.SOLIDS:
             return self.reference().save(p)
         return io.save_mesh(self.mesh(), p)
+
+    def save_inp(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        node_sets: Mapping[str, Any] | None = None,
+        material: Mapping[str, Any] | None = None,
+        tol: float | None = None,
+        element: Literal["B32", "B32R"] = "B32",
+        dialect: Literal["calculix", "abaqus"] = "calculix",
+        elements_per_strut: int = config.FE_ELEMENTS_PER_STRUT,
+    ) -> Any:
+        """Write the lattice as a CalculiX/Abaqus beam model (see :mod:`lattice_cad.io.fe`).
+
+        Parameters
+        ----------
+        path : path-like
+            ``.inp``.
+        node_sets : mapping of str to selector, optional
+            Named node sets for supports and loads, e.g. ``{"fixed": "<Z", "load": ">Z"}``:
+            CadQuery face selectors on the part's B-rep, CAD faces, ``"plane:..."``,
+            ``"box:..."``, node indices (see :mod:`lattice_cad.selectors`). ``NALL``,
+            ``NJOINT`` (the lattice nodes) and ``EALL`` are always written.
+        material : mapping, optional
+            ``name``, ``E`` (MPa), ``nu``, ``density`` (t/mm^3); default PLA
+            (``config.FE_MATERIAL``).
+        tol : float, optional
+            Distance (mm) within which a node is on a selected face; default the node's
+            largest strut radius (plus the tessellation deflection).
+        element : {"B32", "B32R"}
+        dialect : {"calculix", "abaqus"}
+            CalculiX reads a circular section's diameter, Abaqus its radius.
+        elements_per_strut : int
+            Quadratic elements per strut (default 3: one cannot bend in double curvature).
+
+        Returns
+        -------
+        lattice_cad.io.fe.BeamModel
+            What was written (nodes, elements, sections, node sets); also kept as
+            ``self.fe_model``.
+        """
+        from lattice_cad.io import fe
+        from lattice_cad.selectors import resolve_node_sets
+
+        format_for(path, Kind.FE_MODEL, what="beam FE model")
+        if self.skin is not None:
+            warnings.warn(
+                "the beam model holds the lattice only: the skin is not in it",
+                LatticeWarning,
+                stacklevel=2,
+            )
+        sets = resolve_node_sets(self.graph, node_sets, part=self.part, tol=tol)
+        name = getattr(self.part, "name", None) or "lattice"
+        model = fe.save_inp(
+            self.graph,
+            path,
+            node_sets=sets,
+            material=material,
+            element=element,
+            dialect=dialect,
+            elements_per_strut=elements_per_strut,
+            title=Path(str(name)).name,
+        )
+        self.fe_model = model
+        return model
 
     # ------------------------------------------------------------ reference
     def reference(self, **options: Any) -> Any:

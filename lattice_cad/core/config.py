@@ -152,6 +152,37 @@ TRIM_MIN_REL = 0.05
 DEFAULT_SAMPLES = 50_000
 
 
+# ---------------------------------------------------------- Beam FE export (lattice_cad.io.fe)
+
+#: Default material of ``.inp`` beam models: PLA, the most common FDM filament, with bulk
+#: datasheet values (NatureWorks Ingeo 4043D: tensile modulus 3.6 GPa, density 1.24 g/cm^3;
+#: Poisson's ratio 0.36). Printed parts are anisotropic and usually softer (infill, layer
+#: bonding): pass the measured values of your printer and material. Units are mm, N, MPa and
+#: tonne/mm^3 (1.24 g/cm^3 = 1.24e-9 t/mm^3), the consistent set of CalculiX/Abaqus models
+#: in millimetres.
+FE_MATERIAL = "PLA"
+FE_YOUNGS_MODULUS = 3500.0
+FE_POISSON = 0.36
+FE_DENSITY = 1.24e-9
+
+#: Strut radii are grouped into beam sections of this relative width: every radius moves by
+#: at most half of it (0.05 %), so A and I by at most 0.1 % and 0.2 %.
+FE_RADIUS_STEP = 1e-3
+
+#: Quadratic beam elements per strut. One element cannot bend in double curvature (its
+#: deflection is a parabola), and the struts of a rigid-jointed lattice do: with one element
+#: a BCC cell under compression came out 14-22 % too stiff in CalculiX, with two 0.1-2.1 %,
+#: with three 0.1-0.7 % (against the closed form; see lattice_cad.io.fe).
+FE_ELEMENTS_PER_STRUT = 3
+
+#: A tapered strut is split into stepped elements until the estimated bending-stiffness
+#: error of the steps (midpoint rule on 1/r^4) is below this fraction.
+FE_TAPER_TOL = 0.01
+
+#: Most elements one tapered strut is split into.
+FE_MAX_TAPER_ELEMENTS = 32
+
+
 # ----------------------------------------------------------------- B-rep output of the front
 
 #: Largest lattice for which :meth:`Lattice.to_workplane` builds B-rep solids by default.

@@ -19,6 +19,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
     ├── PrintabilityError        invalid build direction, angle or diameter (conformal.printability)
     ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
+    ├── SelectionError           a selector picks no face or node (names the selector)
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
     ├── ExternalCrash            a C++ library crashed or hung in a child process
     └── ReferenceBuildError      the exact reference cannot be built (reference_boolean)
@@ -44,6 +45,7 @@ __all__ = [
     "SteadyLatticeError",
     "PrintabilityError",
     "ExportError",
+    "SelectionError",
     "OCCTFailure",
     "ExternalCrash",
     "ReferenceBuildError",
@@ -103,6 +105,11 @@ class PrintabilityError(LatticeError, ValueError):
 
 class ExportError(LatticeError, ValueError):
     """A mesh cannot be written faithfully in the requested format."""
+
+
+class SelectionError(LatticeError, ValueError):
+    """A selector (face, plane, box or node list) cannot be resolved or picks nothing; the
+    message names the selector and says what is near (for example the closest node)."""
 
 
 class OCCTFailure(LatticeError, RuntimeError):

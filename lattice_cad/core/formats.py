@@ -27,6 +27,7 @@ class Kind(str, Enum):
     SOLIDS = "exact solids"
     PART = "part"
     REPORT = "report"
+    FE_MODEL = "beam FE model"
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,7 @@ def _k(*kinds: Kind) -> frozenset[Kind]:
 
 
 M, G, B, S, P, R = Kind.MESH, Kind.GRAPH, Kind.BEAM_LATTICE, Kind.SOLIDS, Kind.PART, Kind.REPORT
+FE = Kind.FE_MODEL
 
 #: Every format lattice-cad reads or writes.
 FORMATS: tuple[Format, ...] = (
@@ -79,6 +81,9 @@ FORMATS: tuple[Format, ...] = (
            "lattice-cad, any JSON reader"),
     Format("npz", (".npz",), _k(G), _k(G), "lattice graph (exact, compressed numpy)",
            "lattice-cad, numpy"),
+    Format("inp", (".inp",), _k(FE), _k(),
+           "CalculiX/Abaqus beam model: B32 beams, circular sections per radius, node sets",
+           "CalculiX (ccx), Abaqus (dialect='abaqus'), PrePoMax, FreeCAD FEM"),
     Format("md", (".md",), _k(R), _k(), "accuracy report (Markdown)", "any text viewer"),
     Format("html", (".html", ".htm"), _k(R), _k(), "accuracy report (self-contained HTML)",
            "any web browser"),

@@ -2,7 +2,8 @@
 
 The table is :data:`lattice_cad.core.formats.FORMATS` (a suffix means the same everywhere,
 and an unsupported one gets one clear error). Meshes, graphs and beam lattices are read and
-written by :mod:`lattice_cad.io.exchange`; exact solids (STEP) by
+written by :mod:`lattice_cad.io.exchange`; beam FE models (``.inp``) by
+:mod:`lattice_cad.io.fe`; exact solids (STEP) by
 :mod:`lattice_cad.occ_impl.step`; parts are loaded by :func:`conformal.load_part`.
 """
 
@@ -20,6 +21,7 @@ from lattice_cad.io.exchange import (
     save_mesh,
     single_precision,
 )
+from lattice_cad.io.fe import BeamModel, Box, Material, Plane, read_dat, save_inp
 
 __all__ = [
     "FORMATS",
@@ -38,4 +40,10 @@ __all__ = [
     "save_graph",
     "save_mesh",
     "single_precision",
+    "BeamModel",
+    "Box",
+    "Material",
+    "Plane",
+    "read_dat",
+    "save_inp",
 ]
