@@ -45,6 +45,7 @@ __all__ = [
     "SkinReport",
     "SkinResult",
     "as_manifold",
+    "checked",
     "inset",
     "hollow",
     "build_skin",
@@ -335,6 +336,35 @@ def wall_thickness(inner: Any, outer: Any) -> NDArray[np.float64]:
 
 
 # ------------------------------------------------------------------- public API
+def checked(solid: Any, what: str) -> Any:
+    """``solid`` (a Manifold) if ``fast_stitch.check`` accepts it, else a :class:`SkinError`.
+
+    manifold3d's booleans are 2-manifold by construction, but surfaces that meet within a
+    rounding step can still touch or cross; every solid this module hands to a user is
+    checked in full (self-intersections included), and the error says where.
+    """
+    import fast_stitch
+    from lattice_cad.core.mesh import Mesh
+
+    if solid.is_empty():
+        return solid
+    v, f = to_arrays(solid)
+    report = fast_stitch.check(Mesh(vertices=v, faces=f))
+    if report.valid:
+        return solid
+    faces = np.concatenate(
+        [
+            np.asarray(report.zero_area_faces, dtype=np.int64).ravel(),
+            np.asarray(report.self_intersection_pairs, dtype=np.int64).ravel(),
+        ]
+    )
+    where = ""
+    if len(faces):
+        x, y, z = v[f[faces[0]]].mean(axis=0)
+        where = f"; first problem near ({x:.4g}, {y:.4g}, {z:.4g})"
+    raise SkinError(f"{what} is not a valid solid ({report}){where}")
+
+
 def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
     """The part shrunk by ``thickness`` (its cavity when hollowed), as a Manifold.
 
@@ -344,7 +374,7 @@ def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
     _check_thickness(thickness)
     p = _as_part(part)
     h = float(voxel) if voxel is not None else _grid_spacing(p.size, thickness)
-    return _voxel_surfaces(p, thickness, h)[2]
+    return checked(_voxel_surfaces(p, thickness, h)[2], f"the inset by {thickness:g}")
 
 
 def hollow(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
@@ -362,7 +392,7 @@ def hollow(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
             f"the part is nowhere thicker than twice the skin thickness {thickness:g}: "
             "no room for a lattice (use a thinner skin)"
         )
-    return as_manifold(p) - cavity
+    return checked(as_manifold(p) - cavity, f"the skin of {p.name}")
 
 
 def _check_thickness(thickness: Any) -> None:
@@ -434,6 +464,7 @@ def build_skin(
     *,
     method: str = "auto",
     voxel: float | None = None,
+    check: bool = True,
 ) -> SkinResult:
     """One solid per solid of the part: its skin united with the lattice clipped mid-wall.
 
@@ -450,6 +481,9 @@ def build_skin(
         fails (the report says why).
     voxel : float, optional
         Grid spacing of the voxel method.
+    check : bool
+        Check the solid in full (:func:`checked`; a :class:`SkinError` names where it
+        fails). ``Lattice`` passes False: it checks the mesh after rounding it to float32.
 
     Returns
     -------
@@ -499,12 +533,14 @@ def build_skin(
             "measure": time.perf_counter() - t2,
         },
     )
+    if check:
+        solid = checked(solid, "the skinned lattice")
     return SkinResult(solid=solid, report=report)
 
 
 def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None = None) -> Any:
     """The solid of :func:`build_skin` (a ``manifold3d.Manifold``); warns about islands."""
-    result = build_skin(lattice, part, thickness, voxel=voxel)
+    result = build_skin(lattice, part, thickness, voxel=voxel, check=True)
     if result.report.islands_removed:
         warnings.warn(result.report.summary(), LatticeWarning, stacklevel=2)
     return result.solid

@@ -152,7 +152,7 @@ def _tolerance(radius: float, extent: float) -> float:
     return max(config.TRIM_RTOL * radius, rounding)
 
 
-def trim_to_part(lattice: Any, part: Any, *, radius: float) -> TrimResult:
+def trim_to_part(lattice: Any, part: Any, *, radius: float, check: bool = True) -> TrimResult:
     """Intersect a stitched lattice with its part.
 
     Parameters
@@ -162,6 +162,9 @@ def trim_to_part(lattice: Any, part: Any, *, radius: float) -> TrimResult:
     part : conformal.Part
     radius : float
         The largest strut radius (mm): the tolerance is stated relative to it.
+    check : bool
+        Check the result in full (``conformal.skin.checked``: a ``SkinError`` names where
+        it fails). ``Lattice`` passes False: it checks after rounding to float32.
 
     Returns
     -------
@@ -215,6 +218,10 @@ def trim_to_part(lattice: Any, part: Any, *, radius: float) -> TrimResult:
 
             cut = manifold3d.Manifold.compose([pieces[i] for i in sorted(keep)])
             pieces = [pieces[i] for i in sorted(keep)]
+    if check:
+        from conformal.skin import checked
+
+        cut = checked(cut, "the trimmed lattice")
     v1, _ = to_arrays(cut)
     report = TrimReport(
         trimmed=True,

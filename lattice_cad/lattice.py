@@ -408,8 +408,8 @@ class Lattice:
                 return self._lattice_mesh
             from conformal.trim import trim_to_part
 
-            trimmed = trim_to_part(
-                self._lattice_mesh, self.part, radius=float(self.graph.radii.max())
+            trimmed = trim_to_part(  # checked below, after rounding to float32
+                self._lattice_mesh, self.part, radius=float(self.graph.radii.max()), check=False
             )
             self.trim_report = trimmed.report
             if not trimmed.report.trimmed:
@@ -417,7 +417,8 @@ class Lattice:
             v, f = _skin.to_arrays(trimmed.solid)
             return Mesh(vertices=v, faces=f)
 
-        result = _skin.build_skin(self._lattice_mesh, self.part, self.skin)
+        # checked below, after rounding to float32 (what the files hold)
+        result = _skin.build_skin(self._lattice_mesh, self.part, self.skin, check=False)
         self.skin_report = result.report
         v, f = _skin.to_arrays(result.solid)
         return Mesh(vertices=v, faces=f)
