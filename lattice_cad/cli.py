@@ -3,6 +3,7 @@
 ::
 
     lattice-cad fill PART -o OUT [--cell --cell-size --radius --method --fill --skin
+                                  --escape-holes D --escape-at X,Y,Z --build-direction X,Y,Z
                                   --segments --beam-lattice --report DIR]
     lattice-cad stitch GRAPH -o OUT [--segments]
     lattice-cad reference GRAPH -o OUT
@@ -93,6 +94,17 @@ def _segments(text: str) -> int:
     return value
 
 
+def _point(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    try:
+        xyz = tuple(float(p) for p in parts)
+    except ValueError:
+        xyz = ()
+    if len(xyz) != 3 or not all(abs(c) < float("inf") for c in xyz):
+        raise argparse.ArgumentTypeError(f"expected three numbers X,Y,Z, got {text!r}")
+    return (xyz[0], xyz[1], xyz[2])
+
+
 # ------------------------------------------------------------------ commands
 def _load_graph(path: str) -> Any:
     from lattice_cad.core.graph import LatticeGraph
@@ -126,6 +138,9 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             fill=args.fill,
             skin=args.skin,
             segments=args.segments,
+            escape_holes=args.escape_holes,
+            escape_at=args.escape_at,
+            build_direction=args.build_direction,
         )
     lat.progress = not con.quiet
     info = lat.info()
@@ -156,6 +171,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3")
         if lat.skin_report is not None:
             con.say(lat.skin_report.summary())
+        if lat.escape_report is not None:
+            con.say(lat.escape_report.summary())
     with con.step(f"write {out.suffix.lstrip('.')}"):
         lat.save(out, beam_lattice=args.beam_lattice)
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
@@ -295,6 +312,31 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
             default=None,
             metavar="MM",
             help="hollow the part to this wall thickness and unite it with the lattice",
+        )
+        g.add_argument(
+            "--escape-holes",
+            type=_positive_float,
+            default=None,
+            metavar="MM",
+            help="with --skin: drill a hole of this diameter into every enclosed cavity (at "
+            "its lowest point) and verify by a flood fill that all cavities reach the outside",
+        )
+        g.add_argument(
+            "--escape-at",
+            type=_point,
+            action="append",
+            default=None,
+            metavar="X,Y,Z",
+            help="with --skin: drill an escape hole at this point of the outer surface, along "
+            f"the wall normal (repeatable; diameter --escape-holes, default "
+            f"{config.ESCAPE_DIAMETER:g})",
+        )
+        g.add_argument(
+            "--build-direction",
+            type=_point,
+            default=None,
+            metavar="X,Y,Z",
+            help="up direction of the print (default 0,0,1): escape holes at the lowest points",
         )
     g.add_argument(
         "--segments",
