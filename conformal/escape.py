@@ -68,7 +68,7 @@ MAX_VOXELS = 40_000_000
 STEPS_PER_DIAMETER = 4.0
 
 #: Enclosed regions of at most this many cubes are re-checked on a grid this much finer.
-POCKET_VOXELS = 64
+POCKET_VOXELS = 512
 POCKET_REFINE = 4
 
 #: Lines checked around the axis of a candidate hole (outer ring; the inner ring has half).
@@ -308,42 +308,59 @@ def _label_empty(
     return labels.astype(np.int32, copy=False)
 
 
+def _pocket_joins(part: Any, grid: _Grid, k: int, sl: tuple[slice, ...]) -> int:
+    """The label of a region that region ``k`` reaches on a finer grid (0 if none): the
+    fine flood fill runs in a box around ``k`` grown until the pocket's fine region either
+    reaches a cube of another region or stays inside the box."""
+    lab = grid.labels
+    r = POCKET_REFINE
+    for grow in (2, 4, 8):
+        lo = np.array([max(0, s.start - grow) for s in sl])
+        hi = np.array([min(n, s.stop + grow) for s, n in zip(sl, lab.shape, strict=True)])
+        f_origin = grid.origin + (lo - 0.5 + 0.5 / r) * grid.h
+        f_dims = (hi - lo) * r
+        fine = _label_empty(part, f_origin, grid.h / r, f_dims)
+        # the coarse cube of every fine cube (the fine cubes tile each coarse cube)
+        idx = np.indices(tuple(f_dims)).reshape(3, -1).T // r + lo
+        coarse = lab[idx[:, 0], idx[:, 1], idx[:, 2]]
+        fl = fine.ravel()
+        mine = np.unique(fl[(coarse == k) & (fl > 0)])
+        reached = np.isin(fl, mine) & (fl > 0)
+        other = {int(x) for x in np.unique(coarse[reached])} - {0, k}
+        if other:
+            return grid.outside if grid.outside in other else min(other)
+        border = np.zeros(fine.shape, dtype=bool)
+        border[[0, -1], :, :] = border[:, [0, -1], :] = border[:, :, [0, -1]] = True
+        if not np.any(reached.reshape(fine.shape) & border):
+            return 0  # enclosed at the fine resolution too
+    return 0
+
+
 def _refine_pockets(part: Any, grid: _Grid) -> None:
     """Join small enclosed regions to the region they reach through gaps narrower than
     the grid: a flood fill at ``h / POCKET_REFINE`` in a box around each. In place."""
     from scipy import ndimage
 
     lab = grid.labels
-    for _ in range(3):
+    settled: set[int] = {0, grid.outside}  # pockets that reach nothing else
+    for _ in range(3):  # a pocket may reach another pocket that reaches further
         counts = np.bincount(lab.ravel())
         small = [
-            k
+            int(k)
             for k in np.flatnonzero((counts > 0) & (counts <= POCKET_VOXELS))
-            if k not in (0, grid.outside)
+            if k not in settled
         ]
         if not small:
             return
         objs = ndimage.find_objects(lab)
         changed = False
         for k in small:
-            sl = objs[k - 1]
-            lo = np.array([max(0, s.start - 2) for s in sl])
-            hi = np.array([min(n, s.stop + 2) for s, n in zip(sl, lab.shape, strict=True)])
-            fh = grid.h / POCKET_REFINE
-            f_origin = grid.origin + (lo - 0.5 + 0.5 / POCKET_REFINE) * grid.h
-            f_dims = (hi - lo) * POCKET_REFINE
-            fine = _label_empty(part, f_origin, fh, f_dims)
-            # the coarse cell of every fine cell
-            idx = np.indices(tuple(f_dims)).reshape(3, -1).T // POCKET_REFINE + lo
-            coarse = lab[idx[:, 0], idx[:, 1], idx[:, 2]]
-            fl = fine.ravel()
-            mine = np.unique(fl[(coarse == k) & (fl > 0)])
-            reach = np.unique(coarse[np.isin(fl, mine) & (fl > 0)])
-            other = [int(x) for x in reach if x not in (0, k)]
-            if other:
-                target = grid.outside if grid.outside in other else other[0]
+            target = _pocket_joins(part, grid, k, objs[k - 1])
+            if target:
                 lab[lab == k] = target
                 changed = True
+            else:
+                settled.add(k)
         if not changed:
             return
 
