@@ -12,6 +12,7 @@ properties.
 - :func:`voxel_lattice`, :func:`tet_lattice`: parts -> :class:`lattice_cad.LatticeGraph`.
 - :mod:`conformal.radius`: radius specifications and the stitch-fit check.
 - :mod:`conformal.skin`: hollow a part to a wall and unite it with a lattice.
+- :mod:`conformal.escape`: escape holes for the cavities of a skin, verified by a flood fill.
 - :class:`Similarity`, :class:`SteadyLattice`: steady (programmed) lattices with
   closed-form integral properties (Gupta et al.).
 """

@@ -7,12 +7,17 @@ diameter through its wall, and :func:`verify` checks on the final solid that eve
 region connects to the outside.
 
 Cavities
-    The empty space of the solid on a grid (``Part.grid_contains``: exact winding numbers
-    at the grid points), labelled by 26-connectivity (``scipy.ndimage.label``). The
-    component that touches the grid's padded border is the outside; every other component
-    is an enclosed cavity. 26-connectivity never leaks through a wall thicker than
-    ``sqrt(3)`` grid steps (the grid step is at most half the wall), and does not split
-    the space between struts into false pockets as 6-connectivity does.
+    The empty space of the solid on a grid of step ``h`` (default ``d / 4``): a cube around
+    a grid point is empty when its centre is outside the material (``Part.grid_contains``,
+    exact winding numbers) and no triangle meets it. Empty cubes are joined by
+    26-connectivity (``scipy.ndimage.label``); two empty cubes that share a corner hold
+    the segment between their centres, so a region never leaks through a wall, however
+    thin. The region that touches the grid's padded border is the outside; every other
+    region is an enclosed cavity. A gap narrower than the grid can close, so small
+    regions (up to ``POCKET_VOXELS`` cubes) are re-checked on a grid ``POCKET_REFINE``
+    times finer around them and joined to what they reach. Errors are on the safe side:
+    a region is called connected only when a chain of empty cubes reaches the outside;
+    a cavity split by gaps narrower than the grid counts as several (each gets a hole).
 Placement
     By default one hole per cavity at its lowest point for the build direction ``b``
     (default +Z, so the lowest ``z``), drilled along ``-b``. Candidate axes start at the
@@ -145,8 +150,9 @@ class Connectivity:
     voxel : float
         Grid step (mm).
     resolved : bool
-        The step is at most the one asked for (``False``: the grid would have exceeded
-        :data:`MAX_VOXELS` and was coarsened, so thin walls may leak).
+        The step is the one asked for (``False``: the grid would have exceeded
+        :data:`MAX_VOXELS` and was coarsened, so a hole may be too narrow for it and
+        its cavity reported enclosed; ``connected`` is then False).
     enclosed : int
         Empty regions not connected to the outside.
     regions : list of dict

@@ -184,7 +184,36 @@ def test_lattice_escape_options_checked(box_part):
         Lattice.fill(box_part, "bcc", 4.0, 0.4, skin=1.0, escape_at=[[1.0, 2.0, 3.0, 4.0]])
 
 
+def test_cli_escape_holes(capsys, tmp_path):
+    import cadquery as cq
+
+    from lattice_cad.cli import main
+    from lattice_cad.core.mesh import Mesh
+    from lattice_cad.io import read_mesh
+
+    step = tmp_path / "box.step"
+    cq.exporters.export(cq.Workplane("XY").box(20, 16, 12), str(step))
+    out = tmp_path / "box.stl"
+    argv = ["fill", step, "-o", out, "--skin", "1", "--cell-size", "4", "--escape-holes", "1.5"]
+    argv += ["--escape-at", "10,0,0", "--build-direction", "0,1,0"]
+    code = main([str(a) for a in argv])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "escape holes d=1.5 mm: 1 cavity(ies), 1 hole(s)" in text
+    assert "hole in cavity 0 at (10, 0, 0) [point]" in text
+    assert "all cavities connected: yes" in text
+    # independently, on the file: the flood fill finds no enclosed space, and it is valid
+    v, f = read_mesh(out)
+    assert escape.verify((v, f), voxel=0.375).connected
+    assert independent_check(Mesh(vertices=v, faces=f), self_intersections=False)["watertight"]
+    with pytest.raises(SystemExit) as e:
+        main(["fill", str(step), "-o", str(out), "--escape-at", "1,2"])
+    assert e.value.code == 2
+    assert "expected three numbers X,Y,Z, got '1,2'" in capsys.readouterr().err
+
+
 # ------------------------------------------------------------------- real part
+@pytest.mark.slow
 def test_real_part_every_cavity_opens():
     """The spanner (STEP): every cavity of its skin gets a hole, the flood fill of the
     written mesh finds no enclosed space, and the mesh is one valid body."""
