@@ -71,6 +71,8 @@ MAX_VOXELS = 40_000_000
 #: Grid steps per hole diameter of the flood fill (a hole holds a chain of empty cubes
 #: when the step is below ``d / (2 sqrt 3)``).
 STEPS_PER_DIAMETER = 4.0
+#: ... and at least this many per wall thickness.
+STEPS_PER_WALL = 2.0
 
 #: Enclosed regions of at most this many cubes are re-checked on a grid this much finer.
 POCKET_VOXELS = 512
@@ -269,9 +271,12 @@ class _Grid:
         return self.labels[i[:, 0], i[:, 1], i[:, 2]]
 
 
-def grid_step(diameter: float) -> float:
-    """The flood-fill grid step (mm) that resolves a hole of ``diameter``: ``diameter / 4``."""
-    return diameter / STEPS_PER_DIAMETER
+def grid_step(diameter: float, thickness: float | None = None) -> float:
+    """The flood-fill grid step (mm): ``diameter / 4`` resolves a hole of ``diameter``;
+    with a wall ``thickness``, at most ``thickness / 2`` (so that a skin's cavity, which
+    a grid can only see if it holds whole empty cubes, is seen in small parts too)."""
+    h = diameter / STEPS_PER_DIAMETER
+    return h if thickness is None else min(h, thickness / STEPS_PER_WALL)
 
 
 def _flood(v: NDArray[np.float64], f: NDArray[np.int64], h: float) -> _Grid:
@@ -517,6 +522,19 @@ class _Rays:
         labels = labels[labels > 0]
         return int(labels[0]) if len(labels) else 0
 
+    def same_cavity(self, a: NDArray[np.float64], b: NDArray[np.float64], cavity: int) -> bool:
+        """Is ``b`` in the cavity of the empty point ``a``? The segment may pass through
+        struts (material entered and left), but no empty stretch of it may belong to the
+        outside or another cavity."""
+        hits = self.solid.ray_cast(tuple(a), tuple(b))
+        if len(hits) % 2:
+            return False
+        ts = [0.0] + [float(h.distance) for h in hits] + [1.0]
+        for t0, t1 in zip(ts[::2], ts[1::2], strict=True):
+            if self.region(a + t0 * (b - a), a + t1 * (b - a)) not in (0, cavity):
+                return False
+        return True
+
     def line(self, a: NDArray[np.float64], u: NDArray[np.float64], cavity: int) -> _Line | None:
         """The wall crossing of the line from ``a`` (in the cavity labelled ``cavity``) along
         ``u``: the first exit from material into the outside, past struts in the cavity.
@@ -582,7 +600,7 @@ def _plan(
         ok = lines[0] is not None
         for off in ring if ok else ():
             p = start + off
-            if rays.solid.ray_cast(tuple(start), tuple(p)):  # not the centre's region
+            if not rays.same_cavity(start, p, cavity):
                 ok = False
                 break
             ln = rays.line(p, u, cavity)
@@ -684,7 +702,8 @@ def drill(
     segments : int
         Sides of the hole's polygon section (>= 3).
     voxel : float, optional
-        Flood-fill grid step (default :func:`grid_step`).
+        Flood-fill grid step (default ``grid_step(diameter, thickness)``). An empty region
+        too small to hold a whole cube of this size is not seen.
     check : bool
         Verify the drilled solid by a flood fill (``report.verification``).
 
@@ -717,7 +736,7 @@ def drill(
     user = user.reshape(-1, 3)
     if not np.all(np.isfinite(user)):
         raise ValueError("points must be finite coordinates")
-    h = _positive("voxel", voxel) if voxel is not None else grid_step(d)
+    h = _positive("voxel", voxel) if voxel is not None else grid_step(d, wall)
 
     man = solid if isinstance(solid, manifold3d.Manifold) else as_manifold(solid, name="solid")
     arrays = mesh_arrays(man)

@@ -395,7 +395,8 @@ class Lattice:
 
         assert self.escape_holes is not None
         up = (0.0, 0.0, 1.0) if self.build_direction is None else self.build_direction
-        check = escape.verify(mesh, voxel=escape.grid_step(self.escape_holes), build_direction=up)
+        step = escape.grid_step(self.escape_holes, self.skin)
+        check = escape.verify(mesh, voxel=step, build_direction=up)
         self.escape_report = dataclasses.replace(self.escape_report, verification=check)
         if not check.connected:
             raise EscapeHoleError(
