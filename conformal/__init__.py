@@ -15,6 +15,7 @@ properties.
 - :mod:`conformal.printability`: overhanging and thin struts for a build direction
   (``conformal.printability.printability``), overhang removal, self-supporting cells
   and orientations.
+- :mod:`conformal.escape`: escape holes for the cavities of a skin, verified by a flood fill.
 - :class:`Similarity`, :class:`SteadyLattice`: steady (programmed) lattices with
   closed-form integral properties (Gupta et al.).
 """

@@ -46,6 +46,7 @@ __all__ = [
     "SkinResult",
     "as_manifold",
     "checked",
+    "part_solid",
     "inset",
     "hollow",
     "build_skin",
@@ -199,6 +200,41 @@ def as_manifold(obj: Any, *, name: str = "part") -> Any:
     return _manifold(v, f, name)
 
 
+def part_solid(part: Any) -> Any:
+    """The part as one ``manifold3d.Manifold``: its solids united, its voids cut out.
+
+    Assemblies often hold solids that touch (share faces) or overlap; their tessellation
+    then has coincident faces, which a boolean would carry into the result. Uniting the
+    solids (manifold3d's union merges touching faces) gives the region the part occupies.
+
+    Parameters
+    ----------
+    part : conformal.Part
+
+    Returns
+    -------
+    manifold3d.Manifold
+    """
+    import manifold3d
+
+    name = f"the part {getattr(part, 'name', '')}".strip()
+    shape = as_manifold(part, name=name)
+    comps = shape.decompose()
+    if len(comps) <= 1:
+        return shape
+    solids = [c for c in comps if c.volume() > 0]
+    voids = []
+    for c in comps:
+        if c.volume() < 0:  # an inner shell: the solid of the void, to subtract
+            v, f = to_arrays(c)
+            voids.append(_manifold(v, np.ascontiguousarray(f[:, ::-1]), f"a void of {name}"))
+    add, subtract = manifold3d.OpType.Add, manifold3d.OpType.Subtract
+    out = manifold3d.Manifold.batch_boolean(solids, add)
+    if voids:
+        out = manifold3d.Manifold.batch_boolean([out, *voids], subtract)
+    return out
+
+
 def to_arrays(man: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Vertices (V, 3) float64 and faces (F, 3) int64 of a manifold3d.Manifold."""
     arrays = mesh_arrays(man)
@@ -310,7 +346,7 @@ def _voxel_surfaces(part: Any, thickness: float, h: float) -> tuple[Any, Any, An
     import manifold3d
 
     depth, origin = _distance_field(part, thickness, h)
-    out = [_manifold(part.vertices, part.faces, "the part")]
+    out = [part_solid(part)]  # touching solids of an assembly united
     # marching tetrahedra give about 20 triangles per voxel face of the surface, mostly on
     # flat walls: manifold3d's simplification (no surface moves by more than the tolerance,
     # a quarter of the wall's accuracy bound) removes ~95 % of them before the booleans

@@ -109,43 +109,6 @@ def protrusion(part: Any, vertices: NDArray[np.float64]) -> float:
     return float(part.distance(v[outside]).max())
 
 
-def part_solid(part: Any) -> Any:
-    """The part as one ``manifold3d.Manifold``: its solids united, its voids cut out.
-
-    Assemblies often hold solids that touch (share faces) or overlap; their tessellation
-    then has coincident faces, which a boolean would carry into the result. Uniting the
-    solids (manifold3d's union merges touching faces) gives the region the part occupies.
-
-    Parameters
-    ----------
-    part : conformal.Part
-
-    Returns
-    -------
-    manifold3d.Manifold
-    """
-    import manifold3d
-
-    from conformal.skin import _manifold, as_manifold, to_arrays
-
-    name = f"the part {getattr(part, 'name', '')}".strip()
-    shape = as_manifold(part, name=name)
-    comps = shape.decompose()
-    if len(comps) <= 1:
-        return shape
-    solids = [c for c in comps if c.volume() > 0]
-    voids = []
-    for c in comps:
-        if c.volume() < 0:  # an inner shell: the solid of the void, to subtract
-            v, f = to_arrays(c)
-            voids.append(_manifold(v, np.ascontiguousarray(f[:, ::-1]), f"a void of {name}"))
-    add, subtract = manifold3d.OpType.Add, manifold3d.OpType.Subtract
-    out = manifold3d.Manifold.batch_boolean(solids, add)
-    if voids:
-        out = manifold3d.Manifold.batch_boolean([out, *voids], subtract)
-    return out
-
-
 def _tolerance(radius: float, extent: float) -> float:
     # float32 output moves a coordinate by up to half a unit in the last place
     rounding = float(np.spacing(np.float32(max(extent, 1.0)))) * 2.0
@@ -173,7 +136,7 @@ def trim_to_part(lattice: Any, part: Any, *, radius: float, check: bool = True) 
         nothing is cut; otherwise the intersection, in each solid of the part its largest
         piece.
     """
-    from conformal.skin import as_manifold, to_arrays
+    from conformal.skin import as_manifold, part_solid, to_arrays
     from conformal.voxel import _solid_shells
 
     t0 = time.perf_counter()

@@ -5,7 +5,8 @@
     lattice-cad fill PART -o OUT [--cell --cell-size --radius --method --fill --skin
                                   --segments --beam-lattice --report DIR
                                   --build-direction X,Y,Z --critical-angle DEG
-                                  --min-diameter MM --remove-overhangs --self-supporting]
+                                  --min-diameter MM --remove-overhangs --self-supporting
+                                  --escape-holes D --escape-at X,Y,Z]
     lattice-cad stitch GRAPH -o OUT [--segments]
     lattice-cad reference GRAPH -o OUT
     lattice-cad validate GRAPH_OR_PART --report DIR
@@ -171,6 +172,17 @@ def _say_printability(con: _Console, lat: Any) -> None:
         )
 
 
+def _point(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    try:
+        xyz = tuple(float(p) for p in parts)
+    except ValueError:
+        xyz = ()
+    if len(xyz) != 3 or not all(abs(c) < float("inf") for c in xyz):
+        raise argparse.ArgumentTypeError(f"expected three numbers X,Y,Z, got {text!r}")
+    return (xyz[0], xyz[1], xyz[2])
+
+
 # ------------------------------------------------------------------ commands
 def _load_graph(path: str) -> Any:
     from lattice_cad.core.graph import LatticeGraph
@@ -242,6 +254,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             skin=args.skin,
             segments=args.segments,
             **_print_kwargs(args),
+            escape_holes=args.escape_holes,
+            escape_at=args.escape_at,
         )
     lat.progress = not con.quiet
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
@@ -270,6 +284,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             con.say(lat.skin_report.summary())
         if lat.trim_report is not None:
             con.say(lat.trim_report.summary())
+        if lat.escape_report is not None:
+            con.say(lat.escape_report.summary())
     with con.step(f"write {out.suffix.lstrip('.')}"):
         if fe_options is not None:
             lat.save_inp(out, **fe_options)
@@ -417,6 +433,24 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
             metavar="MM",
             help="hollow the part to this wall thickness and unite it with the lattice",
         )
+        g.add_argument(
+            "--escape-holes",
+            type=_positive_float,
+            default=None,
+            metavar="MM",
+            help="with --skin: drill a hole of this diameter into every enclosed cavity (at "
+            "its lowest point) and verify by a flood fill that all cavities reach the outside",
+        )
+        g.add_argument(
+            "--escape-at",
+            type=_point,
+            action="append",
+            default=None,
+            metavar="X,Y,Z",
+            help="with --skin: drill an escape hole at this point of the outer surface, along "
+            f"the wall normal (repeatable; diameter --escape-holes, default "
+            f"{config.ESCAPE_DIAMETER:g})",
+        )
     g.add_argument(
         "--segments",
         type=_segments,
@@ -433,7 +467,8 @@ def _add_print_options(p: argparse.ArgumentParser) -> None:
         type=_direction,
         default=None,
         metavar="X,Y,Z",
-        help="direction the layers grow in (any non-zero vector; default 0,0,1)",
+        help="direction the layers grow in (any non-zero vector; default 0,0,1): overhangs "
+        "are measured against it, escape holes go at the lowest points",
     )
     g.add_argument(
         "--critical-angle",

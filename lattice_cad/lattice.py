@@ -26,7 +26,13 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 
 from lattice_cad.core import config
-from lattice_cad.core.errors import ExportError, LatticeError, LatticeWarning, OCCTFailure
+from lattice_cad.core.errors import (
+    EscapeHoleError,
+    ExportError,
+    LatticeError,
+    LatticeWarning,
+    OCCTFailure,
+)
 from lattice_cad.core.formats import Kind, format_for, resolve, suffixes
 from lattice_cad.core.graph import LatticeGraph
 
@@ -159,6 +165,14 @@ class Lattice:
     trim : bool
         Cut the lattice by the part's surface (with a part and no skin), so the printable
         solid never lies outside the part (see :mod:`conformal.trim`). Default True.
+    escape_holes : float, optional
+        With a skin: drill escape holes of this diameter (mm) so that every enclosed
+        cavity opens to the outside, and verify it (see :mod:`conformal.escape`).
+    escape_at : (P, 3) float, optional
+        User hole positions (mm) on the outer surface; cavities they do not open get a
+        hole at their lowest point.
+    build_direction : (3,) float, optional
+        Up direction of the print (default +Z): holes go at the lowest points along it.
 
     Attributes
     ----------
@@ -184,6 +198,9 @@ class Lattice:
         skin: float | None = None,
         segments: int = config.DEFAULT_SEGMENTS,
         trim: bool = True,
+        escape_holes: float | None = None,
+        escape_at: Any = None,
+        build_direction: Any = None,
     ) -> None:
         if not isinstance(graph, LatticeGraph):
             raise TypeError(f"graph must be a LatticeGraph, got {type(graph).__name__}")
@@ -216,6 +233,23 @@ class Lattice:
         self.overhang_removal: Any = None
         #: The beam FE model last written by :meth:`save_inp` (``lattice_cad.io.fe.BeamModel``).
         self.fe_model: Any = None
+        if escape_holes is not None or escape_at is not None:
+            if skin is None:
+                raise ValueError("escape holes open the cavity of a skin: pass skin= as well")
+            escape_holes = _positive("escape_holes", escape_holes or config.ESCAPE_DIAMETER)
+        if escape_at is not None:
+            try:
+                escape_at = np.asarray(escape_at, dtype=np.float64).reshape(-1, 3)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"escape_at must be points (P, 3) in mm, got {escape_at!r}"
+                ) from None
+        self.escape_holes = escape_holes
+        self.escape_at = escape_at
+        if build_direction is not None:
+            self.build_direction = build_direction
+        #: Cavities, holes and the flood-fill verdict (``conformal.escape.EscapeReport``).
+        self.escape_report: Any = None
 
     # ---------------------------------------------------------------- build
     @classmethod
@@ -238,6 +272,8 @@ class Lattice:
         min_diameter: float | None = None,
         remove_overhangs: bool = False,
         self_supporting: bool = False,
+        escape_holes: float | None = None,
+        escape_at: Any = None,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -285,6 +321,14 @@ class Lattice:
             build plate is largest (``conformal.best_orientation``; e.g. cubic with a body
             diagonal along the build direction). Refused with ``rotation``, and when even
             the best orientation leaves struts below the critical angle.
+        escape_holes : float, optional
+            With ``skin``: hole diameter (mm); every enclosed cavity gets a hole (at its
+            lowest point along ``build_direction``, or at ``escape_at``), and a flood
+            fill of the final solid verifies that every cavity connects to the outside
+            (``escape_report``; :class:`EscapeHoleError` if a cavity stays closed).
+        escape_at : (P, 3) float, optional
+            Points (mm) on the outer surface where holes are drilled along the wall
+            normal (implies ``escape_holes`` of ``config.ESCAPE_DIAMETER`` if not given).
 
         Returns
         -------
@@ -352,7 +396,16 @@ class Lattice:
             graph, removal = _pr.remove_overhangs(
                 graph, build_direction=direction, critical_angle=crit, part=the_part
             )
-        lat = cls(graph, part=the_part, skin=skin, segments=segments, trim=trim)
+        lat = cls(
+            graph,
+            part=the_part,
+            skin=skin,
+            segments=segments,
+            trim=trim,
+            escape_holes=escape_holes,
+            escape_at=escape_at,
+            build_direction=direction,
+        )
         lat.build_report = report
         lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
         lat.overhang_removal = removal
@@ -420,7 +473,10 @@ class Lattice:
         # checked below, after rounding to float32 (what the files hold)
         result = _skin.build_skin(self._lattice_mesh, self.part, self.skin, check=False)
         self.skin_report = result.report
-        v, f = _skin.to_arrays(result.solid)
+        solid = result.solid
+        if self.escape_holes is not None:
+            solid = self._drill(solid)
+        v, f = _skin.to_arrays(solid)
         return Mesh(vertices=v, faces=f)
 
     @cached_property
@@ -446,7 +502,49 @@ class Lattice:
                     f"its coordinates to float32 breaks it ({report}); move it closer to the "
                     "origin or use thicker struts"
                 )
+        if self.escape_holes is not None:
+            self._verify_escape(mesh)
         return mesh
+
+    def _drill(self, solid: Any) -> Any:
+        """Escape holes in the skinned solid (``conformal.escape.drill``), unverified."""
+        from conformal import escape
+
+        up = (0.0, 0.0, 1.0) if self.build_direction is None else self.build_direction
+        assert self.escape_holes is not None and self.skin is not None
+        res = escape.drill(
+            solid,
+            self.escape_holes,
+            thickness=self.skin,
+            points=self.escape_at,
+            build_direction=up,
+            check=False,
+        )
+        self.escape_report = res.report
+        if res.report.failed:
+            raise EscapeHoleError(
+                f"no escape hole of diameter {self.escape_holes:g} mm fits "
+                f"{len(res.report.failed)} cavity(ies):\n{res.report.summary()}\n"
+                "use a smaller diameter or place holes with escape_at (--escape-at)"
+            )
+        return res.solid
+
+    def _verify_escape(self, mesh: Mesh) -> None:
+        """Flood fill of the final (written) mesh: every cavity must reach the outside."""
+        import dataclasses
+
+        from conformal import escape
+
+        assert self.escape_holes is not None
+        up = (0.0, 0.0, 1.0) if self.build_direction is None else self.build_direction
+        step = escape.grid_step(self.escape_holes, self.skin)
+        check = escape.verify(mesh, voxel=step, build_direction=up)
+        self.escape_report = dataclasses.replace(self.escape_report, verification=check)
+        if not check.connected:
+            raise EscapeHoleError(
+                f"after drilling, the solid still has enclosed empty space:\n"
+                f"{self.escape_report.summary()}\nadd holes with escape_at (--escape-at)"
+            )
 
     def mesh(self, *, lattice_only: bool = False) -> Mesh:
         """The printable watertight mesh (built on first use, then cached).

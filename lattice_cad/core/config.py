@@ -108,6 +108,9 @@ SLIVER = 1e-4
 #: Voxels per wall thickness, when the budget allows.
 VOXELS_PER_THICKNESS = 3.0
 
+#: Default escape-hole diameter (mm) when only hole positions are given.
+ESCAPE_DIAMETER = 2.0
+
 
 # ------------------------------------------------------- Exact reference (reference_boolean)
 

@@ -15,6 +15,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── PartError                a part file or shape cannot be used (conformal.part)
     │   └── StepUnitsError       a STEP file's unit disagrees with OCCT's reading of it
     ├── SkinError                a part cannot be hollowed (conformal.skin)
+    ├── EscapeHoleError          a cavity cannot be opened, or stays closed (conformal.escape)
     ├── SimilarityError          invalid similarity parameters (conformal.similarity)
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
     ├── PrintabilityError        invalid build direction, angle or diameter (conformal.printability)
@@ -41,6 +42,7 @@ __all__ = [
     "PartError",
     "StepUnitsError",
     "SkinError",
+    "EscapeHoleError",
     "SimilarityError",
     "SteadyLatticeError",
     "PrintabilityError",
@@ -88,6 +90,11 @@ class StepUnitsError(PartError):
 
 class SkinError(LatticeError, ValueError):
     """A part cannot be hollowed (not a closed solid, or the wall is too thick)."""
+
+
+class EscapeHoleError(LatticeError, ValueError):
+    """An enclosed cavity of a skinned part gets no escape hole (none fits, or a user point
+    has no cavity behind it), or stays enclosed after drilling (the message says which)."""
 
 
 class SimilarityError(LatticeError, ValueError):
