@@ -117,6 +117,24 @@ def _collapse_folds(mesh: Mesh, report: Any) -> Mesh:
     return Mesh(vertices=v2, faces=f2)
 
 
+def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
+    """A boolean result (skin) rounded to float32 as STL and 3MF store it, checked in full
+    (with the folds the rounding makes collapsed), or :class:`ExportError`."""
+    import fast_stitch
+    from lattice_cad import io
+
+    out, _ = io.single_precision(mesh, name=name)
+    report = fast_stitch.check(out)
+    for _ in range(20):
+        if report.valid:
+            break
+        out = _collapse_folds(out, report)
+        report = fast_stitch.check(out)
+    if not report.valid:
+        raise ExportError(f"{name} cannot be written in single precision (STL, 3MF): {report}")
+    return out
+
+
 class Lattice:
     """A lattice graph, optionally with the part it fills and a skin.
 
@@ -330,7 +348,9 @@ class Lattice:
         return self._lattice_mesh if lattice_only else self._printable_mesh
 
     # ---------------------------------------------------------------- files
-    def save(self, path: str | os.PathLike[str], *, beam_lattice: bool = False) -> Path:
+    def save(
+        self, path: str | os.PathLike[str], *, beam_lattice: bool | Literal["only"] = False
+    ) -> Path:
         """Write the lattice; the format is chosen by the suffix.
 
         Parameters
@@ -338,10 +358,16 @@ class Lattice:
         path : path-like
             ``.stl``, ``.3mf``, ``.ply``, ``.obj``: the printable mesh;
             ``.json``, ``.npz``: the graph; ``.step``/``.stp``: the exact B-rep reference.
-        beam_lattice : bool
-            With ``.3mf``: write the 3MF Beam Lattice extension (beams, balls and the
-            part as clipping mesh) instead of triangles. A skin is then written as
-            a separate mesh object.
+        beam_lattice : bool or "only"
+            With ``.3mf``: write the 3MF Beam Lattice extension (beams with per-end radii,
+            balls). ``True``: the beam-lattice object also holds the printable mesh
+            (:meth:`mesh`, skin included) as its triangles, so readers without the
+            extension (PrusaSlicer, Bambu Studio...) slice the mesh and beam-aware readers
+            the union of mesh and beams (no clipping mesh: PrusaSlicer refuses a 3MF with
+            an object outside the build). ``"only"``: beams without triangles and the
+            part as clipping mesh, a tiny file that most slicers cannot open (warns
+            :class:`~lattice_cad.core.errors.BeamOnlyWarning`); a skin is then written
+            as a separate mesh object of the build.
 
         Returns
         -------
@@ -350,18 +376,40 @@ class Lattice:
         from lattice_cad import io
 
         p = Path(path)
-        if beam_lattice:
-            io.format_for(p, Kind.BEAM_LATTICE)
-            clip = None
-            if self.part is not None:
-                clip = (self.part.vertices, self.part.faces)
-            return io.save_beam_lattice(self.graph, p, clip=clip)
+        if beam_lattice is not False:
+            return self._save_beam_lattice(p, beam_lattice)
         _, kind = resolve(p, (Kind.MESH, Kind.GRAPH, Kind.SOLIDS), what="lattice")
         if kind is Kind.GRAPH:
             return io.save_graph(self.graph, p)
         if kind is Kind.SOLIDS:
             return self.reference().save(p)
         return io.save_mesh(self.mesh(), p)
+
+    def _save_beam_lattice(self, p: Path, mode: Any) -> Path:
+        """``save(p, beam_lattice=mode)`` for ``mode`` True or "only"."""
+        from lattice_cad import io
+
+        if mode is not True and mode != "only":
+            raise ValueError(f"beam_lattice must be False, True or 'only'; got {mode!r}")
+        io.format_for(p, Kind.BEAM_LATTICE)
+        if mode is True:  # no clipping mesh: PrusaSlicer refuses any object not in the build
+            return io.save_beam_lattice(self.graph, p, mesh=self.mesh())
+        clip = (self.part.vertices, self.part.faces) if self.part is not None else None
+        skin = self._skin_wall_mesh if self.skin is not None else None
+        return io.save_beam_lattice(self.graph, p, skin=skin, clip=clip)
+
+    @cached_property
+    def _skin_wall_mesh(self) -> Mesh:
+        """The skin alone (the part's wall, no struts), float32-exact and checked: written
+        beside a beam-only lattice. Made by the skin builder with an empty lattice."""
+        import manifold3d
+
+        from conformal import skin as _skin
+        from lattice_cad.core.mesh import Mesh
+
+        result = _skin.build_skin(manifold3d.Manifold(), self.part, self.skin)
+        v, f = _skin.to_arrays(result.solid)
+        return _checked_single_precision(Mesh(vertices=v, faces=f), "the skin")
 
     # ------------------------------------------------------------ reference
     def reference(self, **options: Any) -> Any:
