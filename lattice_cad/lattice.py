@@ -517,7 +517,7 @@ class Lattice:
             else the strut-volume estimate), ``volume_exact`` (whether it is the mesh's),
             ``part_volume`` and ``relative_density`` (when the part is known), ``skin``,
             and ``file_bytes``: estimated sizes of ``stl``, ``3mf``, ``ply``, ``obj``
-            and ``3mf_beam`` files of the lattice (without skin).
+            and ``3mf_beam`` (beam-only) files of the lattice (without skin).
         """
         import fast_stitch
         from lattice_cad import io as export
