@@ -27,7 +27,7 @@ def main(out_dir: str = ".") -> None:
     info = lat.info()
     print(f"{info['struts']} struts, relative density {info['relative_density']:.3f}")
     lat.save(out / "block_skin.stl")  # skin + lattice, one watertight solid
-    lat.save(out / "block_lattice.3mf", beam_lattice=True)  # beams + clipping mesh
+    lat.save(out / "block_lattice.3mf", beam_lattice=True)  # beams + the mesh, opens everywhere
     lat.save(out / "block_graph.json")  # the graph, exactly
     print(fast_stitch.check(lat.mesh(), self_intersections=False))
 

@@ -3,11 +3,11 @@
 ::
 
     lattice-cad fill PART -o OUT [--cell --cell-size --radius --method --fill --skin
-                                  --segments --beam-lattice --report DIR
+                                  --segments --beam-lattice[=only] --report DIR
                                   --build-direction X,Y,Z --critical-angle DEG
                                   --min-diameter MM --remove-overhangs --self-supporting
                                   --escape-holes D --escape-at X,Y,Z]
-    lattice-cad stitch GRAPH -o OUT [--segments]
+    lattice-cad stitch GRAPH -o OUT [--segments --beam-lattice[=only]]
     lattice-cad reference GRAPH -o OUT
     lattice-cad validate GRAPH_OR_PART --report DIR
     lattice-cad cells
@@ -243,6 +243,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
 
     out = Path(args.output)
     fe_options = _fe_options(args, out)
+    if args.beam_lattice:  # refuse a wrong suffix before the work
+        resolve(out, Kind.BEAM_LATTICE)
     with con.step("load + lattice"):
         lat = Lattice.fill(
             args.part,
@@ -273,7 +275,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         if notes:
             con.say("; ".join(notes))
     _say_printability(con, lat)
-    if out.suffix.lower() in suffixes(Kind.MESH) and not args.beam_lattice:
+    if out.suffix.lower() in suffixes(Kind.MESH) and args.beam_lattice != "only":
         with con.step("mesh" + (" + skin" if args.skin else "")):
             mesh = lat.mesh()
         density = ""
@@ -290,7 +292,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         if fe_options is not None:
             lat.save_inp(out, **fe_options)
         else:
-            lat.save(out, beam_lattice=args.beam_lattice)
+            lat.save(out, beam_lattice=_beam_lattice_mode(args))
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
     if fe_options is not None:
         con.say(lat.fe_model.summary())
@@ -309,7 +311,7 @@ def _cmd_stitch(args: argparse.Namespace, con: _Console) -> int:
     with con.step("stitch"):
         mesh = lat.mesh()
     with con.step(f"write {out.suffix.lstrip('.')}"):
-        lat.save(out, beam_lattice=args.beam_lattice)
+        lat.save(out, beam_lattice=_beam_lattice_mode(args))
     con.say(f"wrote {out}: {len(mesh.faces):,} triangles ({out.stat().st_size / 1e6:.2f} MB)")
     return 0
 
@@ -541,6 +543,26 @@ def _add_fe_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_beam_lattice_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--beam-lattice",
+        nargs="?",
+        const="with-mesh",
+        choices=("with-mesh", "only"),
+        default=None,
+        metavar="only",
+        help="with a .3mf output: write the 3MF Beam Lattice extension; the beam-lattice "
+        "object also holds the printable mesh, so slicers without the extension (PrusaSlicer, "
+        "Cura) open it; --beam-lattice=only: beams only, a tiny file few programs open",
+    )
+
+
+def _beam_lattice_mode(args: argparse.Namespace) -> Any:
+    """``Lattice.save``'s ``beam_lattice`` for the CLI option: False, True or "only"."""
+    mode = getattr(args, "beam_lattice", None)
+    return False if mode is None else ("only" if mode == "only" else True)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``lattice-cad`` (one sub-parser per command)."""
     common = argparse.ArgumentParser(add_help=False)
@@ -566,11 +588,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("part", help="part file: .step/.stp, or a closed mesh .stl/.obj/.ply/.3mf/.off")
     p.add_argument("-o", "--output", required=True, help=_OUTPUT_HELP)
     _add_lattice_options(p)
-    p.add_argument(
-        "--beam-lattice",
-        action="store_true",
-        help="with a .3mf output: write the 3MF Beam Lattice extension (tiny file)",
-    )
+    _add_beam_lattice_option(p)
     p.add_argument("--report", metavar="DIR", help="also write a validation report and pictures")
     _add_print_options(p)
     _add_fe_options(p)
@@ -591,11 +609,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="P",
         help="sides of each strut's polygon profile (default 6)",
     )
-    p.add_argument(
-        "--beam-lattice",
-        action="store_true",
-        help="with a .3mf output: write the 3MF Beam Lattice extension",
-    )
+    _add_beam_lattice_option(p)
     p.set_defaults(func=_cmd_stitch)
 
     p = sub.add_parser(

@@ -149,6 +149,27 @@ def _self_supporting_rotation(
     return best.rotation
 
 
+def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
+    """A boolean result (skin) rounded to float32 as STL and 3MF store it, checked in full
+    (with the folds the rounding makes collapsed), or :class:`ExportError`."""
+    import fast_stitch
+    from lattice_cad import io
+
+    out, _ = io.single_precision(mesh, name=name)
+    report = fast_stitch.check(out)
+    for _ in range(20):  # tiny folds where the booleans left needles: collapse them
+        if report.valid:
+            break
+        out = _collapse_folds(out, report)
+        report = fast_stitch.check(out)
+    if not report.valid:
+        raise ExportError(
+            f"{name} cannot be written in single precision (STL, 3MF): rounding its "
+            f"coordinates to float32 breaks it ({report})"
+        )
+    return out
+
+
 class Lattice:
     """A lattice graph, optionally with the part it fills and a skin.
 
@@ -487,21 +508,18 @@ class Lattice:
         solid = self._solid_mesh
         # a stitched lattice keeps its clearances through the rounding; a skin or a trim
         # (manifold3d booleans) can have surfaces a float32 step apart: checked in full
-        boolean = solid is not self._lattice_mesh
-        mesh, repaired = io.single_precision(solid, name="the lattice")
-        if repaired or boolean:
-            report = fast_stitch.check(mesh)
-            for _ in range(20):  # tiny folds where the booleans left needles: collapse them
-                if report.valid or not boolean:
-                    break
-                mesh = _collapse_folds(mesh, report)
+        if solid is not self._lattice_mesh:
+            mesh = _checked_single_precision(solid, "the lattice")
+        else:
+            mesh, repaired = io.single_precision(solid, name="the lattice")
+            if repaired:
                 report = fast_stitch.check(mesh)
-            if not report.valid:
-                raise ExportError(
-                    f"the lattice cannot be written in single precision (STL, 3MF): rounding "
-                    f"its coordinates to float32 breaks it ({report}); move it closer to the "
-                    "origin or use thicker struts"
-                )
+                if not report.valid:
+                    raise ExportError(
+                        f"the lattice cannot be written in single precision (STL, 3MF): "
+                        f"rounding its coordinates to float32 breaks it ({report}); move it "
+                        "closer to the origin or use thicker struts"
+                    )
         if self.escape_holes is not None:
             self._verify_escape(mesh)
         return mesh
@@ -571,7 +589,7 @@ class Lattice:
         self,
         path: str | os.PathLike[str],
         *,
-        beam_lattice: bool = False,
+        beam_lattice: bool | Literal["only"] = False,
         node_sets: Mapping[str, Any] | None = None,
         material: Mapping[str, Any] | None = None,
     ) -> Path:
@@ -583,10 +601,16 @@ class Lattice:
             ``.stl``, ``.3mf``, ``.ply``, ``.obj``: the printable mesh;
             ``.json``, ``.npz``: the graph; ``.step``/``.stp``: the exact B-rep reference;
             ``.inp``: a CalculiX/Abaqus beam model (see :meth:`save_inp`).
-        beam_lattice : bool
-            With ``.3mf``: write the 3MF Beam Lattice extension (beams, balls and the
-            part as clipping mesh) instead of triangles. A skin is then written as
-            a separate mesh object.
+        beam_lattice : bool or "only"
+            With ``.3mf``: write the 3MF Beam Lattice extension (beams with per-end radii,
+            balls). ``True``: the beam-lattice object also holds the printable mesh
+            (:meth:`mesh`, skin included) as its triangles, so readers without the
+            extension (PrusaSlicer, Bambu Studio...) slice the mesh and beam-aware readers
+            the union of mesh and beams (no clipping mesh: PrusaSlicer refuses a 3MF with
+            an object outside the build). ``"only"``: beams without triangles and the
+            part as clipping mesh, a tiny file that most slicers cannot open (warns
+            :class:`~lattice_cad.core.errors.BeamOnlyWarning`); a skin is then written
+            as a separate mesh object of the build.
         node_sets, material : mapping, optional
             With ``.inp``: named node sets by face selector (``{"fixed": "<Z"}``) and the
             material (``{"E": 3500, "nu": 0.36, "density": 1.24e-9}``); see
@@ -599,17 +623,13 @@ class Lattice:
         from lattice_cad import io
 
         p = Path(path)
-        if p.suffix.lower() in suffixes(Kind.FE_MODEL) and not beam_lattice:
+        if p.suffix.lower() in suffixes(Kind.FE_MODEL) and beam_lattice is False:
             self.save_inp(p, node_sets=node_sets, material=material)
             return p
         if node_sets is not None or material is not None:
             raise ValueError(f"node_sets and material apply to .inp beam models, not {p.name}")
-        if beam_lattice:
-            io.format_for(p, Kind.BEAM_LATTICE)
-            clip = None
-            if self.part is not None:
-                clip = (self.part.vertices, self.part.faces)
-            return io.save_beam_lattice(self.graph, p, clip=clip)
+        if beam_lattice is not False:
+            return self._save_beam_lattice(p, beam_lattice)
         _, kind = resolve(p, (Kind.MESH, Kind.GRAPH, Kind.SOLIDS), what="lattice")
         if kind is Kind.GRAPH:
             return io.save_graph(self.graph, p)
@@ -681,6 +701,32 @@ class Lattice:
         )
         self.fe_model = model
         return model
+
+    def _save_beam_lattice(self, p: Path, mode: Any) -> Path:
+        """``save(p, beam_lattice=mode)`` for ``mode`` True or "only"."""
+        from lattice_cad import io
+
+        if mode is not True and mode != "only":
+            raise ValueError(f"beam_lattice must be False, True or 'only'; got {mode!r}")
+        io.format_for(p, Kind.BEAM_LATTICE)
+        if mode is True:  # no clipping mesh: PrusaSlicer refuses any object not in the build
+            return io.save_beam_lattice(self.graph, p, mesh=self.mesh())
+        clip = (self.part.vertices, self.part.faces) if self.part is not None else None
+        skin = self._skin_wall_mesh if self.skin is not None else None
+        return io.save_beam_lattice(self.graph, p, skin=skin, clip=clip)
+
+    @cached_property
+    def _skin_wall_mesh(self) -> Mesh:
+        """The skin alone (the part's wall, no struts), float32-exact and checked: written
+        beside a beam-only lattice. Made by the skin builder with an empty lattice."""
+        import manifold3d
+
+        from conformal import skin as _skin
+        from lattice_cad.core.mesh import Mesh
+
+        result = _skin.build_skin(manifold3d.Manifold(), self.part, self.skin, check=False)
+        v, f = _skin.to_arrays(result.solid)
+        return _checked_single_precision(Mesh(vertices=v, faces=f), "the skin")
 
     # ------------------------------------------------------------ reference
     def reference(self, **options: Any) -> Any:
@@ -802,7 +848,7 @@ class Lattice:
             printable mesh is then built, so both are exact and the density is at most 1),
             ``skin``,
             and ``file_bytes``: estimated sizes of ``stl``, ``3mf``, ``ply``, ``obj``
-            and ``3mf_beam`` files of the lattice (without skin); ``printability``: the
+            and ``3mf_beam`` (beam-only) files of the lattice (without skin); ``printability``: the
             :meth:`printability` report (overhangs, thin struts, unsupported nodes; print
             it for a summary) and ``overhang_removal`` (what ``remove_overhangs`` removed,
             or None).

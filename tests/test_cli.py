@@ -171,10 +171,17 @@ def test_fill_beam_lattice_and_skin(capsys, box_step, tmp_path):
     from lattice_cad.io import read_beam_lattice
 
     out = tmp_path / "box.3mf"
-    code, _, err = run(capsys, "fill", box_step, "-o", out, "--beam-lattice", "--cell-size", "4")
+    code, _, err = run(
+        capsys, "fill", box_step, "-o", out, "--beam-lattice=only", "--cell-size", "4"
+    )
     assert code == 0, err
+    assert "warning:" in err and "beams only" in err and "PrusaSlicer" in err
     info = read_beam_lattice(out)
-    assert info["beams"] > 0 and info["clipped"]
+    assert info["beams"] > 0 and info["clipped"] and info["triangles"] == 0
+    code, _, err = run(capsys, "fill", box_step, "-o", out, "--beam-lattice", "--cell-size", "4")
+    assert code == 0 and "warning" not in err, err
+    info = read_beam_lattice(out)
+    assert info["beams"] > 0 and info["triangles"] > 0 and info["objects"] == 1
     skinned = tmp_path / "skin.stl"
     code, stdout, err = run(
         capsys, "fill", box_step, "-o", skinned, "--skin", "1", "--cell-size", "4", "-q"

@@ -9,7 +9,7 @@ import fast_stitch
 from conformal import block
 from fast_stitch.check import check
 from lattice_cad import io as export
-from lattice_cad.core.errors import ExportError, ExportWarning, LatticeWarning
+from lattice_cad.core.errors import BeamOnlyWarning, ExportError, ExportWarning, LatticeWarning
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +106,8 @@ def test_beam_lattice_3mf(tmp_path, graph, mesh):
 
     tapered = LatticeGraph(graph.nodes, graph.edges, radii)
     clip = manifold3d.Manifold.cube([10, 10, 10])
-    p = export.save_beam_lattice(tapered, tmp_path / "b.3mf", clip=clip)
+    with pytest.warns(BeamOnlyWarning, match="PrusaSlicer, Bambu Studio, Cura"):
+        p = export.save_beam_lattice(tapered, tmp_path / "b.3mf", clip=clip)
     info = export.read_beam_lattice(p)
     assert info["beams"] == graph.num_edges
     assert info["vertices"] == graph.num_nodes

@@ -160,9 +160,11 @@ def test_fill_build123d_and_path(tmp_path, box_lattice):
 
 
 def test_beam_lattice_with_clip(tmp_path, box_lattice):
+    from lattice_cad.core.errors import BeamOnlyWarning
     from lattice_cad.io import read_beam_lattice
 
-    p = box_lattice.save(tmp_path / "b.3mf", beam_lattice=True)
+    with pytest.warns(BeamOnlyWarning):
+        p = box_lattice.save(tmp_path / "b.3mf", beam_lattice="only")
     info = read_beam_lattice(p)
     assert info["beams"] == box_lattice.graph.num_edges and info["clipped"]
 

@@ -17,6 +17,7 @@ from lattice_cad.core import config
 from lattice_cad.core.atomic import atomic_write
 from lattice_cad.core.checks import ProgressCallback
 from lattice_cad.core.errors import (
+    BeamOnlyWarning,
     CADStackWarning,
     DirtyLatticeError,
     ExportError,
@@ -63,5 +64,6 @@ __all__ = [
     "DirtyLatticeError",
     "LatticeWarning",
     "ExportWarning",
+    "BeamOnlyWarning",
     "CADStackWarning",
 ]

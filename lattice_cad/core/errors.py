@@ -28,6 +28,7 @@ example ``conformal.PartError``), but they are defined here only.
 
     LatticeWarning               accepted, but deserves the user's attention
     ├── ExportWarning            a file may be too large for common slicers
+    ├── BeamOnlyWarning          a beam-only 3MF that most slicers cannot open
     └── CADStackWarning          the installed cadquery/build123d/OCP set is unsupported
 """
 
@@ -54,6 +55,7 @@ __all__ = [
     "DirtyLatticeError",
     "LatticeWarning",
     "ExportWarning",
+    "BeamOnlyWarning",
     "CADStackWarning",
 ]
 
@@ -144,6 +146,11 @@ class LatticeWarning(UserWarning):
 
 class ExportWarning(LatticeWarning):
     """An export succeeded but the file may be too large for common slicers."""
+
+
+class BeamOnlyWarning(LatticeWarning):
+    """A 3MF beam lattice was written without triangles (``beam_lattice="only"``): readers
+    without the Beam Lattice extension cannot open it (the message names them)."""
 
 
 class CADStackWarning(LatticeWarning):

@@ -68,12 +68,14 @@ FORMATS: tuple[Format, ...] = (
     Format("stl", (".stl",), _k(M), _k(M, P), "binary STL triangle mesh (mm)",
            "every slicer (PrusaSlicer, Cura, Bambu Studio), MeshLab, CAD tools"),
     Format("3mf", (".3mf",), _k(M, B), _k(M, B, P),
-           "3MF core mesh (mm); or 3MF Beam Lattice: beams with per-end radii, balls, clipping",
-           "PrusaSlicer, Cura, Bambu Studio, Windows 3D Viewer (beam lattices: few readers)"),
+           "3MF core mesh (mm); or 3MF Beam Lattice: beams with per-end radii and balls, plus "
+           "the mesh for other readers (or beams only)",
+           "PrusaSlicer, Cura, Bambu Studio, Windows 3D Viewer (not CuraEngine's command "
+           "line); beam-only files: beam-aware readers only (lib3mf)"),
     Format("ply", (".ply",), _k(M), _k(M, P), "binary PLY triangle mesh",
            "MeshLab, Blender, trimesh (not PrusaSlicer)"),
     Format("obj", (".obj",), _k(M), _k(M, P), "Wavefront OBJ triangle mesh",
-           "PrusaSlicer, Blender, MeshLab"),
+           "PrusaSlicer, Blender, MeshLab (not CuraEngine's command line)"),
     Format("off", (".off",), _k(), _k(M, P), "OFF triangle mesh", "MeshLab, CGAL, trimesh"),
     Format("step", (".step", ".stp"), _k(S), _k(P, S), "STEP AP214 B-rep solids (mm)",
            "every CAD tool (FreeCAD, CadQuery, SolidWorks, Fusion)"),

@@ -7,13 +7,17 @@ result are refused with :class:`ExportError` (binary STL counts triangles in 32 
 indexes with signed 32-bit integers), and files estimated above ``config.WARN_BYTES`` (2 GB,
 where many slicers fail) raise an :class:`ExportWarning`.
 
+Every writer is deterministic: the same input gives the same bytes (3MF UUIDs are derived
+from the content; graph ``.npz`` archives carry a fixed timestamp).
+
 ===========  ===========================================================  ==============
 format       content                                                      written with
 ===========  ===========================================================  ==============
 STL          binary STL of the mesh                                       numpy (core)
-3MF          3MF core mesh, or with ``beam_lattice=True`` the 3MF Beam    lib3mf
-             Lattice extension (beams with per-end radii, balls at the
-             nodes, the part as clipping mesh)
+3MF          3MF core mesh, or the 3MF Beam Lattice extension (beams      lib3mf
+             with per-end radii, balls at the nodes, the part as clipping
+             mesh) with the printable mesh as the triangles for readers
+             without the extension (or beam-only: tiny, few readers)
 PLY, OBJ     binary PLY, Wavefront OBJ                                    trimesh
 JSON, NPZ    the lattice graph (exact)                                    LatticeGraph
 STEP         exact B-rep solids                                           OpenCascade
@@ -23,9 +27,11 @@ STEP         exact B-rep solids                                           OpenCa
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import shutil
 import tempfile
+import uuid
 import warnings
 from pathlib import Path
 from typing import Any
@@ -35,7 +41,7 @@ from numpy.typing import NDArray
 
 from lattice_cad.core import config
 from lattice_cad.core.atomic import atomic_write
-from lattice_cad.core.errors import ExportError, ExportWarning
+from lattice_cad.core.errors import BeamOnlyWarning, ExportError, ExportWarning
 from lattice_cad.core.formats import Kind, format_for, suffixes
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh, mesh_arrays, stl_size, weld
@@ -43,6 +49,8 @@ from lattice_cad.core.mesh import Mesh, mesh_arrays, stl_size, weld
 __all__ = [
     "ExportError",
     "ExportWarning",
+    "BeamOnlyWarning",
+    "BEAM_UNAWARE_READERS",
     "MESH_SUFFIXES",
     "GRAPH_SUFFIXES",
     "estimate_bytes",
@@ -260,10 +268,23 @@ def _lib3mf() -> tuple[Any, Any]:
     return lib3mf, wrapper
 
 
-def _set_geometry(lib3mf: Any, mesh_obj: Any, v: NDArray[np.float64], f: NDArray[np.int64]) -> None:
-    """``MeshObject.SetGeometry`` from numpy arrays without per-element Python objects."""
+def _set_geometry(
+    lib3mf: Any,
+    mesh_obj: Any,
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    digest: Any = None,
+) -> None:
+    """``MeshObject.SetGeometry`` from numpy arrays without per-element Python objects.
+
+    ``digest`` (a hashlib object), if given, is updated with the bytes written.
+    """
     pos = np.ascontiguousarray(v, dtype=np.float32)
     tri = np.ascontiguousarray(f, dtype=np.uint32)
+    if digest is not None:
+        digest.update(np.uint64([len(pos), len(tri)]).tobytes())
+        digest.update(pos.tobytes())
+        digest.update(tri.tobytes())
     pbuf = (lib3mf.Position * len(pos)).from_buffer(pos) if len(pos) else None
     tbuf = (lib3mf.Triangle * len(tri)).from_buffer(tri) if len(tri) else None
     w = mesh_obj._wrapper
@@ -275,8 +296,40 @@ def _set_geometry(lib3mf: Any, mesh_obj: Any, v: NDArray[np.float64], f: NDArray
     )
 
 
+#: Namespace of the content-derived UUIDs in 3MF files (fixed: part of the file format).
+_UUID_NAMESPACE = uuid.UUID("6f0b7c52-9d1e-4b7a-a3c8-4c1f0e2d9b35")
+
+#: Readers reported not to open a 3MF whose built objects are beam lattices without
+#: triangles (PrusaSlicer 2.5 measured: "Found item with invalid object id").
+BEAM_UNAWARE_READERS = ("PrusaSlicer", "Bambu Studio", "Cura", "Windows 3D Viewer", "Netfabb")
+
+_NO_FACES = np.zeros((0, 3), dtype=np.int64)
+
+
+def _stable_uuid(digest: bytes, role: str) -> str:
+    """A UUID derived from the file's content and the element's role (name-based, v5)."""
+    return str(uuid.uuid5(_UUID_NAMESPACE, f"{digest.hex()}/{role}"))
+
+
+def _set_uuids(model: Any, objects: list[tuple[Any, str]], items: list[Any], digest: bytes) -> None:
+    """Replace lib3mf's random UUIDs (objects, build, build items) by content-derived ones,
+    so that the same model gives the same file."""
+    model.SetBuildUUID(_stable_uuid(digest, "build"))
+    for obj, role in objects:
+        obj.SetUUID(_stable_uuid(digest, f"object/{role}"))
+    for k, item in enumerate(items):
+        item.SetUUID(_stable_uuid(digest, f"item/{k}"))
+
+
+#: Decimals lib3mf writes per coordinate. Its default (6) moves coordinates below 1 mm by up
+#: to thousands of float32 steps (1e-6 mm); from 10 on, every coordinate is within one step
+#: of the float32 value (lib3mf's formatter is not exact at any setting; measured, lib3mf 2.5).
+THREEMF_DECIMALS = 10
+
+
 def _write_model(lib3mf: Any, model: Any, path: Path) -> None:
     writer = model.QueryWriter("3mf")
+    writer.SetDecimalPrecision(THREEMF_DECIMALS)
 
     def write(tmp: str) -> None:
         writer.WriteToFile(tmp)
@@ -290,8 +343,10 @@ def _save_3mf(path: Path, v: NDArray[np.float64], f: NDArray[np.int64], name: st
     model.SetUnit(lib3mf.ModelUnit.MilliMeter)
     mesh_obj = model.AddMeshObject()
     mesh_obj.SetName(name)
-    _set_geometry(lib3mf, mesh_obj, v, f)
-    model.AddBuildItem(mesh_obj, wrapper.GetIdentityTransform())
+    digest = hashlib.sha256(f"mesh {name}".encode())
+    _set_geometry(lib3mf, mesh_obj, v, f, digest)
+    item = model.AddBuildItem(mesh_obj, wrapper.GetIdentityTransform())
+    _set_uuids(model, [(mesh_obj, "mesh")], [item], digest.digest())
     _write_model(lib3mf, model, path)
 
 
@@ -361,11 +416,22 @@ def save_beam_lattice(
     graph: LatticeGraph,
     path: str | os.PathLike[str],
     *,
+    mesh: Any = None,
+    skin: Any = None,
     clip: Any = None,
     balls: bool = True,
     name: str = "lattice",
 ) -> Path:
-    """Write a graph as a 3MF Beam Lattice (a tiny file for printers that support it).
+    """Write a graph as a 3MF Beam Lattice, with or without triangles for other readers.
+
+    The beam-lattice object always holds the beams (per-end radii, caps, balls). The Beam
+    Lattice specification makes the extension *required* in the file and defines the
+    object's solid as the union of its triangles and its beams, so the printable mesh of
+    the lattice goes into the same object (``mesh=``): readers without the extension
+    (PrusaSlicer 2.5 measured; Bambu Studio shares its reader) ignore the beams and slice
+    the triangles, a beam-aware reader gets the triangles united with the round beams (the
+    polygonal struts of the mesh are inscribed in them). Without ``mesh`` the file holds
+    beams only: tiny, but most readers cannot open it (:class:`BeamOnlyWarning`).
 
     Parameters
     ----------
@@ -374,11 +440,19 @@ def save_beam_lattice(
         (butt) caps, the others spherical caps.
     path : path-like
         Must end in ``.3mf``.
+    mesh : mesh-like, optional
+        The printable triangle mesh of the lattice (``fast_stitch.Mesh``, Manifold,
+        trimesh or ``(vertices, faces)``; with a skin, skin and lattice united), written
+        as the triangles of the beam-lattice object. ``None`` writes a beam-only file.
+    skin : mesh-like, optional
+        A closed mesh written as a separate object of the build (the part's skin beside
+        a beam-only lattice).
     clip : mesh-like, optional
-        Closed mesh of the part (``fast_stitch.Mesh``, Manifold, trimesh or
-        ``(vertices, faces)``): written as a separate mesh object and referenced as
-        the lattice's clipping mesh (clip mode ``inside``), so the printer trims
-        the beams to the part.
+        Closed mesh of the part: written as a separate mesh object (not in the build) and
+        referenced as the lattice's clipping mesh (clip mode ``inside``), so a beam-aware
+        printer trims the beams to the part. PrusaSlicer 2.5 and its forks refuse any
+        3MF with an object outside the build ("Unable to find object"), so a file meant
+        for them (``mesh=``) should not have one.
     balls : bool
         Put a ball at every node of degree >= 2, with the largest radius of the
         struts there (smooth joints).
@@ -392,7 +466,18 @@ def save_beam_lattice(
     Raises
     ------
     ExportError
-        An empty graph, too many beams for 3MF, or lib3mf refusing the model.
+        An empty graph, too many vertices, triangles or beams for 3MF, or lib3mf refusing
+        the model.
+
+    Warns
+    -----
+    BeamOnlyWarning
+        Without ``mesh``: the readers that cannot open a beam-only file.
+
+    Notes
+    -----
+    The file is deterministic: every UUID lib3mf stores is derived from the content, so
+    the same input gives the same bytes.
     """
     p = Path(path)
     format_for(p, Kind.BEAM_LATTICE)
@@ -403,84 +488,136 @@ def save_beam_lattice(
     remap[used] = np.arange(len(used))
     nodes = graph.nodes[used]
     edges = remap[graph.edges]
-    check_limits(p, len(nodes), 0, n_beams=len(edges))
+    tri_v, tri_f = _arrays(mesh) if mesh is not None else (np.zeros((0, 3)), _NO_FACES)
+    skin_v, skin_f = _arrays(skin) if skin is not None else (np.zeros((0, 3)), _NO_FACES)
+    clip_v, clip_f = _arrays(clip) if clip is not None else (np.zeros((0, 3)), _NO_FACES)
+    if mesh is not None and len(tri_f) == 0:
+        raise ExportError(f"{p.name}: the triangle mesh of the lattice is empty")
+    if skin is not None and len(skin_f) == 0:
+        raise ExportError(f"{p.name}: the skin mesh is empty")
+    check_limits(
+        p,
+        len(nodes) + len(tri_v) + len(skin_v) + len(clip_v),
+        len(tri_f) + len(skin_f) + len(clip_f),
+        n_beams=len(edges),
+    )
+    if mesh is None:
+        warnings.warn(
+            f"{p.name} holds beams only (3MF Beam Lattice, no triangles): readers without "
+            f"the extension cannot open it ({', '.join(BEAM_UNAWARE_READERS)}); "
+            "save with beam_lattice=True (CLI: --beam-lattice) to add the triangle mesh "
+            "they read",
+            BeamOnlyWarning,
+            stacklevel=2,
+        )
     lib3mf, wrapper = _lib3mf()
     model = wrapper.CreateModel()
     model.SetUnit(lib3mf.ModelUnit.MilliMeter)
+    digest = hashlib.sha256(f"beam lattice {name} balls={balls}".encode())
     try:
+        objects: list[tuple[Any, str]] = []
         clip_obj = None
         if clip is not None:
-            cv, cf = _arrays(clip)
             clip_obj = model.AddMeshObject()
             clip_obj.SetName(f"{name} clipping mesh")
-            _set_geometry(lib3mf, clip_obj, cv, cf)
+            _set_geometry(lib3mf, clip_obj, clip_v, clip_f, digest)
+            objects.append((clip_obj, "clip"))
+        skin_obj = None
+        if skin is not None:
+            skin_obj = model.AddMeshObject()
+            skin_obj.SetName(f"{name} skin")
+            _set_geometry(lib3mf, skin_obj, skin_v, skin_f, digest)
+            objects.append((skin_obj, "skin"))
         obj = model.AddMeshObject()
         obj.SetName(name)
-        _set_geometry(lib3mf, obj, nodes, np.zeros((0, 3), dtype=np.int64))
-        bl = obj.BeamLattice()
-        bl.SetMinLength(float(min(1e-4, 0.5 * graph.edge_lengths.min())))
-        degree = graph.degree[used]
-        caps = np.where(
-            degree[edges] >= 2,
-            int(lib3mf.BeamLatticeCapMode.Sphere),
-            int(lib3mf.BeamLatticeCapMode.Butt),
-        ).astype(np.int32)
-        beams = np.zeros(
-            len(edges),
-            dtype=np.dtype(
-                {
-                    "names": ["idx", "rad", "cap"],
-                    "formats": [("<u4", (2,)), ("<f8", (2,)), ("<i4", (2,))],
-                    "offsets": [
-                        lib3mf.Beam.Indices.offset,
-                        lib3mf.Beam.Radii.offset,
-                        lib3mf.Beam.CapModes.offset,
-                    ],
-                    "itemsize": ctypes.sizeof(lib3mf.Beam),
-                }
-            ),
-        )
-        beams["idx"] = edges
-        beams["rad"] = graph.radii
-        beams["cap"] = caps
-        bbuf = (lib3mf.Beam * len(beams)).from_buffer(beams)
-        w = bl._wrapper
-        w.checkError(
-            bl, w.lib.lib3mf_beamlattice_setbeams(bl._handle, ctypes.c_uint64(len(beams)), bbuf)
-        )
-        if balls:
-            inner = np.flatnonzero(degree >= 2)
-            if len(inner):
-                rmax = np.zeros(len(nodes))
-                np.maximum.at(rmax, edges.ravel(), graph.radii.ravel())
-                ball_arr = np.zeros(
-                    len(inner),
-                    dtype=np.dtype(
-                        {
-                            "names": ["idx", "rad"],
-                            "formats": ["<u4", "<f8"],
-                            "offsets": [lib3mf.Ball.Index.offset, lib3mf.Ball.Radius.offset],
-                            "itemsize": ctypes.sizeof(lib3mf.Ball),
-                        }
-                    ),
-                )
-                ball_arr["idx"] = inner
-                ball_arr["rad"] = rmax[inner]
-                bl.SetBallOptions(lib3mf.BeamLatticeBallMode.Mixed, float(rmax[inner].min()))
-                abuf = (lib3mf.Ball * len(ball_arr)).from_buffer(ball_arr)
-                w.checkError(
-                    bl,
-                    w.lib.lib3mf_beamlattice_setballs(
-                        bl._handle, ctypes.c_uint64(len(ball_arr)), abuf
-                    ),
-                )
+        # the triangles' vertices first, then the lattice nodes the beams refer to
+        _set_geometry(lib3mf, obj, np.vstack([tri_v, nodes]), tri_f, digest)
+        objects.append((obj, "lattice"))
+        _set_beams(lib3mf, obj, graph, used, edges, len(tri_v), balls, digest)
         if clip_obj is not None:
-            bl.SetClipping(lib3mf.BeamLatticeClipMode.Inside, clip_obj.GetUniqueResourceID())
-        model.AddBuildItem(obj, wrapper.GetIdentityTransform())
+            obj.BeamLattice().SetClipping(
+                lib3mf.BeamLatticeClipMode.Inside, clip_obj.GetUniqueResourceID()
+            )
+        built = [o for o in (skin_obj, obj) if o is not None]
+        items = [model.AddBuildItem(o, wrapper.GetIdentityTransform()) for o in built]
+        _set_uuids(model, objects, items, digest.digest())
         _write_model(lib3mf, model, p)
     except lib3mf.ELib3MFException as exc:
         raise ExportError(f"{p.name}: lib3mf refused the beam lattice: {exc}") from None
     return p
+
+
+def _set_beams(
+    lib3mf: Any,
+    obj: Any,
+    graph: LatticeGraph,
+    used: NDArray[np.int64],
+    edges: NDArray[np.int64],
+    offset: int,
+    balls: bool,
+    digest: Any,
+) -> None:
+    """The beams (and balls) of ``graph`` on ``obj``, whose vertex ``offset + i`` is the
+    ``i``-th used node. used : (U,) int64 node ids, edges : (M, 2) int64 into ``used``."""
+    bl = obj.BeamLattice()
+    bl.SetMinLength(float(min(1e-4, 0.5 * graph.edge_lengths.min())))
+    degree = graph.degree[used]
+    caps = np.where(
+        degree[edges] >= 2,
+        int(lib3mf.BeamLatticeCapMode.Sphere),
+        int(lib3mf.BeamLatticeCapMode.Butt),
+    ).astype(np.int32)
+    beams = np.zeros(
+        len(edges),
+        dtype=np.dtype(
+            {
+                "names": ["idx", "rad", "cap"],
+                "formats": [("<u4", (2,)), ("<f8", (2,)), ("<i4", (2,))],
+                "offsets": [
+                    lib3mf.Beam.Indices.offset,
+                    lib3mf.Beam.Radii.offset,
+                    lib3mf.Beam.CapModes.offset,
+                ],
+                "itemsize": ctypes.sizeof(lib3mf.Beam),
+            }
+        ),
+    )
+    beams["idx"] = edges + offset
+    beams["rad"] = graph.radii
+    beams["cap"] = caps
+    for field in ("idx", "rad", "cap"):
+        digest.update(np.ascontiguousarray(beams[field]).tobytes())
+    bbuf = (lib3mf.Beam * len(beams)).from_buffer(beams)
+    w = bl._wrapper
+    w.checkError(
+        bl, w.lib.lib3mf_beamlattice_setbeams(bl._handle, ctypes.c_uint64(len(beams)), bbuf)
+    )
+    if not balls:
+        return
+    inner = np.flatnonzero(degree >= 2)
+    if not len(inner):
+        return
+    rmax = np.zeros(len(used))
+    np.maximum.at(rmax, edges.ravel(), graph.radii.ravel())
+    ball_arr = np.zeros(
+        len(inner),
+        dtype=np.dtype(
+            {
+                "names": ["idx", "rad"],
+                "formats": ["<u4", "<f8"],
+                "offsets": [lib3mf.Ball.Index.offset, lib3mf.Ball.Radius.offset],
+                "itemsize": ctypes.sizeof(lib3mf.Ball),
+            }
+        ),
+    )
+    ball_arr["idx"] = inner + offset
+    ball_arr["rad"] = rmax[inner]
+    digest.update(ball_arr["idx"].tobytes() + ball_arr["rad"].tobytes())
+    bl.SetBallOptions(lib3mf.BeamLatticeBallMode.Mixed, float(rmax[inner].min()))
+    abuf = (lib3mf.Ball * len(ball_arr)).from_buffer(ball_arr)
+    w.checkError(
+        bl, w.lib.lib3mf_beamlattice_setballs(bl._handle, ctypes.c_uint64(len(ball_arr)), abuf)
+    )
 
 
 # ------------------------------------------------------------------ reading
@@ -531,13 +668,29 @@ def read_beam_lattice(path: str | os.PathLike[str]) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``objects`` (mesh objects), ``beams``, ``balls`` and ``vertices`` (totals over
-        the objects with a beam lattice), ``clipped`` (whether one uses a clipping mesh).
+        ``objects`` (mesh objects), ``build_items``, and over the objects with a beam
+        lattice: ``beams``, ``balls``, ``vertices``, ``triangles`` (the triangle
+        representation readers without the extension use; 0 in a beam-only file) and
+        ``clipped`` (whether one uses a clipping mesh); ``skin_triangles``: triangles of
+        the other built objects (a skin beside a beam-only lattice).
     """
     p = Path(path)
     lib3mf, model = _read_3mf_model(p)
     objs = _mesh_objects(model)
-    out = {"objects": len(objs), "beams": 0, "balls": 0, "vertices": 0, "clipped": False}
+    built = set()
+    items = model.GetBuildItems()
+    while items.MoveNext():
+        built.add(items.GetCurrent().GetObjectResourceID())
+    out = {
+        "objects": len(objs),
+        "build_items": len(built),
+        "beams": 0,
+        "balls": 0,
+        "vertices": 0,
+        "triangles": 0,
+        "clipped": False,
+        "skin_triangles": 0,
+    }
     for obj in objs:
         bl = obj.BeamLattice()
         nb = bl.GetBeamCount()
@@ -545,8 +698,11 @@ def read_beam_lattice(path: str | os.PathLike[str]) -> dict[str, Any]:
             out["beams"] += nb
             out["balls"] += bl.GetBallCount()
             out["vertices"] += obj.GetVertexCount()
+            out["triangles"] += obj.GetTriangleCount()
             mode, _ = bl.GetClipping()
             out["clipped"] |= mode != lib3mf.BeamLatticeClipMode.NoClipMode
+        elif obj.GetResourceID() in built:
+            out["skin_triangles"] += obj.GetTriangleCount()
     return out
 
 
@@ -555,7 +711,9 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
 
     STL vertices are merged by position (STL stores each triangle separately);
     the other formats keep their indexing. A 3MF's triangle objects are
-    concatenated (clipping meshes of beam lattices are skipped).
+    concatenated (clipping meshes of beam lattices are skipped, and so are the beams: the
+    triangles of a beam-lattice object are its representation for readers without the
+    extension).
 
     Returns
     -------
@@ -584,6 +742,10 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
             if obj.GetUniqueResourceID() in clip_ids or obj.GetTriangleCount() == 0:
                 continue
             v, f = _get_geometry(lib3mf, obj)
+            if obj.BeamLattice().GetBeamCount():  # the beams' nodes are not on the surface
+                keep = np.zeros(len(v), dtype=bool)
+                keep[f.ravel()] = True
+                v, f = v[keep], (np.cumsum(keep) - 1)[f]
             vs.append(v)
             fs.append(f + base)
             base += len(v)
