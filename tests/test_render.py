@@ -22,13 +22,13 @@ from lattice_cad.render import (
     Marker,
     Panel,
     Section,
+    _kernels,
     camera_for,
     picture,
     shade,
     strut_angles,
     tubes,
 )
-from lattice_cad.render import _kernels
 from lattice_cad.render.geometry import _icosphere
 from lattice_cad.render.raster import BACKGROUND
 from tests.conftest import DATA, ROOT
