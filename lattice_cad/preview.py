@@ -37,7 +37,7 @@ MAX_TRIANGLES = 300_000
 MAX_STRUTS = 60_000
 #: The shaded style draws meshes up to this many triangles as they are, larger ones are
 #: simplified for display (vertex clustering) to about this many.
-MAX_SHADED_TRIANGLES = 12_000_000
+MAX_SHADED_TRIANGLES = 40_000_000
 #: Graphs with more struts are drawn as 6-sided tubes without balls at the nodes.
 MAX_TUBE_STRUTS = 400_000
 
@@ -306,7 +306,7 @@ def _graph_layer(graph: LatticeGraph, color_by: str, colorbar: list[Any]) -> tup
     )
 
 
-def _mesh_layer(v: Any, f: Any, max_triangles: int, notes: list[str]) -> Any:
+def _mesh_layer(v: Any, f: Any, max_triangles: int, notes: list[str], closed: bool) -> Any:
     from lattice_cad.render import Layer
 
     if len(f) > max_triangles:
@@ -317,7 +317,7 @@ def _mesh_layer(v: Any, f: Any, max_triangles: int, notes: list[str]) -> Any:
         )
     else:
         notes.append(f"{len(f):,} triangles")
-    return Layer(v, f, color=(0.80, 0.62, 0.25))
+    return Layer(v, f, color=(0.80, 0.62, 0.25), closed=closed)
 
 
 def render_png(
@@ -438,7 +438,10 @@ def _shaded_png(
             raise ValueError("cannot draw an empty mesh (no triangles)")
         if color_by not in ("auto", "none"):
             raise ValueError(f"color_by={color_by!r} needs a lattice graph, not a mesh")
-        layers.append(_mesh_layer(v, f, max_triangles, notes))
+        # lattice-cad's own meshes are closed and outward (their back faces need no drawing)
+        from lattice_cad.core.mesh import Mesh
+
+        layers.append(_mesh_layer(v, f, max_triangles, notes, closed=isinstance(obj, Mesh)))
     if part is not None:
         arrays = mesh_arrays(part)
         if arrays is None:

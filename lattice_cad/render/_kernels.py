@@ -283,3 +283,48 @@ def composite(
                 if line:
                     for c in range(3):
                         image[y, x, c] = 0.35 * image[y, x, c] + 0.65 * (0.30 + 0.04 * c)
+
+
+@numba.njit(cache=True)
+def tube_vertices(nodes, edges, radii, sides, verts, normals):  # pragma: no cover - compiled
+    """Ring vertices and radial normals of tapered tubes, in place.
+
+    ``verts`` and ``normals`` are (M * 2 * sides, 3): strut ``e`` owns rows
+    ``2 * sides * e`` .. ``2 * sides * (e + 1) - 1``, first the ring at its first
+    node, then the ring at its second node.
+    """
+    for e in range(edges.shape[0]):
+        a, b = edges[e, 0], edges[e, 1]
+        dx = nodes[b, 0] - nodes[a, 0]
+        dy = nodes[b, 1] - nodes[a, 1]
+        dz = nodes[b, 2] - nodes[a, 2]
+        length = max(np.sqrt(dx * dx + dy * dy + dz * dz), 1e-300)
+        ux, uy, uz = dx / length, dy / length, dz / length
+        # a unit vector across the strut: u x (1, 0, 0), or u x (0, 1, 0) when u is near x
+        if abs(ux) < 0.9:
+            px, py, pz = 0.0, uz, -uy
+        else:
+            px, py, pz = -uz, 0.0, ux
+        pl = np.sqrt(px * px + py * py + pz * pz)
+        px, py, pz = px / pl, py / pl, pz / pl
+        qx, qy, qz = uy * pz - uz * py, uz * px - ux * pz, ux * py - uy * px
+        r0, r1 = radii[e, 0], radii[e, 1]
+        slope = (r0 - r1) / length
+        base = 2 * sides * e
+        for k in range(sides):
+            t = 2.0 * np.pi * k / sides
+            cx = np.cos(t) * px + np.sin(t) * qx
+            cy = np.cos(t) * py + np.sin(t) * qy
+            cz = np.cos(t) * pz + np.sin(t) * qz
+            nx, ny, nz = cx + slope * ux, cy + slope * uy, cz + slope * uz
+            nl = np.sqrt(nx * nx + ny * ny + nz * nz)
+            for j in range(2):
+                i = base + j * sides + k
+                r = r0 if j == 0 else r1
+                n = a if j == 0 else b
+                verts[i, 0] = nodes[n, 0] + r * cx
+                verts[i, 1] = nodes[n, 1] + r * cy
+                verts[i, 2] = nodes[n, 2] + r * cz
+                normals[i, 0] = nx / nl
+                normals[i, 1] = ny / nl
+                normals[i, 2] = nz / nl

@@ -131,31 +131,18 @@ def tubes(
     nodes = np.asarray(nodes, dtype=np.float64)
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     radii = np.asarray(radii, dtype=np.float64).reshape(-1, 2)
+    from lattice_cad.render import _kernels
+
     m = len(edges)
-    p0, p1 = nodes[edges[:, 0]], nodes[edges[:, 1]]
-    d = p1 - p0
-    length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
-    u = d / length[:, None]
-    e = np.where(np.abs(u[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    v1 = np.cross(u, e)
-    v1 /= np.linalg.norm(v1, axis=1, keepdims=True)
-    v2 = np.cross(u, v1)
-    th = 2 * np.pi * np.arange(sides) / sides
-    ring = np.cos(th)[None, :, None] * v1[:, None, :] + np.sin(th)[None, :, None] * v2[:, None, :]
-    r0, r1 = radii[:, 0][:, None, None], radii[:, 1][:, None, None]
-    verts = np.concatenate([p0[:, None, :] + r0 * ring, p1[:, None, :] + r1 * ring], axis=1)
-    slope = ((radii[:, 0] - radii[:, 1]) / length)[:, None, None] * u[:, None, :]
-    n = ring + slope
-    n /= np.linalg.norm(n, axis=2, keepdims=True)
-    normals = np.concatenate([n, n], axis=1)
+    verts = np.empty((2 * sides * m, 3), dtype=np.float64)
+    normals = np.empty((2 * sides * m, 3), dtype=np.float32)
+    _kernels.tube_vertices(nodes, edges, radii, sides, verts, normals)
     k = np.arange(sides)
     k1 = (k + 1) % sides
     local = np.concatenate(
         [np.stack([k, k1, sides + k1], 1), np.stack([k, sides + k1, sides + k], 1)]
     )
     faces = (local[None, :, :] + (2 * sides * np.arange(m))[:, None, None]).reshape(-1, 3)
-    verts = verts.reshape(-1, 3)
-    normals = normals.reshape(-1, 3)
     scalars = None
     if end_values is not None:
         ev = np.asarray(end_values, dtype=np.float64).reshape(-1, 2)
@@ -169,7 +156,7 @@ def tubes(
         bf = sf[None, :, :] + (len(verts) + len(sv) * np.arange(len(used)))[:, None, None]
         verts = np.concatenate([verts, bv.reshape(-1, 3)])
         faces = np.concatenate([faces, bf.reshape(-1, 3)])
-        normals = np.concatenate([normals, np.tile(sv, (len(used), 1))])
+        normals = np.concatenate([normals, np.tile(sv, (len(used), 1)).astype(np.float32)])
         if scalars is not None:
             ns = (
                 np.asarray(node_scalars, dtype=np.float64)
@@ -177,4 +164,4 @@ def tubes(
                 else node_values(len(nodes), edges, end_values, "max")  # type: ignore[arg-type]
             )
             scalars = np.concatenate([scalars, np.repeat(ns[used], len(sv))])
-    return verts, faces, normals.astype(np.float32), scalars
+    return verts, faces, normals.astype(np.float32, copy=False), scalars
