@@ -187,7 +187,7 @@ def test_picture_colour_bar_maps_the_scalars(graded):
     assert hue_dist(left, lut[0]) < hue_dist(left, lut[-1])
     assert hue_dist(right, lut[-1]) < hue_dist(right, lut[0])
     # the colour bar itself is smooth (the palette keeps its colours)
-    bar = img[-58, img.shape[1] // 4 + 5 : 3 * img.shape[1] // 4 - 5]
+    bar = img[-84, img.shape[1] // 4 + 5 : 3 * img.shape[1] // 4 - 5]
     assert len(np.unique(bar.round(3), axis=0)) > 40
 
 
@@ -236,7 +236,7 @@ def test_preview_pictures_are_framed(bracket_lattice, options):
     assert len(png) < 300_000
     img = _pixels(png)
     n_panels = len(options.get("views", ["iso"])) + ("section" in options)
-    top, bottom = 8, 30 + (64 if options.get("color_by") == "overhang" else 0)
+    top, bottom = 8, 26 + (78 if options.get("color_by") == "overhang" else 0)
     width = 640 // n_panels
     for k in range(n_panels):
         _assert_framed(_object_mask(img[top : 480 - bottom, k * width : (k + 1) * width]))

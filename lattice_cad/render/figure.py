@@ -61,7 +61,7 @@ class Panel:
 def _bands(n_panels: int, size: tuple[int, int], colorbar: bool, title: bool) -> dict[str, Any]:
     w, h = size
     top = 34 if title else 8
-    bottom = 30 + (64 if colorbar else 0)
+    bottom = 26 + (78 if colorbar else 0)
     ph = max(h - top - bottom, 32)
     pw = max(w // n_panels, 32)
     return {"top": top, "bottom": bottom, "panel": (pw, ph)}
@@ -144,7 +144,7 @@ def picture(
     if colorbar is not None:
         _draw_colorbar(fig, colorbar, (w, h), bands)
     if caption:
-        fig.text(8 / w, 8 / h, caption, ha="left", va="bottom", fontsize=8.5, color="0.35")
+        fig.text(8 / w, 5 / h, caption, ha="left", va="bottom", fontsize=8.5, color="0.35")
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     keep = None
@@ -200,7 +200,7 @@ def _draw_colorbar(fig: Any, cb: ColorBar, size: tuple[int, int], bands: dict[st
     lo, hi = cb.limits
     if not hi > lo:
         lo, hi = lo - 0.5 * max(abs(lo), 1e-9), hi + 0.5 * max(abs(hi), 1e-9)
-    cax = fig.add_axes((0.25, (bands["bottom"] - 44) / h, 0.5, 16 / h))
+    cax = fig.add_axes((0.25, (bands["bottom"] - 28) / h, 0.5, 16 / h))
     sm = ScalarMappable(norm=Normalize(lo, hi), cmap=colormaps[cb.colormap])
     bar = fig.colorbar(sm, cax=cax, orientation="horizontal")
     bar.set_label(cb.label, fontsize=10)
