@@ -12,7 +12,7 @@
     lattice-cad validate GRAPH_OR_PART --report DIR
     lattice-cad cells
     lattice-cad check MESH
-    lattice-cad preview FILE -o PNG
+    lattice-cad preview FILE -o PNG [--section z[=MM]] [--part PART] [--color-by radius|overhang]
 
 Exit codes: 0 success, 1 error (one readable line on stderr; ``--debug`` shows
 the traceback) or an invalid mesh for ``check``, 2 wrong usage, 130 interrupted.
@@ -196,7 +196,7 @@ def _write_report(con: _Console, lat: Any, directory: str) -> None:
     from lattice_cad.preview import save_png
 
     with con.step("preview"):
-        save_png(lat.graph, d / "lattice.png")
+        save_png(lat, d / "lattice.png", section="z" if lat.part is not None else None)
     with con.step("validate"):
         lat.validate(report=d / "report.html")
     con.say(f"report: {d / 'report.html'}")
@@ -385,8 +385,17 @@ def _cmd_preview(args: argparse.Namespace, con: _Console) -> int:
     from lattice_cad.preview import save_png
 
     out = Path(args.output)
+    options = {
+        "size": (args.width, args.height),
+        "style": args.style,
+        "section": args.section,
+        "part": args.part,
+        "color_by": args.color_by,
+    }
+    if args.views:
+        options["views"] = [v.strip() for v in args.views.split(",") if v.strip()]
     with con.step("render"):
-        save_png(args.file, out, size=(args.width, args.height))
+        save_png(args.file, out, **options)
     con.say(f"wrote {out}")
     return 0
 
@@ -666,8 +675,29 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("file", help="graph, mesh or part file")
     p.add_argument("-o", "--output", required=True, help="output .png")
-    p.add_argument("--width", type=int, default=900, help="pixels (default 900)")
-    p.add_argument("--height", type=int, default=700, help="pixels (default 700)")
+    p.add_argument("--width", type=int, default=1200, help="pixels (default 1200)")
+    p.add_argument("--height", type=int, default=900, help="pixels (default 900)")
+    p.add_argument(
+        "--section",
+        metavar="x|y|z[=MM]",
+        help="add a cut-away view at that plane (default: through the middle)",
+    )
+    p.add_argument("--part", metavar="PART", help="draw this part (.step or mesh) as a ghost")
+    p.add_argument(
+        "--color-by",
+        choices=["auto", "radius", "overhang", "none"],
+        default="auto",
+        help="colour struts by radius (auto: when graded) or by angle to the build plate",
+    )
+    p.add_argument(
+        "--views", metavar="V1,V2", help="several views side by side: iso, top, front, right"
+    )
+    p.add_argument(
+        "--style",
+        choices=["shaded", "wireframe"],
+        default="shaded",
+        help="shaded render (default) or the matplotlib wireframe",
+    )
     p.set_defaults(func=_cmd_preview)
     return parser
 

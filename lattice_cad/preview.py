@@ -1,12 +1,18 @@
 """Offscreen pictures (PNG) of lattices, meshes and parts.
 
-Rendering uses matplotlib's Agg canvas directly (no pyplot, no display, no
-global backend switch). It stays fast on large inputs by drawing less:
+Two styles:
 
-* a :class:`~lattice_cad.LatticeGraph` is drawn as line segments coloured by
-  strut radius (at most ``max_struts`` of them, an evenly spread subset);
-* a triangle mesh is drawn flat-shaded from at most ``max_triangles`` triangles
-  (an evenly spread subset when there are more).
+* ``"shaded"`` (default): lit, shaded renders from :mod:`lattice_cad.render`
+  (a software rasteriser: no display, no GPU, no extra package). A graph is
+  drawn as tubes (one per strut, a ball per node), a mesh as its surface, a
+  part as a translucent ghost around the lattice; the picture is framed on the
+  object, can be cut away (``section="z"`` or ``"z=12.5"``) and coloured by
+  strut radius or by the struts' angle to the build plate, with a colour bar.
+* ``"wireframe"``: the former matplotlib 3D line drawing (one line per strut,
+  flat-shaded triangles), kept as a fallback.
+
+Large meshes are simplified for display only (vertex clustering above
+``max_triangles``; the caption says so); the saved files are never touched.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from __future__ import annotations
 import io
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,12 +28,21 @@ from numpy.typing import NDArray
 from lattice_cad.core.atomic import atomic_write
 from lattice_cad.core.graph import LatticeGraph
 
-__all__ = ["render", "render_png", "save_png", "load_for_preview"]
+__all__ = ["render", "render_png", "save_png", "load_for_preview", "parse_section"]
 
-#: Default caps on what is drawn (keeps a 1M-triangle mesh under a few seconds).
-#: Meshes with more triangles are simplified by vertex clustering (never by dropping faces).
+#: Default caps on what the wireframe style draws (keeps a 1M-triangle mesh under a few
+#: seconds). Meshes with more triangles are simplified by vertex clustering (never by dropping
+#: faces).
 MAX_TRIANGLES = 300_000
 MAX_STRUTS = 60_000
+#: The shaded style draws meshes up to this many triangles as they are, larger ones are
+#: simplified for display (vertex clustering) to about this many.
+MAX_SHADED_TRIANGLES = 40_000_000
+#: Graphs with more struts are drawn as 6-sided tubes without balls at the nodes.
+MAX_TUBE_STRUTS = 400_000
+
+Style = Literal["shaded", "wireframe"]
+ColorBy = Literal["auto", "radius", "overhang", "none"]
 
 
 def _subset(n: int, k: int) -> NDArray[np.int64]:
@@ -159,7 +174,7 @@ def load_for_preview(path: str | os.PathLike[str]) -> Any:
     return read_mesh(p)
 
 
-def render_png(
+def _wireframe_png(
     obj: Any,
     *,
     size: tuple[int, int] = (900, 700),
@@ -168,7 +183,7 @@ def render_png(
     max_triangles: int = MAX_TRIANGLES,
     max_struts: int = MAX_STRUTS,
 ) -> bytes:
-    """A PNG picture of ``obj`` as bytes.
+    """A matplotlib wireframe PNG of ``obj`` (the ``"wireframe"`` style).
 
     Parameters
     ----------
@@ -231,3 +246,224 @@ def save_png(obj: Any, path: str | os.PathLike[str], **options: Any) -> Path:
 
 
 render = save_png
+
+
+# ------------------------------------------------------------------------ shaded
+def parse_section(text: str) -> tuple[int, float | None]:
+    """``"x"``, ``"y"``, ``"z"`` or ``"z=12.5"`` -> (axis, value or None for the middle)."""
+    t = str(text).strip().lower().replace(" ", "")
+    axis, _, value = t.partition("=")
+    if axis not in ("x", "y", "z"):
+        raise ValueError(f"section must be x, y or z, optionally with =VALUE (mm); got {text!r}")
+    if not value:
+        return "xyz".index(axis), None
+    try:
+        return "xyz".index(axis), float(value)
+    except ValueError:
+        raise ValueError(f"section value must be a number of mm; got {text!r}") from None
+
+
+def _graph_layer(graph: LatticeGraph, color_by: str, colorbar: list[Any]) -> tuple[Any, str]:
+    from lattice_cad.render import ColorBar, Layer, node_values, strut_angles, tubes
+
+    radii = graph.radii
+    if color_by == "auto":
+        graded = float(radii.max() - radii.min()) > 1e-9 * max(float(radii.max()), 1e-300)
+        color_by = "radius" if graded else "none"
+    end_values = node_scalars = None
+    if color_by == "radius":
+        end_values = radii
+        colorbar.append(
+            ColorBar("strut radius (mm)", (float(radii.min()), float(radii.max())), "viridis")
+        )
+    elif color_by == "overhang":
+        ang = strut_angles(graph.nodes, graph.edges)
+        end_values = np.repeat(ang[:, None], 2, axis=1)
+        # a ball takes the flattest (worst) strut angle at its node
+        node_scalars = -node_values(graph.num_nodes, graph.edges, -end_values)
+        colorbar.append(
+            ColorBar(
+                "strut angle to the build plate (°; below 45° overhangs)",
+                (0.0, 90.0),
+                "RdYlBu",
+                threshold=45.0,
+            )
+        )
+    elif color_by != "none":
+        raise ValueError(f"color_by must be auto, radius, overhang or none; got {color_by!r}")
+    small = graph.num_edges <= MAX_TUBE_STRUTS
+    v, f, n, sc = tubes(
+        graph.nodes,
+        graph.edges,
+        radii,
+        sides=8 if small else 6,
+        end_values=end_values,
+        node_scalars=node_scalars,
+        balls=small,
+    )
+    return Layer(v, f, n, sc, color=(0.80, 0.62, 0.25), closed=True), (
+        f"{graph.num_edges:,} struts"
+    )
+
+
+def _mesh_layer(v: Any, f: Any, max_triangles: int, notes: list[str], closed: bool) -> Any:
+    from lattice_cad.render import Layer
+
+    if len(f) > max_triangles:
+        n0 = len(f)
+        v, f = _cluster(np.asarray(v, dtype=np.float64), np.asarray(f), max_triangles)
+        notes.append(
+            f"{n0:,} triangles, simplified to {len(f):,} for display only (the file is unchanged)"
+        )
+    else:
+        notes.append(f"{len(f):,} triangles")
+    return Layer(v, f, color=(0.80, 0.62, 0.25), closed=closed)
+
+
+def render_png(
+    obj: Any,
+    *,
+    size: tuple[int, int] = (1200, 900),
+    view: str | tuple[float, float] = "iso",
+    section: str | None = None,
+    views: list[str] | tuple[str, ...] | None = None,
+    part: Any = None,
+    color_by: ColorBy = "auto",
+    title: str | None = None,
+    caption: str | None = None,
+    style: Style = "shaded",
+    max_triangles: int | None = None,
+    max_struts: int = MAX_STRUTS,
+) -> bytes:
+    """A PNG picture of ``obj`` as bytes.
+
+    Parameters
+    ----------
+    obj : LatticeGraph, Lattice, mesh-like, conformal.Part or path
+        A ``Lattice`` is drawn as its graph with its part as a ghost; a path is
+        read with :func:`load_for_preview`.
+    size : (int, int)
+        Width and height in pixels.
+    view : str or (float, float)
+        A named view (``"iso"``, ``"top"``, ``"front"``, ``"right"``, ...); the
+        wireframe style takes (elevation, azimuth) in degrees.
+    section : str, optional
+        ``"x"``, ``"y"``, ``"z"`` (through the middle) or ``"z=12.5"`` (mm): a
+        second panel cut away at that plane, showing the lattice inside the part.
+    views : sequence of str, optional
+        Several named views side by side (the section, if any, comes last).
+    part : mesh-like, conformal.Part or path, optional
+        Drawn as a translucent ghost around ``obj``.
+    color_by : "auto", "radius", "overhang" or "none"
+        For graphs: strut radius (``"auto"``: when the radii vary), or each
+        strut's angle to the build plate (xy), with a colour bar.
+    title, caption : str, optional
+        The caption defaults to what is drawn (and whether it was simplified).
+    style : "shaded" or "wireframe"
+        ``"wireframe"`` is the former matplotlib drawing (``view`` is then
+        (elevation, azimuth); ``section``, ``part`` and ``color_by`` are ignored).
+    max_triangles : int, optional
+        Meshes with more triangles are simplified for display (default
+        :data:`MAX_SHADED_TRIANGLES`, :data:`MAX_TRIANGLES` for wireframes).
+    max_struts : int
+        Wireframe style only: at most this many struts are drawn.
+
+    Returns
+    -------
+    bytes
+    """
+    if style == "wireframe":
+        wf_view = view if isinstance(view, tuple) else (25.0, -60.0)
+        return _wireframe_png(
+            obj,
+            size=size,
+            view=wf_view,
+            title=title,
+            max_triangles=max_triangles or MAX_TRIANGLES,
+            max_struts=max_struts,
+        )
+    if style != "shaded":
+        raise ValueError(f"style must be 'shaded' or 'wireframe'; got {style!r}")
+    return _shaded_png(
+        obj,
+        size=size,
+        views=list(views) if views else [view if isinstance(view, str) else "iso"],
+        section=section,
+        part=part,
+        color_by=color_by,
+        title=title,
+        caption=caption,
+        max_triangles=max_triangles or MAX_SHADED_TRIANGLES,
+    )
+
+
+def _shaded_png(
+    obj: Any,
+    *,
+    size: tuple[int, int],
+    views: list[str],
+    section: str | None,
+    part: Any,
+    color_by: str,
+    title: str | None,
+    caption: str | None,
+    max_triangles: int,
+) -> bytes:
+    from lattice_cad.core.mesh import mesh_arrays
+    from lattice_cad.render import Layer, Panel, Section, picture
+
+    if isinstance(obj, (str, os.PathLike)):
+        obj = load_for_preview(obj)
+    if hasattr(obj, "graph") and isinstance(obj.graph, LatticeGraph):
+        if part is None:
+            part = getattr(obj, "part", None)
+        obj = obj.graph
+    if isinstance(part, (str, os.PathLike)):
+        part = load_for_preview(part)
+    layers: list[Any] = []
+    colorbar: list[Any] = []
+    notes: list[str] = []
+    if isinstance(obj, LatticeGraph):
+        if obj.num_edges == 0:
+            raise ValueError("cannot draw an empty graph (no struts)")
+        layer, what = _graph_layer(obj, color_by, colorbar)
+        layers.append(layer)
+        notes.append(what)
+    else:
+        arrays = mesh_arrays(obj)
+        if arrays is None:
+            raise TypeError(f"cannot draw a {type(obj).__name__}")
+        v, f = arrays
+        if len(f) == 0:
+            raise ValueError("cannot draw an empty mesh (no triangles)")
+        if color_by not in ("auto", "none"):
+            raise ValueError(f"color_by={color_by!r} needs a lattice graph, not a mesh")
+        # lattice-cad's own meshes are closed and outward (their back faces need no drawing)
+        from lattice_cad.core.mesh import Mesh
+
+        layers.append(_mesh_layer(v, f, max_triangles, notes, closed=isinstance(obj, Mesh)))
+    if part is not None:
+        arrays = mesh_arrays(part)
+        if arrays is None:
+            raise TypeError(f"cannot draw a part given as {type(part).__name__}")
+        layers.append(
+            Layer(arrays[0], arrays[1], style="ghost", color=(0.50, 0.58, 0.70), closed=True)
+        )
+        notes.append("part shown as a ghost")
+    panels = [Panel(v) for v in views]
+    if section is not None:
+        axis, value = parse_section(section)
+        if value is None:
+            lo = min(float(layer.vertices[:, axis].min()) for layer in layers)
+            hi = max(float(layer.vertices[:, axis].max()) for layer in layers)
+            value = 0.5 * (lo + hi)
+        panels.append(Panel(views[0] if len(views) == 1 else "iso", Section(axis, value)))
+    png, _ = picture(
+        layers,
+        panels=panels,
+        size=size,
+        colorbar=colorbar[0] if colorbar else None,
+        title=title,
+        caption=caption if caption is not None else "; ".join(notes),
+    )
+    return png

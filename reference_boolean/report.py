@@ -1,8 +1,10 @@
 """Writers of :class:`~reference_boolean.compare.ValidationReport`: JSON, Markdown, HTML.
 
-The HTML file is self-contained: its plots (volume convergence, deviation
-histogram, the lattice coloured by local deviation) are matplotlib PNGs
-rendered offscreen with the Agg backend and embedded as base64.
+The HTML file is self-contained: its first screen is a shaded render of the
+lattice coloured by local deviation from the exact reference, with the worst
+nodes numbered (:mod:`lattice_cad.render`, offscreen); the plots below the
+tables (volume convergence, deviation histogram) are matplotlib PNGs rendered
+with the Agg backend. Every picture is embedded as base64.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from lattice_cad.core.formats import Kind, format_for
 if TYPE_CHECKING:
     from reference_boolean.compare import ValidationReport
 
-__all__ = ["save", "to_markdown", "to_html", "plots"]
+__all__ = ["save", "to_markdown", "to_html", "plots", "lattice_render"]
 
 
 def _json_default(o: Any) -> Any:
@@ -197,7 +199,7 @@ def to_markdown(rep: ValidationReport) -> str:
 
 
 def plots(rep: ValidationReport) -> dict[str, bytes]:
-    """PNG bytes of the plots: ``convergence``, ``histogram``, ``lattice``."""
+    """PNG bytes of the pictures: ``lattice`` (the render), ``convergence``, ``histogram``."""
     # Figure + FigureCanvasAgg directly: no pyplot, no global backend switch, no window
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -243,36 +245,54 @@ def plots(rep: ValidationReport) -> dict[str, bytes]:
         ax.set_title("surface deviation" + ("" if many else f": {rep.label}"))
         ax.legend()
         out["histogram"] = png(fig)
-    g = rep.graph
-    fig = Figure(figsize=(6, 5))
-    ax = fig.add_subplot(projection="3d")
-    from matplotlib import colormaps
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+    return {"lattice": lattice_render(rep), **out}
 
-    segs = g.nodes[g.edges]
-    dev = rep.node_deviation
-    if np.isfinite(dev).any():
-        ed = np.fmax(dev[g.edges[:, 0]], dev[g.edges[:, 1]])
-        lo, hi = float(np.nanmin(ed)), float(np.nanmax(ed))
-        norm = (ed - lo) / (hi - lo) if hi > lo else np.zeros_like(ed)
-        colors = colormaps["viridis"](np.nan_to_num(norm))
-        title = f"local deviation {lo:.3g} .. {hi:.3g}"
-    else:
-        colors = "0.4"
-        title = "lattice"
-    ax.add_collection3d(Line3DCollection(segs, colors=colors, linewidths=1.5))
-    lo3, hi3 = g.bounds
-    ax.set_xlim(lo3[0], hi3[0] if hi3[0] > lo3[0] else lo3[0] + 1)
-    ax.set_ylim(lo3[1], hi3[1] if hi3[1] > lo3[1] else lo3[1] + 1)
-    ax.set_zlim(lo3[2], hi3[2] if hi3[2] > lo3[2] else lo3[2] + 1)
-    failed = list(rep.reference.failed)
-    if failed:
-        p = g.nodes[failed]
-        ax.scatter(p[:, 0], p[:, 1], p[:, 2], color="red", s=20, label="failed hubs")
-        ax.legend()
-    ax.set_title(title)
-    out["lattice"] = png(fig)
-    return out
+
+#: Worst nodes numbered on the report's render.
+WORST_MARKED = 5
+
+
+def lattice_render(rep: ValidationReport, *, size: tuple[int, int] = (1100, 780)) -> bytes:
+    """PNG of the lattice as shaded tubes coloured by local deviation, worst nodes numbered.
+
+    Failed hubs (if any) are marked ``failed``.
+    """
+    from lattice_cad.render import ColorBar, Layer, Marker, picture, tubes
+
+    g = rep.graph
+    dev = np.asarray(rep.node_deviation, dtype=np.float64)
+    has = bool(np.isfinite(dev).any())
+    small = g.num_edges <= 400_000
+    v, f, n, sc = tubes(
+        g.nodes,
+        g.edges,
+        g.radii,
+        sides=8 if small else 6,
+        end_values=dev[g.edges] if has else None,
+        node_scalars=dev if has else None,
+        balls=small,
+    )
+    worst = rep.worst_nodes(WORST_MARKED)
+    markers = [Marker(tuple(map(float, g.nodes[i])), str(k)) for k, (i, _) in enumerate(worst, 1)]
+    markers += [Marker(tuple(map(float, g.nodes[int(i)])), "failed") for i in rep.reference.failed]
+    colorbar = None
+    if has:
+        lo, hi = float(np.nanmin(dev)), float(np.nanmax(dev))
+        colorbar = ColorBar("local deviation from the exact reference (mm)", (lo, hi), "plasma")
+    caption = f"{g.num_edges:,} struts ({rep.label})"
+    if worst:
+        caption += "; worst nodes: " + ", ".join(
+            f"{k}: node {i} ({d:.3g} mm)" for k, (i, d) in enumerate(worst, 1)
+        )
+    png, _ = picture(
+        [Layer(v, f, n, sc, color=(0.80, 0.62, 0.25), closed=True)],
+        size=size,
+        colorbar=colorbar,
+        title="local deviation from the exact reference" if has else "lattice",
+        caption=caption,
+        markers=markers,
+    )
+    return png
 
 
 def to_html(rep: ValidationReport) -> str:
@@ -284,6 +304,16 @@ def to_html(rep: ValidationReport) -> str:
         "padding:2px 8px;text-align:left}</style></head><body>",
         "<h1>Lattice accuracy report</h1>",
     ]
+    figures = plots(rep)
+
+    def figure(name: str, data: bytes) -> str:
+        b64 = base64.b64encode(data).decode("ascii")
+        return (
+            f"<figure><img alt='{name}' src='data:image/png;base64,{b64}' style='max-width:100%'>"
+            f"<figcaption>{name}</figcaption></figure>"
+        )
+
+    parts.append(figure("lattice", figures.pop("lattice")))
     for title, cols, rows in _tables(rep):
         parts.append(f"<h2>{html.escape(title)}</h2><table><tr>")
         parts += [f"<th>{html.escape(c)}</th>" for c in cols]
@@ -292,11 +322,6 @@ def to_html(rep: ValidationReport) -> str:
             parts.append("<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in r) + "</tr>")
         parts.append("</table>")
     parts.append("<h2>Plots</h2>")
-    for name, data in plots(rep).items():
-        b64 = base64.b64encode(data).decode("ascii")
-        parts.append(
-            f"<figure><img alt='{name}' src='data:image/png;base64,{b64}'>"
-            f"<figcaption>{name}</figcaption></figure>"
-        )
+    parts += [figure(name, data) for name, data in figures.items()]
     parts.append("</body></html>")
     return "\n".join(parts)

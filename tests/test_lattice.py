@@ -259,7 +259,8 @@ def test_preview_of_a_million_triangles_is_fast(tmp_path):
     t0 = time.perf_counter()
     preview.save_png(g, tmp_path / "graph.png")
     t_graph = time.perf_counter() - t0
-    assert t_mesh < 5.0 and t_graph < 5.0, (t_mesh, t_graph)
+    # shaded 1200 x 900 (rendered at 2400 x 1800): ~2 s each on a quiet 2-core machine
+    assert t_mesh < 10.0 and t_graph < 10.0, (t_mesh, t_graph)
 
 
 def test_preview_simplifies_without_holes(monkeypatch):
