@@ -3,7 +3,8 @@
 ::
 
     lattice-cad fill PART -o OUT [--cell --cell-size --radius --method --fill --skin
-                                  --segments --beam-lattice --report DIR]
+                                  --segments --beam-lattice --report DIR
+                                  --max-brep-struts N]
     lattice-cad stitch GRAPH -o OUT [--segments]
     lattice-cad reference GRAPH -o OUT
     lattice-cad validate GRAPH_OR_PART --report DIR
@@ -34,7 +35,7 @@ __all__ = ["main", "build_parser"]
 
 _OUTPUT_HELP = (
     "output file; the format follows the suffix: .stl .3mf .ply .obj (mesh), "
-    ".json .npz (graph), .step (exact B-rep)"
+    ".json .npz (graph), .step (exact B-rep: one solid per body, trimmed to a STEP part)"
 )
 
 
@@ -80,6 +81,16 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not value > 0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
     return value
 
 
@@ -156,12 +167,29 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3")
         if lat.skin_report is not None:
             con.say(lat.skin_report.summary())
-    with con.step(f"write {out.suffix.lstrip('.')}"):
-        lat.save(out, beam_lattice=args.beam_lattice)
+    if out.suffix.lower() in suffixes(Kind.SOLIDS):
+        _save_step(con, lat, out, args.max_brep_struts)
+    else:
+        with con.step(f"write {out.suffix.lstrip('.')}"):
+            lat.save(out, beam_lattice=args.beam_lattice)
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
     if args.report:
         _write_report(con, lat, args.report)
     return 0
+
+
+def _save_step(con: _Console, lat: Any, out: Path, max_struts: int | None) -> None:
+    """The exact B-rep to STEP: refused before any work when too large (with the estimate)."""
+    from lattice_cad.brep import save_step
+
+    with con.step("B-rep + write step") as progress:
+        _, rep = save_step(
+            lat, out, max_struts=max_struts, option="--max-brep-struts ", progress=progress
+        )
+    con.say(
+        f"{rep.solids} solid(s) (BRepCheck valid), volume {rep.volume:.6g} mm^3"
+        + (", trimmed to the part" if rep.estimate.trim else "")
+    )
 
 
 def _cmd_stitch(args: argparse.Namespace, con: _Console) -> int:
@@ -336,6 +364,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="with a .3mf output: write the 3MF Beam Lattice extension (tiny file)",
     )
     p.add_argument("--report", metavar="DIR", help="also write a validation report and pictures")
+    p.add_argument(
+        "--max-brep-struts",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help=f"with a .step output: build the exact B-rep for up to N struts (default "
+        f"{config.MAX_BREP_STRUTS:,}; larger lattices are refused with an estimate of the "
+        "time and size)",
+    )
     p.set_defaults(func=_cmd_fill)
 
     p = sub.add_parser(
