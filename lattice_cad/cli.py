@@ -6,7 +6,8 @@
                                   --segments --beam-lattice[=only] --report DIR
                                   --build-direction X,Y,Z --critical-angle DEG
                                   --min-diameter MM --remove-overhangs --self-supporting
-                                  --escape-holes D --escape-at X,Y,Z]
+                                  --escape-holes D --escape-at X,Y,Z
+                                  --max-brep-struts N]
     lattice-cad stitch GRAPH -o OUT [--segments --beam-lattice[=only]]
     lattice-cad reference GRAPH -o OUT
     lattice-cad validate GRAPH_OR_PART --report DIR
@@ -37,7 +38,8 @@ __all__ = ["main", "build_parser"]
 
 _OUTPUT_HELP = (
     "output file; the format follows the suffix: .stl .3mf .ply .obj (mesh), "
-    ".json .npz (graph), .step (exact B-rep), .inp (CalculiX/Abaqus beam model)"
+    ".json .npz (graph), .step (exact B-rep: one solid per body, trimmed to a STEP part), "
+    ".inp (CalculiX/Abaqus beam model)"
 )
 
 
@@ -83,6 +85,16 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not value > 0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
     return value
 
 
@@ -288,17 +300,34 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             con.say(lat.trim_report.summary())
         if lat.escape_report is not None:
             con.say(lat.escape_report.summary())
-    with con.step(f"write {out.suffix.lstrip('.')}"):
-        if fe_options is not None:
-            lat.save_inp(out, **fe_options)
-        else:
-            lat.save(out, beam_lattice=_beam_lattice_mode(args))
+    if out.suffix.lower() in suffixes(Kind.SOLIDS):
+        _save_step(con, lat, out, args.max_brep_struts)
+    else:
+        with con.step(f"write {out.suffix.lstrip('.')}"):
+            if fe_options is not None:
+                lat.save_inp(out, **fe_options)
+            else:
+                lat.save(out, beam_lattice=_beam_lattice_mode(args))
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
     if fe_options is not None:
         con.say(lat.fe_model.summary())
     if args.report:
         _write_report(con, lat, args.report)
     return 0
+
+
+def _save_step(con: _Console, lat: Any, out: Path, max_struts: int | None) -> None:
+    """The exact B-rep to STEP: refused before any work when too large (with the estimate)."""
+    from lattice_cad.brep import save_step
+
+    with con.step("B-rep + write step") as progress:
+        _, rep = save_step(
+            lat, out, max_struts=max_struts, option="--max-brep-struts ", progress=progress
+        )
+    con.say(
+        f"{rep.solids} solid(s) (BRepCheck valid), volume {rep.volume:.6g} mm^3"
+        + (", trimmed to the part" if rep.estimate.trim else "")
+    )
 
 
 def _cmd_stitch(args: argparse.Namespace, con: _Console) -> int:
@@ -601,6 +630,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="DIR", help="also write a validation report and pictures")
     _add_print_options(p)
     _add_fe_options(p)
+    p.add_argument(
+        "--max-brep-struts",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help=f"with a .step output: build the exact B-rep for up to N struts (default "
+        f"{config.MAX_BREP_STRUTS:,}; larger lattices are refused with an estimate of the "
+        "time and size)",
+    )
     p.set_defaults(func=_cmd_fill)
 
     p = sub.add_parser(

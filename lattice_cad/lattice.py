@@ -26,13 +26,7 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 
 from lattice_cad.core import config
-from lattice_cad.core.errors import (
-    EscapeHoleError,
-    ExportError,
-    LatticeError,
-    LatticeWarning,
-    OCCTFailure,
-)
+from lattice_cad.core.errors import EscapeHoleError, ExportError, LatticeWarning
 from lattice_cad.core.formats import Kind, format_for, resolve, suffixes
 from lattice_cad.core.graph import LatticeGraph
 
@@ -271,6 +265,8 @@ class Lattice:
             self.build_direction = build_direction
         #: Cavities, holes and the flood-fill verdict (``conformal.escape.EscapeReport``).
         self.escape_report: Any = None
+        #: What the last B-rep build did (``lattice_cad.brep.BrepReport``; STEP, to_workplane).
+        self.brep_report: Any = None
 
     # ---------------------------------------------------------------- build
     @classmethod
@@ -592,6 +588,7 @@ class Lattice:
         beam_lattice: bool | Literal["only"] = False,
         node_sets: Mapping[str, Any] | None = None,
         material: Mapping[str, Any] | None = None,
+        max_struts: int | None = None,
     ) -> Path:
         """Write the lattice; the format is chosen by the suffix.
 
@@ -599,7 +596,9 @@ class Lattice:
         ----------
         path : path-like
             ``.stl``, ``.3mf``, ``.ply``, ``.obj``: the printable mesh;
-            ``.json``, ``.npz``: the graph; ``.step``/``.stp``: the exact B-rep reference;
+            ``.json``, ``.npz``: the graph; ``.step``/``.stp``: the exact B-rep, one
+            BRepCheck-valid solid per connected body, trimmed to the part when the part
+            is a B-rep (see :mod:`lattice_cad.brep`);
             ``.inp``: a CalculiX/Abaqus beam model (see :meth:`save_inp`).
         beam_lattice : bool or "only"
             With ``.3mf``: write the 3MF Beam Lattice extension (beams with per-end radii,
@@ -615,10 +614,21 @@ class Lattice:
             With ``.inp``: named node sets by face selector (``{"fixed": "<Z"}``) and the
             material (``{"E": 3500, "nu": 0.36, "density": 1.24e-9}``); see
             :meth:`save_inp`.
+        max_struts : int, optional
+            With ``.step``: the largest lattice built as a B-rep (default
+            ``config.MAX_BREP_STRUTS``); a larger one is refused before any work, with
+            the estimated time and size.
 
         Returns
         -------
         Path
+
+        Raises
+        ------
+        ExportError
+            A STEP of a lattice over ``max_struts``, or with a skin.
+        OCCTFailure
+            OpenCascade failed building or writing the B-rep (the message names the file).
         """
         from lattice_cad import io
 
@@ -634,7 +644,10 @@ class Lattice:
         if kind is Kind.GRAPH:
             return io.save_graph(self.graph, p)
         if kind is Kind.SOLIDS:
-            return self.reference().save(p)
+            from lattice_cad.brep import save_step
+
+            out, self.brep_report = save_step(self, p, max_struts=max_struts)
+            return out
         return io.save_mesh(self.mesh(), p)
 
     def save_inp(
@@ -771,32 +784,13 @@ class Lattice:
         return rep
 
     def _brep_compound(self, max_struts: int) -> Any:
-        if self.graph.num_edges > max_struts:
-            raise LatticeError(
-                f"the lattice has {self.graph.num_edges} struts; B-rep solids are built for at "
-                f"most {max_struts} (pass max_struts= to go further, or use mesh())"
-            )
-        from lattice_cad.occ_impl import shapes as occ
+        """The exact lattice B-rep (the STEP path, :func:`lattice_cad.brep.build`), untrimmed."""
+        from lattice_cad.brep import build
 
-        ref = self.reference()
-        if ref.failed:
-            node, why = next(iter(ref.failed.items()))
-            raise LatticeError(f"the B-rep of node {node} could not be built: {why}")
-        cache: dict[int, Any] = {}
-        shapes = []
-        for n in range(self.graph.num_nodes):
-            t = int(ref.node_template[n])
-            if t < 0:
-                continue
-            if t not in cache:
-                cache[t] = occ.from_bytes(ref.breps[t])
-            shapes.append(occ.translated(cache[t], self.graph.nodes[n]))
-        if len(shapes) == 1:
-            return shapes[0]
-        try:
-            return occ.fuse(shapes, simplify=True)
-        except OCCTFailure as exc:
-            raise LatticeError(f"OCCT could not fuse the hub solids of the lattice: {exc}") from exc
+        shape, self.brep_report = build(
+            Lattice(self.graph, segments=self.segments), max_struts=max_struts, what="the B-rep"
+        )
+        return shape
 
     def to_workplane(self, *, max_struts: int = config.MAX_BREP_STRUTS) -> cq.Workplane:
         """The exact lattice solid as a CadQuery Workplane (small lattices only).

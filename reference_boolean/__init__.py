@@ -13,6 +13,9 @@ in worker processes, stacks the results and compares meshes with them.
 
 - :func:`build_reference` -> :class:`Reference` (exact volume, watertight mesh,
   STL / STEP export, failed hubs by node index).
+- :func:`hub_solids` -> :class:`HubSolids`: the distinct hub solids of any lattice
+  (clean or not), which :mod:`lattice_cad.occ_impl.lattice_brep` sews or fuses into one
+  solid per body for STEP output.
 - :func:`compare` -> :class:`ValidationReport` (manifold3d unions at several
   resolutions, a mesh's deviation from the reference; JSON / Markdown / HTML).
 
@@ -22,9 +25,12 @@ OCCT (OCP) is only imported when a reference is built.
 from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
 from reference_boolean.compare import MeshComparison, ValidationReport, compare, union_mesh
 from reference_boolean.reference import (
+    HubSolids,
     Reference,
     build_reference,
+    count_hubs,
     find_overlaps,
+    hub_solids,
     strut_frames,
 )
 
@@ -39,4 +45,7 @@ __all__ = [
     "ValidationReport",
     "MeshComparison",
     "union_mesh",
+    "hub_solids",
+    "HubSolids",
+    "count_hubs",
 ]

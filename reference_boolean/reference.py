@@ -53,6 +53,9 @@ __all__ = [
     "build_reference",
     "find_overlaps",
     "strut_frames",
+    "HubSolids",
+    "hub_solids",
+    "count_hubs",
 ]
 
 
@@ -125,10 +128,16 @@ class Reference:
         )
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the stacked mesh (``.stl``, ``.3mf``, ...) or the hub solids (``.step``).
+        """Write the stacked mesh (``.stl``, ``.3mf``, ...) or the exact solid (``.step``).
 
-        The STEP file holds one solid per built hub, in place; it re-imports as
-        valid solids whose volumes add up to :attr:`volume`.
+        The STEP file holds the hub solids sewn along their shared midpoint circles: one
+        BRepCheck-valid solid per connected body, whose volume is :attr:`volume`. It is
+        written atomically.
+
+        Raises
+        ------
+        OCCTFailure
+            A hub failed, or OCCT could not sew or write the solid (naming the file).
         """
         p = Path(path)
         _, kind = resolve(p, (Kind.SOLIDS, Kind.MESH), what="reference")
@@ -136,22 +145,26 @@ class Reference:
             from lattice_cad import io
 
             return io.save_mesh(self.mesh, p)
-        from lattice_cad.occ_impl.step import write_step_solids
+        from lattice_cad.occ_impl.lattice_brep import as_one, sew_hubs
+        from lattice_cad.occ_impl.step import write_step
 
-        nodes = [
-            n
-            for n in range(self.graph.num_nodes)
-            if self.node_template[n] >= 0 and n not in self.failed
-        ]
-        breps = [self.breps[self.node_template[n]] for n in nodes]
-        trans = [self.graph.nodes[n] for n in nodes]
-        # OCCT writes to a path: a temp file beside the target, then an atomic rename
-        tmp = p.with_name(f".{p.name}.{os.getpid()}.part.step")
-        try:
-            write_step_solids(str(tmp), breps, trans)
-            os.replace(tmp, p)
-        finally:
-            tmp.unlink(missing_ok=True)
+        g = self.graph
+        offsets, inc_edge, inc_side = g.incidence
+        mids: list[NDArray[np.float64]] = [np.zeros((0, 3))] * len(self.breps)
+        for n in np.flatnonzero(self.node_template >= 0):
+            es = inc_edge[offsets[n] : offsets[n + 1]]
+            sd = inc_side[offsets[n] : offsets[n + 1]]
+            mids[self.node_template[n]] = 0.5 * (g.nodes[g.edges[es, 1 - sd]] - g.nodes[n])
+        failed = {int(self.node_template[n]): why for n, why in self.failed.items()}
+        shapes = sew_hubs(
+            self.breps,
+            self.node_template,
+            g.nodes,
+            mids,
+            tolerance=config.BREP_SEW_RTOL * float(g.radii.min()),
+            failed=failed,
+        )
+        write_step(as_one(shapes, str(p)), p)
         return p
 
 
@@ -297,6 +310,8 @@ def _build_one(args: tuple[Any, float, float, bool]) -> Any:
     from lattice_cad.occ_impl import truss as _occ
 
     spec, deflection, angular, keep = args
+    if deflection <= 0.0:  # the solid only (hub_solids)
+        return _occ.build_hub_solid(spec)
     return _occ.build_hub(spec, deflection=deflection, angular=angular, keep_brep=keep)
 
 
@@ -365,6 +380,82 @@ def _run(
             pool.shutdown(wait=True)
         todo = [i for i in todo if results[i] is None]
     return results
+
+
+# ------------------------------------------------------------- hub solids
+@dataclass(frozen=True, eq=False)
+class HubSolids:
+    """The hub solids of a lattice, for fusing or sewing into its exact B-rep.
+
+    Attributes
+    ----------
+    breps : list of bytes
+        Binary BREP of each distinct hub (empty for a failed one), node at the origin.
+    template : (N,) int64
+        Index into ``breps`` of each node's hub (-1 for isolated nodes).
+    mid_vectors : list of (d, 3) float64
+        Node -> strut midpoint vector of each stump of each distinct hub (where its
+        midpoint discs lie).
+    failed : dict[int, str]
+        Distinct hub index -> why it could not be built.
+    seconds : float
+    """
+
+    breps: list[bytes]
+    template: NDArray[np.int64]
+    mid_vectors: list[NDArray[np.float64]]
+    failed: dict[int, str]
+    seconds: float
+
+
+def hub_solids(
+    graph: LatticeGraph,
+    *,
+    workers: int | None = None,
+    hub_timeout: float = config.DEFAULT_HUB_TIMEOUT,
+    progress: Any = None,
+) -> HubSolids:
+    """Build the hub solid of every distinct hub (equal up to translation: built once).
+
+    Unlike :func:`build_reference` the lattice need not be clean and nothing is
+    tessellated: where hubs overlap, their fuse is still the exact lattice.
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+    workers : int, optional
+        Worker processes (default ``min(2, cpu_count)``); 0 builds in this process.
+    hub_timeout : float
+        Seconds after which one hub build is stopped and reported as failed.
+    progress : callable, optional
+        Called as ``progress("build", done, total)``.
+
+    Returns
+    -------
+    HubSolids
+    """
+    t0 = time.perf_counter()
+    if graph.num_edges == 0:
+        raise ReferenceBuildError("the graph has no struts: nothing to build")
+    workers = check_workers(workers, minimum=0)
+    if workers is None:
+        workers = min(2, os.cpu_count() or 1)
+    specs, template, _, _ = _hub_specs(graph, True)
+    results = _run(specs, 0.0, 0.0, True, workers, float(hub_timeout), progress)
+    failed = {t: r.status for t, r in enumerate(results) if r.status != "ok"}
+    return HubSolids(
+        breps=[r.brep for r in results],
+        template=template,
+        mid_vectors=[np.asarray(s.vecs, dtype=np.float64) for s in specs],
+        failed=failed,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def count_hubs(graph: LatticeGraph) -> int:
+    """Number of distinct hubs (up to translation) that :func:`hub_solids` would build."""
+    specs, _, _, _ = _hub_specs(graph, True)
+    return len(specs)
 
 
 # ----------------------------------------------------------------- driver

@@ -188,9 +188,31 @@ FE_MAX_TAPER_ELEMENTS = 32
 
 # ----------------------------------------------------------------- B-rep output of the front
 
-#: Largest lattice for which :meth:`Lattice.to_workplane` builds B-rep solids by default.
+#: Largest lattice for which :meth:`Lattice.to_workplane` and ``Lattice.save("x.step")``
+#: build B-rep solids by default (about 5-7 min at the measured rates below); larger ones
+#: are refused before any work, with the estimate (``max_struts=``/``--max-brep-struts``).
 MAX_BREP_STRUTS = 2_000
 
 #: A lattice trimmed to its part lies outside the part's surface by at most this fraction of
 #: the largest strut radius (``conformal.trim``; checked on every vertex and reported).
 TRIM_RTOL = 0.01
+
+#: Measured rates of the B-rep path (``lattice_cad.brep.estimate``), on the development
+#: machine (2 cores shared with other jobs, load 10-14; benchmarks/brep_rates.md): a fixed
+#: start (imports, process pool), seconds per stump of a distinct hub (its sphere-and-
+#: stumps fuse, divided among the worker processes), per strut for sewing clean hubs or
+#: fusing overlapping ones (BRepCheck included), per strut for trimming to the part, per
+#: strut for writing STEP; and STEP bytes per strut. Measured on the GE bracket, BCC 10 mm
+#: (1,647 struts, 46 distinct hubs, sewn, trimmed: 316 s, 46 MB) and the example
+#: bracket, BCC 5 mm clipped (1,884 struts, 126 distinct hubs, fused, trimmed: 421 s).
+BREP_START_SECONDS = 5.0
+BREP_HUB_SECONDS = 0.85
+BREP_SEW_SECONDS = 0.07
+BREP_FUSE_SECONDS = 0.06
+BREP_TRIM_SECONDS = 0.045
+BREP_WRITE_SECONDS = 0.03
+BREP_STEP_BYTES = 27_000
+
+#: Sewing tolerance of the hubs' shared midpoint circles, relative to the smallest strut
+#: radius (the circles agree to rounding: both hubs build them on the same frame).
+BREP_SEW_RTOL = 1e-5

@@ -9,11 +9,12 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from OCP.BinTools import BinTools
+from OCP.BinTools import BinTools, BinTools_FormatVersion
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
@@ -64,6 +65,8 @@ __all__ = [
     "write_brep",
     "to_bytes",
     "from_bytes",
+    "is_occt_error",
+    "occt_errors",
 ]
 
 
@@ -375,18 +378,72 @@ def max_tolerance(shape: TopoDS_Shape) -> float:
     return float(ShapeAnalysis_ShapeTolerance().Tolerance(shape, 1))
 
 
+# ------------------------------------------------------------------ errors
+def is_occt_error(exc: BaseException) -> bool:
+    """True for an exception raised inside OCCT (``Standard_Failure`` and its kin).
+
+    OCP maps every OCCT exception class (``Standard_OutOfRange``,
+    ``StdFail_NotDone``, ``Standard_ConstructionError``, ...) to its own Python class
+    deriving from ``Exception`` directly, not from a common base: they are recognised by
+    their module.
+    """
+    return type(exc).__module__.split(".")[0] == "OCP"
+
+
+@contextmanager
+def occt_errors(what: str) -> Iterator[None]:
+    """Turn an exception raised inside OCCT into :class:`OCCTFailure` naming ``what``.
+
+    ``with occt_errors("cannot write x.step: STEP transfer"): ...`` gives
+    ``OCCTFailure("cannot write x.step: STEP transfer: OCCT raised Standard_OutOfRange
+    (NCollection_IndexedMap::FindKey)")``; our own errors pass through unchanged.
+    """
+    try:
+        yield
+    except OCCTFailure:
+        raise
+    except Exception as exc:
+        if not is_occt_error(exc):
+            raise
+        detail = " ".join(str(exc).split())
+        raise OCCTFailure(
+            f"{what}: OCCT raised {type(exc).__name__}" + (f" ({detail})" if detail else "")
+        ) from exc
+
+
 # --------------------------------------------------------------------- I/O
+#: Binary BREP format of :func:`to_bytes`. Version 4 (OCCT 7.6+, the default) stores
+#: back-references as stream positions that the reader seeks to; OCP's Python stream
+#: wrapper loses track of the position on such seeks (CadQuery/OCP issue 192), so some
+#: shapes written by version 4 cannot be read back from bytes: ``Standard_OutOfRange:
+#: NCollection_IndexedMap::FindKey`` (a degree-6 BCC hub of the GE bracket, with its
+#: triangulation). Version 3 is read strictly sequentially.
+_BREP_VERSION = BinTools_FormatVersion.BinTools_FormatVersion_VERSION_3
+
+
 def to_bytes(shape: TopoDS_Shape) -> bytes:
-    """``shape`` as binary BREP (for passing shapes between processes)."""
+    """``shape`` as binary BREP (for passing shapes between processes).
+
+    Triangulations are left out (a quarter of the size; every user meshes again), and
+    the format is one that reads back from bytes (see ``_BREP_VERSION``).
+    """
     buf = io.BytesIO()
-    BinTools.Write_s(shape, buf)
+    with occt_errors("writing a shape as binary BREP"):
+        BinTools.Write_s(shape, buf, False, False, _BREP_VERSION)
     return buf.getvalue()
 
 
 def from_bytes(data: bytes) -> TopoDS_Shape:
-    """A shape back from :func:`to_bytes`."""
+    """A shape back from :func:`to_bytes`.
+
+    Raises
+    ------
+    OCCTFailure
+        The bytes do not hold a shape OCCT can read.
+    """
     shape = TopoDS_Shape()
-    BinTools.Read_s(shape, io.BytesIO(data))
+    with occt_errors("reading a shape back from binary BREP"):
+        BinTools.Read_s(shape, io.BytesIO(data))
     if shape.IsNull():
         raise OCCTFailure("cannot read a solid back from binary BREP")
     return shape

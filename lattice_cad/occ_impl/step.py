@@ -25,7 +25,15 @@ from OCP.TColStd import TColStd_SequenceOfAsciiString
 from OCP.TopoDS import TopoDS_Shape
 
 from lattice_cad.core.errors import OCCTFailure, StepUnitsError
-from lattice_cad.occ_impl.shapes import bounds, compound, from_bytes, is_valid, solids, translated
+from lattice_cad.occ_impl.shapes import (
+    bounds,
+    compound,
+    from_bytes,
+    is_valid,
+    occt_errors,
+    solids,
+    translated,
+)
 from lattice_cad.occ_impl.shapes import volume as shape_volume
 
 __all__ = [
@@ -47,17 +55,18 @@ def read_step(path: str | os.PathLike[str]) -> TopoDS_Shape | None:
         The length unit the file declares, the unit OCCT reports for it and the size of the
         shape OCCT returns do not agree (see :func:`check_step_units`).
     """
-    reader = STEPControl_Reader()
-    status = reader.ReadFile(str(path))
-    if status != IFSelect_RetDone:
-        return None
-    names = TColStd_SequenceOfAsciiString()
-    reader.FileUnits(names, TColStd_SequenceOfAsciiString(), TColStd_SequenceOfAsciiString())
-    occt_units = [names.Value(i).ToCString() for i in range(1, names.Length() + 1)]
-    reader.TransferRoots()
-    if reader.NbShapes() == 0:
-        return None
-    shape = reader.OneShape()
+    with occt_errors(f"cannot read {os.fspath(path)}"):
+        reader = STEPControl_Reader()
+        status = reader.ReadFile(str(path))
+        if status != IFSelect_RetDone:
+            return None
+        names = TColStd_SequenceOfAsciiString()
+        reader.FileUnits(names, TColStd_SequenceOfAsciiString(), TColStd_SequenceOfAsciiString())
+        occt_units = [names.Value(i).ToCString() for i in range(1, names.Length() + 1)]
+        reader.TransferRoots()
+        if reader.NbShapes() == 0:
+            return None
+        shape = reader.OneShape()
     if shape.IsNull():
         return None
     box = bounds(shape)
@@ -169,25 +178,43 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "M
     declared unit times the span of its points must give the shape's size), so a file can
     never declare one unit and hold coordinates in another (OCCT 7.8's writer ignores
     ``write.step.unit`` unless the model's write length unit is set too).
+
+    The file is written atomically: OCCT writes a temp file beside ``path``, which is
+    renamed onto ``path`` once written and checked (nothing half-written is left).
+
+    Raises
+    ------
+    OCCTFailure
+        OCCT could not transfer or write the shape (naming the file; an exception raised
+        inside OCCT is wrapped).
     """
+    target = os.fspath(path)
+    tmp = os.path.join(
+        os.path.dirname(target) or ".", f".{os.path.basename(target)}.{os.getpid()}.part.step"
+    )
     STEPControl_Controller.Init_s()
     unit = {"IN": "INCH"}.get(unit.upper(), unit.upper())
     if not Interface_Static.SetCVal_s("write.step.unit", unit):
         raise ValueError(f"OCCT does not know the STEP unit {unit!r}")
     try:
-        writer = STEPControl_Writer()
         mm_per_unit = _NAMED_MM.get(unit, _NAMED_MM.get(_UNIT_ALIASES.get(unit, ""), 0.0))
         if mm_per_unit <= 0:
             raise ValueError(f"unknown STEP unit {unit!r}")
-        writer.Model().SetWriteLengthUnit(mm_per_unit)
-        if writer.Transfer(shape, STEPControl_AsIs) != IFSelect_RetDone:
-            raise OCCTFailure(f"{path}: STEP transfer failed")
-        if writer.Write(str(path)) != IFSelect_RetDone:
-            raise OCCTFailure(f"OCCT could not write {path}")
+        with occt_errors(f"cannot write {target}: STEP transfer"):
+            writer = STEPControl_Writer()
+            writer.Model().SetWriteLengthUnit(mm_per_unit)
+            if writer.Transfer(shape, STEPControl_AsIs) != IFSelect_RetDone:
+                raise OCCTFailure(f"cannot write {target}: the STEP transfer failed")
+        with occt_errors(f"cannot write {target}"):
+            if writer.Write(tmp) != IFSelect_RetDone:
+                raise OCCTFailure(f"cannot write {target}: OCCT's STEP writer failed")
+        box = bounds(shape)
+        check_step_units(tmp, [unit], float(np.linalg.norm(box[1] - box[0])))
+        os.replace(tmp, target)
     finally:
         Interface_Static.SetCVal_s("write.step.unit", "MM")
-    box = bounds(shape)
-    check_step_units(path, [unit], float(np.linalg.norm(box[1] - box[0])))
+        if os.path.exists(tmp):
+            os.unlink(tmp)
 
 
 def write_step_solids(

@@ -73,6 +73,9 @@ __all__ = [
     "OCCTFailure",
     "build_hub",
     "make_hub_shape",
+    "sphere_axis",
+    "make_sphere",
+    "build_hub_solid",
 ]
 
 
@@ -136,6 +139,9 @@ class HubResult:
 
 
 # ------------------------------------------------------------ construction
+#: Radii of a stump closer than this (mm) make a cylinder, not a cone (see make_primitives).
+_SAME_RADIUS = 1e-6
+
 def _pnt(v: NDArray[np.float64]) -> gp_Pnt:
     return gp_Pnt(float(v[0]), float(v[1]), float(v[2]))
 
@@ -166,30 +172,85 @@ def stump_start(radius: float, r0: float, r1: float, h: float) -> float:
     return h0
 
 
+def _covers(spec: HubSpec, j: int, p: NDArray[np.float64]) -> bool:
+    """Is point ``p`` (local coordinates) well inside stump ``j`` (0.9 of its radius)?"""
+    v = spec.vecs[j]
+    h = float(np.linalg.norm(v))
+    s = float(p @ v) / h
+    if not 0.0 < s < h:
+        return False
+    r = float(spec.r_node[j]) + (float(spec.r_mid[j]) - float(spec.r_node[j])) * s / h
+    return float(np.linalg.norm(p - s * v / h)) < 0.9 * r
+
+
+def sphere_axis(spec: HubSpec) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """Axis and x direction of the hub sphere: its poles inside stumps where possible.
+
+    A sphere's parametrisation has two poles, where a mesher (BRepMesh, as PrusaSlicer
+    and CAD viewers use it) puts several nodes at one point: zero-length edges that
+    slicers count as open edges. A pole inside a stump is removed by the hub's fuse. The
+    candidates are the stump directions, then the coordinate axes; the first with the
+    most poles inside stumps wins (both for straight-through struts). The choice depends
+    on the spec only, so translated copies of a hub are identical. (Making an exposed
+    pole's cap from a second, turned sphere removes it too, but the result then fails in
+    later booleans with the user's CAD shapes: not done.)
+
+    Returns
+    -------
+    axis, xdir : (3,) float64
+        Unit vectors, ``xdir`` perpendicular to ``axis``.
+    covered : int
+        How many of the two poles lie inside stumps.
+    """
+    d = len(spec.vecs)
+    cands = [(spec.vecs[j] / np.linalg.norm(spec.vecs[j]), np.asarray(spec.xdirs[j]))
+             for j in range(d)]  # fmt: skip
+    cands += [(np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])),
+              (np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])),
+              (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]))]  # fmt: skip
+    best, best_cov = cands[-3], -1
+    for u, x in cands:
+        cov = sum(
+            any(_covers(spec, k, sign * spec.radius * u) for k in range(d)) for sign in (1, -1)
+        )
+        if cov > best_cov:
+            best, best_cov = (u, x), cov
+    return np.asarray(best[0], dtype=np.float64), np.asarray(best[1], dtype=np.float64), best_cov
+
+
+def make_sphere(spec: HubSpec) -> list[TopoDS_Shape]:
+    """The hub sphere, its axis from :func:`sphere_axis` (a one-element list)."""
+    axis, xdir, _ = sphere_axis(spec)
+    mk = BRepPrimAPI_MakeSphere(gp_Ax2(gp_Pnt(0.0, 0.0, 0.0), _dir(axis), _dir(xdir)), spec.radius)
+    mk.Build()
+    check_done(mk, "sphere")
+    check_valid(mk.Shape(), "sphere")
+    return [mk.Shape()]
+
+
 def make_primitives(spec: HubSpec, *, trim: bool = True) -> list[TopoDS_Shape]:
     """The sphere and the stumps (cylinders or cone frustums), each checked.
 
     With ``trim`` (default) each stump starts at :func:`stump_start` instead of
-    the node: the same hub, a cheaper fuse.
+    the node: the same hub, a cheaper fuse. The sphere's poles are put inside stumps
+    (see :func:`sphere_axis`).
     """
     origin = gp_Pnt(0.0, 0.0, 0.0)
-    sphere_mk = BRepPrimAPI_MakeSphere(
-        gp_Ax2(origin, gp_Dir(0, 0, 1), gp_Dir(1, 0, 0)), spec.radius
-    )
-    sphere_mk.Build()
-    check_done(sphere_mk, "sphere")
-    shapes = [sphere_mk.Shape()]
-    check_valid(shapes[0], "sphere")
+    shapes = make_sphere(spec)
     for j, v in enumerate(spec.vecs):
         h = float(np.linalg.norm(v))
         u = v / h
         r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
         h0 = stump_start(spec.radius, r0, r1, h) if trim else 0.0
         ax = gp_Ax2(_pnt(u * h0) if h0 > 0.0 else origin, _dir(u), _dir(spec.xdirs[j]))
-        if r0 == r1:
-            mk = BRepPrimAPI_MakeCylinder(ax, r0, h - h0)
+        r_start = r0 + (r1 - r0) * (h0 / h)
+        # OCCT refuses a cone whose radii differ by less than Precision::Confusion (1e-7 mm;
+        # "cone with two identic radii", as thinned struts give): a cylinder of the
+        # midpoint radius then (so both hubs of the strut still share the midpoint circle)
+        if abs(r_start - r1) <= _SAME_RADIUS:
+            mk = BRepPrimAPI_MakeCylinder(ax, r1, h - h0)
         else:
-            mk = BRepPrimAPI_MakeCone(ax, r0 + (r1 - r0) * (h0 / h), r1, h - h0)
+            mk = BRepPrimAPI_MakeCone(ax, r_start, r1, h - h0)
         mk.Build()
         check_done(mk, f"stump {j}")
         s = mk.Shape()
@@ -381,6 +442,46 @@ def build_hub(
             brep=brep,
             seconds=time.perf_counter() - t0,
         )
+    return HubResult(
+        status=attempts[-1] if attempts else "not attempted",
+        attempts=attempts,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def build_hub_solid(spec: HubSpec) -> HubResult:
+    """Build and check one hub solid, without tessellating it (for B-rep output).
+
+    The same constructions as :func:`build_hub` are tried in turn, but the midpoint
+    discs need not be intact (hubs of a lattice that is not clean overlap; a fuse of
+    them is still exact). Never raises for OCCT failures.
+
+    Returns
+    -------
+    HubResult
+        ``status``, ``attempts``, ``volume``, ``brep`` and ``seconds`` (no mesh).
+    """
+    t0 = time.perf_counter()
+    scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
+    attempts: list[str] = []
+    for construction, fuzzy_rel, trim in ATTEMPTS:
+        name = construction + (f" (fuzzy {fuzzy_rel:g})" if fuzzy_rel else "")
+        try:
+            shape = make_hub_shape(
+                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim
+            )
+            vol = volume(shape, eps=config.VOLUME_EPS)
+            if not (vol > 0.0 and math.isfinite(vol)):
+                raise OCCTFailure(f"hub volume {vol!r} is not positive")
+            brep = to_bytes(shape)
+        except Exception as exc:  # OCCTFailure, or an OCCT exception class
+            attempts.append(f"{name}: {type(exc).__name__}: {exc}")
+            continue
+        attempts.append(f"{name}: ok")
+        return HubResult(
+            status="ok", attempts=attempts, volume=vol, brep=brep,
+            seconds=time.perf_counter() - t0,
+        )  # fmt: skip
     return HubResult(
         status=attempts[-1] if attempts else "not attempted",
         attempts=attempts,
