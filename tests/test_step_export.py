@@ -163,6 +163,23 @@ def test_block_is_one_valid_solid(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["b.step"]  # no temp file left
 
 
+def test_step_output_is_byte_identical(tmp_path, monkeypatch):
+    """Issue 12: the same lattice gives the same STEP bytes (no clock, no session counter),
+    and the header names the file written, not the temp file."""
+    monkeypatch.delenv("SOURCE_DATE_EPOCH", raising=False)
+    g = block("bcc", 1, cell_size=5.0, radius=0.5)
+    first = Lattice(g).save(tmp_path / "a.step").read_bytes()
+    time.sleep(1.1)  # the header's time stamp had a one-second resolution
+    (tmp_path / "a.step").unlink()
+    second = Lattice(g).save(tmp_path / "a.step").read_bytes()
+    assert first == second
+    assert b"FILE_NAME('a.step','2000-01-01T00:00:00'" in first
+    assert b"PRODUCT('a','a'" in first
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    third = Lattice(g).save(tmp_path / "a.step").read_bytes()
+    assert b"'2023-11-14T22:13:20'" in third
+
+
 def test_two_bodies_give_two_solids(tmp_path):
     from lattice_cad.occ_impl.step import read_step_solids
 

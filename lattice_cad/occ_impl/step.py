@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import re
+from pathlib import Path
 
 import numpy as np
 from OCP.IFSelect import IFSelect_RetDone
@@ -171,6 +172,43 @@ def check_step_units(
         )
 
 
+#: The header's time stamp: ``SOURCE_DATE_EPOCH`` (the reproducible-builds convention) if set,
+#: else this fixed date, so that writing the same shape twice gives the same bytes.
+STEP_TIME_STAMP = "2000-01-01T00:00:00"
+
+
+def _stable_header(path: str, name: str) -> None:
+    """Replace the FILE_NAME header's name (OCCT writes the temp file's) and time stamp,
+    and the session counter OCCT appends to the product's name."""
+    import re
+    import time
+
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "")
+    stamp = (
+        time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(int(epoch)))
+        if epoch.isdigit()
+        else STEP_TIME_STAMP
+    )
+    with open(path, "rb") as fh:
+        data = fh.read()
+    end = data.find(b"ENDSEC;")
+    if end < 0:
+        raise OCCTFailure(f"cannot write {name}: OCCT wrote a STEP file without a header")
+    safe = name.replace("'", "''").encode("latin-1", "replace")
+    head = re.sub(
+        rb"FILE_NAME\('(?:[^']|'')*','[^']*'",
+        b"FILE_NAME('" + safe + b"','" + stamp.encode() + b"'",
+        data[:end],
+        count=1,
+    )
+    # OCCT numbers the product per session ("name 1", "name 2", ...): drop the counter
+    stem = re.escape(Path(name).stem.replace("'", "''").encode("latin-1", "replace"))
+    body = re.sub(rb"PRODUCT\('(" + stem + rb") \d+','" + stem + rb" \d+'", rb"PRODUCT('\1','\1'",
+                  data[end:])  # fmt: skip
+    with open(path, "wb") as fh:
+        fh.write(head + body)
+
+
 def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "MM") -> None:
     """Write ``shape`` (in mm) to a STEP file declaring ``unit`` ("MM", "INCH", "M", ...).
 
@@ -200,6 +238,9 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "M
         mm_per_unit = _NAMED_MM.get(unit, _NAMED_MM.get(_UNIT_ALIASES.get(unit, ""), 0.0))
         if mm_per_unit <= 0:
             raise ValueError(f"unknown STEP unit {unit!r}")
+        # the same shape gives the same bytes: the product is named after the file (OCCT
+        # numbers it per session otherwise) and the header's time stamp is fixed below
+        Interface_Static.SetCVal_s("write.step.product.name", Path(target).stem or "lattice")
         with occt_errors(f"cannot write {target}: STEP transfer"):
             writer = STEPControl_Writer()
             writer.Model().SetWriteLengthUnit(mm_per_unit)
@@ -208,6 +249,7 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "M
         with occt_errors(f"cannot write {target}"):
             if writer.Write(tmp) != IFSelect_RetDone:
                 raise OCCTFailure(f"cannot write {target}: OCCT's STEP writer failed")
+        _stable_header(tmp, Path(target).name)
         box = bounds(shape)
         check_step_units(tmp, [unit], float(np.linalg.norm(box[1] - box[0])))
         os.replace(tmp, target)
