@@ -3,7 +3,8 @@
 ::
 
     lattice-cad fill PART -o OUT [--cell --cell-size --radius --method --fill --skin
-                                  --segments --beam-lattice --report DIR]
+                                  --keep SELECTOR:MM ... --segments --beam-lattice
+                                  --report DIR]
     lattice-cad stitch GRAPH -o OUT [--segments]
     lattice-cad reference GRAPH -o OUT
     lattice-cad validate GRAPH_OR_PART --report DIR
@@ -83,6 +84,17 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _keep_zone(text: str) -> str:
+    from lattice_cad.core.errors import KeepError
+    from lattice_cad.keep import parse_keep
+
+    try:
+        parse_keep(text)
+    except KeepError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def _segments(text: str) -> int:
     try:
         value = int(text)
@@ -126,6 +138,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             fill=args.fill,
             skin=args.skin,
             segments=args.segments,
+            keep=args.keep,
         )
     lat.progress = not con.quiet
     info = lat.info()
@@ -156,6 +169,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3")
         if lat.skin_report is not None:
             con.say(lat.skin_report.summary())
+        if lat.keep_report is not None:
+            con.say(lat.keep_report.summary())
     with con.step(f"write {out.suffix.lstrip('.')}"):
         lat.save(out, beam_lattice=args.beam_lattice)
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
@@ -284,7 +299,8 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
         "--fill",
         choices=("auto", "inside", "clip", "conform"),
         default=None,
-        help="how cells meet the boundary (default: clip with --skin, else auto: inside, or "
+        help="how cells meet the boundary (default: clip with --skin or --keep, else auto: "
+        "inside, or "
         "conform when no whole cell fits, as in thin parts); "
         "voxel only: an error with --method tet, whose lattice always conforms",
     )
@@ -330,6 +346,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("part", help="part file: .step/.stp, or a closed mesh .stl/.obj/.ply/.3mf/.off")
     p.add_argument("-o", "--output", required=True, help=_OUTPUT_HELP)
     _add_lattice_options(p)
+    p.add_argument(
+        "--keep",
+        action="append",
+        type=_keep_zone,
+        default=None,
+        metavar="SELECTOR:MM",
+        help="keep the part solid within MM of the faces a CadQuery selector picks (e.g. "
+        "'>Z:2', '%%CYLINDER:1.5'; a box as 'x0,y0,z0,x1,y1,z1:MARGIN'); repeatable",
+    )
     p.add_argument(
         "--beam-lattice",
         action="store_true",

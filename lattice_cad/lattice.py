@@ -137,6 +137,8 @@ class Lattice:
     part : conformal.Part or None
     skin : float or None
     segments : int
+    keep : tuple of conformal.keep.KeepZone
+        Keep-solid zones (see :meth:`fill`), resolved on the part.
     """
 
     def __init__(
@@ -146,6 +148,7 @@ class Lattice:
         part: Any = None,
         skin: float | None = None,
         segments: int = config.DEFAULT_SEGMENTS,
+        keep: Any = None,
     ) -> None:
         if not isinstance(graph, LatticeGraph):
             raise TypeError(f"graph must be a LatticeGraph, got {type(graph).__name__}")
@@ -166,6 +169,16 @@ class Lattice:
         self.build_report: Any = None
         self.segments = int(segments)
         self.progress: bool = False
+        #: Keep-solid zones (issue 13): resolved faces or boxes, built with the mesh.
+        self.keep: tuple[Any, ...] = ()
+        #: The zones' volumes, faces matched and bodies (set when the mesh is built).
+        self.keep_report: Any = None
+        if keep is not None:
+            if part is None:
+                raise ValueError("keep-solid zones need the part: use Lattice.fill(part, keep=...)")
+            from lattice_cad.keep import resolve_keep
+
+            self.keep = resolve_keep(part, keep)
 
     # ---------------------------------------------------------------- build
     @classmethod
@@ -182,6 +195,7 @@ class Lattice:
         segments: int = config.DEFAULT_SEGMENTS,
         origin: Any = None,
         rotation: Any = None,
+        keep: Any = None,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -200,7 +214,8 @@ class Lattice:
             Periodic cells on a grid, or struts along the edges of a tetrahedral mesh.
         fill : {"auto", "inside", "clip", "conform"}, optional
             How the voxel lattice meets the boundary (see ``conformal.voxel_lattice``);
-            default ``"clip"`` with a skin (struts reach into the wall), else ``"auto"``
+            default ``"clip"`` with a skin or ``keep`` zones (struts reach into the wall
+            and the zones), else ``"auto"``
             (``"inside"``, or ``"conform"`` when no whole cell fits, as in thin parts).
             Voxel only: a tet lattice always conforms (its surface nodes lie on the
             part's surface), so passing ``fill`` with ``method="tet"`` is an error.
@@ -211,6 +226,11 @@ class Lattice:
         origin, rotation : optional
             Placement of the cell grid (passed to ``conformal.voxel_lattice``; voxel only).
             ``cell`` is ignored by ``method="tet"``.
+        keep : (faces, thickness), "SELECTOR:THICKNESS" or a list of them, optional
+            Keep-solid zones: the part stays solid within ``thickness`` mm of the faces
+            (a CadQuery selector such as ``">Z"`` or ``"%CYLINDER"``, build123d/cadquery
+            faces, or a box ``((xmin, ymin, zmin), (xmax, ymax, zmax))`` with a margin);
+            struts that enter a zone join it. See :mod:`lattice_cad.keep`.
 
         Returns
         -------
@@ -220,6 +240,8 @@ class Lattice:
         ------
         conformal.PartError
             The part cannot be read or is not a closed solid.
+        KeepError
+            A keep selector matches no face (the message lists the part's faces).
         ValueError, TypeError
             An option out of range (named in the message).
         """
@@ -233,8 +255,8 @@ class Lattice:
                     f"{' and '.join(given)} only {verb} to method='voxel'; a tet lattice "
                     "follows the part's surface by construction (leave them out)"
                 )
-        if fill is None:
-            fill = "clip" if skin is not None else "auto"
+        if fill is None:  # with a skin or keep zones, struts must reach the boundary
+            fill = "clip" if skin is not None or keep is not None else "auto"
         _check_choice("fill", fill, ("auto", "inside", "clip", "conform"))
         if not isinstance(cell, str):
             raise TypeError(f"cell must be a cell name, got {type(cell).__name__}")
@@ -247,6 +269,11 @@ class Lattice:
         if skin is not None:
             skin = _positive("skin", skin)
         the_part = _load_part(part)
+        zones = None
+        if keep is not None:  # resolved before the lattice: a wrong selector fails fast
+            from lattice_cad.keep import resolve_keep
+
+            zones = resolve_keep(the_part, keep)
         graph, report = _fill_graph(
             the_part,
             method=method,
@@ -258,6 +285,7 @@ class Lattice:
             rotation=rotation,
         )
         lat = cls(graph, part=the_part, skin=skin, segments=segments)
+        lat.keep = zones or ()
         lat.build_report = report
         return lat
 
@@ -277,13 +305,25 @@ class Lattice:
         return fast_stitch.stitch(self.graph, self.segments, progress=self.progress)
 
     @cached_property
+    def _kept_mesh(self) -> Mesh:
+        """The lattice united with its keep-solid zones (the lattice when it has none)."""
+        if not self.keep:
+            return self._lattice_mesh
+        from conformal.keep import build_keep
+        from lattice_cad.core.mesh import Mesh
+
+        result = build_keep(self._lattice_mesh, self.part, self.keep)
+        self.keep_report = result.report
+        return Mesh(vertices=result.vertices, faces=result.faces)
+
+    @cached_property
     def _solid_mesh(self) -> Mesh:
         if self.skin is None:
-            return self._lattice_mesh
+            return self._kept_mesh
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
-        result = _skin.build_skin(self._lattice_mesh, self.part, self.skin)
+        result = _skin.build_skin(self._kept_mesh, self.part, self.skin)
         self.skin_report = result.report
         v, f = _skin.to_arrays(result.solid)
         return Mesh(vertices=v, faces=f)
@@ -296,10 +336,11 @@ class Lattice:
         mesh, repaired = io.single_precision(self._solid_mesh, name="the lattice")
         # a stitched lattice keeps its clearances through the rounding; a skin (manifold3d
         # booleans) can have surfaces a float32 step apart, so it is checked in full
-        if repaired or self.skin is not None:
+        booleans = self.skin is not None or bool(self.keep)  # keep zones: manifold3d too
+        if repaired or booleans:
             report = fast_stitch.check(mesh)
             for _ in range(20):  # tiny folds where the booleans left needles: collapse them
-                if report.valid or self.skin is None:
+                if report.valid or not booleans:
                     break
                 mesh = _collapse_folds(mesh, report)
                 report = fast_stitch.check(mesh)
@@ -325,7 +366,8 @@ class Lattice:
         Returns
         -------
         fast_stitch.Mesh
-            The stitched lattice, or (with a skin) the union of skin and lattice.
+            The stitched lattice, or (with a skin) the union of skin and lattice; with
+            keep-solid zones, united with them.
         """
         return self._lattice_mesh if lattice_only else self._printable_mesh
 
@@ -477,7 +519,7 @@ class Lattice:
         g = self.graph
         est = fast_stitch.estimate(g, self.segments)
         built = "_solid_mesh" in self.__dict__ or (
-            self.skin is None and "_lattice_mesh" in self.__dict__
+            self.skin is None and not self.keep and "_lattice_mesh" in self.__dict__
         )
         volume = self.mesh().volume if built else self.strut_volume()
         out: dict[str, Any] = {
@@ -489,6 +531,7 @@ class Lattice:
             "volume": volume,
             "volume_exact": built,
             "skin": self.skin,
+            "keep": [z.label for z in self.keep],
         }
         if self.part is not None:
             pv = float(self.part.volume)

@@ -35,12 +35,13 @@ def lattice(
     segments: int = config.DEFAULT_SEGMENTS,
     origin: Any = None,
     rotation: Any = None,
+    keep: Any = None,
 ) -> Lattice:
     """Fill the solids on the workplane's stack with a lattice.
 
     Parameters
     ----------
-    cell, cell_size, radius, method, fill, skin, segments, origin, rotation
+    cell, cell_size, radius, method, fill, skin, segments, origin, rotation, keep
         See :meth:`lattice_cad.Lattice.fill`.
 
     Returns
@@ -75,6 +76,7 @@ def lattice(
         segments=segments,
         origin=origin,
         rotation=rotation,
+        keep=keep,
     )
 
 

@@ -86,6 +86,16 @@ SLIVER = 1e-4
 VOXELS_PER_THICKNESS = 3.0
 
 
+# ------------------------------------------------------------ Keep-solid zones (conformal.keep)
+
+#: Grid points per zone thickness of the distance field around the kept faces (planar faces
+#: are exact at any spacing; on curved ones the error is about h^2 / (8 R)).
+KEEP_VOXELS_PER_THICKNESS = 3.0
+
+#: Chord error of the kept faces' triangulation, relative to the zone thickness.
+KEEP_FACE_DEFLECTION = 0.01
+
+
 # ------------------------------------------------------- Exact reference (reference_boolean)
 
 #: Hub sphere radius over the largest incident strut radius (Wang et al.: 0.001 % larger).

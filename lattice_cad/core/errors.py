@@ -15,6 +15,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── PartError                a part file or shape cannot be used (conformal.part)
     │   └── StepUnitsError       a STEP file's unit disagrees with OCCT's reading of it
     ├── SkinError                a part cannot be hollowed (conformal.skin)
+    ├── KeepError                a keep-solid zone cannot be used (conformal.keep)
     ├── SimilarityError          invalid similarity parameters (conformal.similarity)
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
     ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
@@ -39,6 +40,7 @@ __all__ = [
     "PartError",
     "StepUnitsError",
     "SkinError",
+    "KeepError",
     "SimilarityError",
     "SteadyLatticeError",
     "ExportError",
@@ -84,6 +86,11 @@ class StepUnitsError(PartError):
 
 class SkinError(LatticeError, ValueError):
     """A part cannot be hollowed (not a closed solid, or the wall is too thick)."""
+
+
+class KeepError(LatticeError, ValueError):
+    """A keep-solid zone cannot be used: a selector that matches no face (the message lists
+    the part's faces), a face not on the part, a bad thickness or box."""
 
 
 class SimilarityError(LatticeError, ValueError):
