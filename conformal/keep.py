@@ -8,7 +8,7 @@ strut piece that touches a zone is one body with it.
 How a face zone is built (all booleans by manifold3d, whose results are manifold):
 
 1. the selected faces are triangulated by OCCT (BRepMesh) with a chord error of 1 % of ``t``;
-2. the exact distance to those triangles is sampled on a grid of spacing ``t / 3``
+2. the exact distance to those triangles is sampled on a grid of spacing ``t / 2``
    (``config.KEEP_VOXELS_PER_THICKNESS``; at most ``config.MAX_VOXELS`` points) around
    them (one grid per group of nearby faces), and the level ``d = t`` is extracted by
    marching tetrahedra (:func:`conformal.skin.marching_tets`): a closed "tube" around the
@@ -19,7 +19,7 @@ How a face zone is built (all booleans by manifold3d, whose results are manifold
 The distance to a plane is linear, so on planar faces the inner surface is exact (a
 ``">Z"`` zone of depth 2 on a 20 mm cube is 20 x 20 x 2); on curved faces the marching
 tetrahedra interpolate it with an error of about ``h^2 / (8 R)`` (``R`` the radius of the
-inner surface). The distance field is used rather than an OCCT thick solid of the faces
+inner surface; at most ``t / 32`` where ``R >= t``). The distance field is used rather than an OCCT thick solid of the faces
 because a thick solid ends flush with the neighbouring faces (the walls of a bolt hole's
 thick solid lie in the plate's top and bottom planes), and booleans between coplanar
 triangulations of different meshes leave slivers; the tube crosses the part's surface

@@ -88,9 +88,11 @@ VOXELS_PER_THICKNESS = 3.0
 
 # ------------------------------------------------------------ Keep-solid zones (conformal.keep)
 
-#: Grid points per zone thickness of the distance field around the kept faces (planar faces
-#: are exact at any spacing; on curved ones the error is about h^2 / (8 R)).
-KEEP_VOXELS_PER_THICKNESS = 3.0
+#: Grid points per zone thickness of the distance field around the kept faces. Planar faces
+#: are exact at any spacing; on curved ones the inner surface is off by about h^2 / (8 R)
+#: (R its radius), at most t / 32 where R >= t: well below a B-rep part's chord error (its
+#: mesh is 1e-3 of the diagonal off the exact surface), at 2.4 x less time than t / 3.
+KEEP_VOXELS_PER_THICKNESS = 2.0
 
 #: Chord error of the kept faces' triangulation, relative to the zone thickness.
 KEEP_FACE_DEFLECTION = 0.01
