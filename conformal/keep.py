@@ -19,11 +19,13 @@ How a face zone is built (all booleans by manifold3d, whose results are manifold
 The distance to a plane is linear, so on planar faces the inner surface is exact (a
 ``">Z"`` zone of depth 2 on a 20 mm cube is 20 x 20 x 2); on curved faces the marching
 tetrahedra interpolate it with an error of about ``h^2 / (8 R)`` (``R`` the radius of the
-inner surface; at most ``t / 32`` where ``R >= t``). The distance field is used rather than an OCCT thick solid of the faces
-because a thick solid ends flush with the neighbouring faces (the walls of a bolt hole's
-thick solid lie in the plate's top and bottom planes), and booleans between coplanar
-triangulations of different meshes leave slivers; the tube crosses the part's surface
-instead.
+inner surface; at most ``t / 32`` where ``R >= t``).
+
+The distance field is used rather than an OCCT thick solid of the faces because a thick
+solid would end flush with the neighbouring faces (the walls of a bolt hole's thick solid lie in
+the plate's top and bottom planes), and booleans between coplanar triangulations of
+different meshes leave slivers; the tube crosses the part's surface instead. OCCT does the
+part it does well: the exact faces and their triangulation.
 """
 
 from __future__ import annotations
@@ -73,6 +75,10 @@ class KeepZone:
         Geometry type of each face (``"PLANE"``, ``"CYLINDER"``, ...).
     box : (2, 3) float64 or None
         Min and max corner of an axis-aligned box.
+    on_part : bool
+        The faces are known to be the part's own (picked by a selector on its B-rep, which
+        may include faces between touching solids, inside the part); otherwise they are
+        checked to lie on the part's surface.
     """
 
     label: str
@@ -80,6 +86,7 @@ class KeepZone:
     faces: tuple[Any, ...] = ()
     face_types: tuple[str, ...] = ()
     box: NDArray[np.float64] | None = None
+    on_part: bool = False
 
     def __post_init__(self) -> None:
         t = self.thickness
@@ -337,8 +344,8 @@ def _tube(part: Any, zone: KeepZone) -> tuple[Any, float]:
 
     t = float(zone.thickness)
     meshes = [face_triangles((face,), config.KEEP_FACE_DEFLECTION * t) for face in zone.faces]
-    v_all = np.vstack([v for v, _ in meshes])
-    _check_on_part(part, zone, v_all)
+    if not zone.on_part:
+        _check_on_part(part, zone, np.vstack([v for v, _ in meshes]))
     boxes = np.array([[v.min(axis=0) - t, v.max(axis=0) + t] for v, _ in meshes])
     tube, spacing = manifold3d.Manifold(), 0.0
     for group in _clusters(boxes):

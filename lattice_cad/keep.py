@@ -192,7 +192,8 @@ def resolve_keep(part: Any, keep: Any) -> tuple[Any, ...]:
             label = "box " + ",".join(f"{x:g}" for x in box.ravel()) + f":{t:g}"
             zones.append(KeepZone(label, t, box=box))
             continue
-        if isinstance(what, str):
+        on_part = isinstance(what, str)
+        if on_part:
             label = f"{what}:{t:g}"
             faces = _select(part, what, label)
         else:
@@ -207,6 +208,7 @@ def resolve_keep(part: Any, keep: Any) -> tuple[Any, ...]:
                 t,
                 faces=tuple(f.wrapped for f in faces),
                 face_types=tuple(f.geomType() for f in faces),
+                on_part=on_part,
             )
         )
     if not zones:
