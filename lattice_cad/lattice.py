@@ -25,7 +25,7 @@ import numpy as np
 
 from lattice_cad.core import config
 from lattice_cad.core.errors import ExportError, LatticeError, OCCTFailure
-from lattice_cad.core.formats import Kind, resolve
+from lattice_cad.core.formats import Kind, resolve, suffixes
 from lattice_cad.core.graph import LatticeGraph
 
 if TYPE_CHECKING:
@@ -392,6 +392,12 @@ class Lattice:
         from lattice_cad import io
 
         p = Path(path)
+        if self.keep and (beam_lattice or p.suffix.lower() in suffixes(Kind.SOLIDS)):
+            raise ExportError(  # never drop the zones silently
+                f"{p.name}: keep-solid zones are solid material, not struts: they cannot be "
+                "written as beams or as the exact strut B-rep; write a mesh (.stl, .3mf "
+                "without beam lattice)"
+            )
         if beam_lattice:
             io.format_for(p, Kind.BEAM_LATTICE)
             clip = None

@@ -254,6 +254,22 @@ def test_lattice_keeps_a_bolt_hole_solid(rng):
     assert lat.info()["keep"] == ["%CYLINDER:1.5"]
 
 
+@pytest.mark.filterwarnings("ignore:.*struts were thinned")
+def test_plugin_and_outputs_that_cannot_hold_zones(tmp_path):
+    import lattice_cad.plugin  # noqa: F401  (Workplane.lattice)
+    from lattice_cad.core.errors import ExportError
+
+    lat = _plate_with_hole().lattice("bcc", 5.0, 0.5, keep="%CYLINDER:1.5")
+    assert [z.label for z in lat.keep] == ["%CYLINDER:1.5"]
+    assert lat.keep[0].face_types == ("CYLINDER",)
+    for name, beams in (("x.3mf", True), ("x.step", False)):
+        with pytest.raises(ExportError, match="keep-solid zones are solid material"):
+            lat.save(tmp_path / name, beam_lattice=beams)
+    assert not list(tmp_path.iterdir())
+    lat.save(tmp_path / "x.json")  # the graph is the lattice alone
+    assert (tmp_path / "x.json").stat().st_size > 0
+
+
 def test_keep_with_a_skin(rng):
     import fast_stitch
 
