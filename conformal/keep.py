@@ -335,7 +335,10 @@ def _field_tube(
     tv, tf = marching_tets(level, origin, h)
     if len(tf) == 0:
         raise KeepError(f"keep zone {label!r}: the faces give an empty zone")
-    return _manifold(tv, tf, f"the tube of keep zone {label!r}"), h
+    tube = _manifold(tv, tf, f"the tube of keep zone {label!r}")
+    # marching tetrahedra leave slivers where the level passes near a grid point; cut by
+    # struts they become needles that rounding to float32 folds: collapse them first
+    return tube.simplify(config.KEEP_SIMPLIFY * h), h
 
 
 def _tube(part: Any, zone: KeepZone) -> tuple[Any, float]:

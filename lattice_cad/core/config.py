@@ -97,6 +97,10 @@ KEEP_VOXELS_PER_THICKNESS = 2.0
 #: Chord error of the kept faces' triangulation, relative to the zone thickness.
 KEEP_FACE_DEFLECTION = 0.01
 
+#: The zone's inner surface is simplified (short edges collapsed, moving it by less than
+#: this fraction of the grid spacing) before the booleans.
+KEEP_SIMPLIFY = 0.02
+
 
 # ------------------------------------------------------- Exact reference (reference_boolean)
 
