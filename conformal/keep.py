@@ -245,7 +245,8 @@ def face_triangles(
 
     vs, fs, base = [], [], 0
     for k, face in enumerate(faces):
-        v, f = occ.tessellate(face, deflection, 0.1)
+        # a copy: meshing the face itself would replace the triangulation of the user's shape
+        v, f = occ.tessellate(occ.copied(face), deflection, 0.1)
         if len(f) == 0:
             raise KeepError(f"face {k} of the zone has no area to triangulate")
         vs.append(v)
@@ -277,26 +278,27 @@ def _clusters(boxes: NDArray[np.float64]) -> list[list[int]]:
     boxes : (K, 2, 3) float64, the grid box of each face.
     """
     groups = [[k] for k in range(len(boxes))]
-    box = [b.copy() for b in boxes]
-
-    def vol(b: NDArray[np.float64]) -> float:
-        return float(np.prod(b[1] - b[0]))
-
+    lo, hi = boxes[:, 0].copy(), boxes[:, 1].copy()
     merged = True
-    while merged:
+    while merged:  # passes until none merges (each pass: one vector test per group)
         merged = False
-        for i in range(len(groups)):
-            for j in range(i + 1, len(groups)):
-                lo = np.minimum(box[i][0], box[j][0])
-                both = np.stack([lo, np.maximum(box[i][1], box[j][1])])
-                if vol(both) <= vol(box[i]) + vol(box[j]):
-                    groups[i] += groups.pop(j)
-                    box[i] = both
-                    box.pop(j)
-                    merged = True
-                    break
-            if merged:
-                break
+        i = 0
+        while i < len(groups):
+            both_lo, both_hi = np.minimum(lo[i], lo), np.maximum(hi[i], hi)
+            own = np.prod(hi - lo, axis=1)
+            fits = np.prod(both_hi - both_lo, axis=1) <= own[i] + own
+            fits[i] = False
+            if not fits.any():
+                i += 1
+                continue
+            j = int(np.argmax(fits))
+            groups[i] += groups[j]
+            lo[i], hi[i] = both_lo[j], both_hi[j]
+            del groups[j]
+            lo, hi = np.delete(lo, j, axis=0), np.delete(hi, j, axis=0)
+            if j < i:
+                i -= 1
+            merged = True
     return groups
 
 

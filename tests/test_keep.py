@@ -350,3 +350,16 @@ def test_cli_keep_errors(capsys, hole_step, tmp_path):
         main(["fill", str(hole_step), "-o", str(tmp_path / "x.stl"), "--keep", ">Z"])
     assert e.value.code == 2
     assert "SELECTOR:THICKNESS" in capsys.readouterr().err
+
+
+def test_faces_are_grouped_by_overlap():
+    from conformal.keep import _clusters
+
+    hole = np.array([[0.0, 0, 0], [10, 10, 10]])
+    boxes = np.stack([hole, hole + [[0, 0.5, 0], [0, 0.5, 0]], hole + 100.0, hole + 300.0])
+    groups = sorted(sorted(g) for g in _clusters(boxes))
+    assert groups == [[0, 1], [2], [3]]
+    # a large face's box swallows a small one inside it
+    big = np.array([[-50.0, -50, -1], [50, 50, 1]])
+    small = np.array([[0.0, 0, -1], [2, 2, 1]])
+    assert sorted(sorted(g) for g in _clusters(np.stack([small, big]))) == [[0, 1]]
