@@ -6,7 +6,7 @@
                                   --segments --beam-lattice[=only] --report DIR
                                   --build-direction X,Y,Z --critical-angle DEG
                                   --min-diameter MM --remove-overhangs --self-supporting
-                                  --escape-holes D --escape-at X,Y,Z
+                                  --escape-holes D --escape-at X,Y,Z --keep SELECTOR:MM ...
                                   --max-brep-struts N]
     lattice-cad stitch GRAPH -o OUT [--segments --beam-lattice[=only]]
     lattice-cad reference GRAPH -o OUT
@@ -96,6 +96,17 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
     return value
+
+
+def _keep_zone(text: str) -> str:
+    from lattice_cad.core.errors import KeepError
+    from lattice_cad.keep import parse_keep
+
+    try:
+        parse_keep(text)
+    except KeepError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def _segments(text: str) -> int:
@@ -270,6 +281,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             **_print_kwargs(args),
             escape_holes=args.escape_holes,
             escape_at=args.escape_at,
+            keep=args.keep,
         )
     lat.progress = not con.quiet
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
@@ -296,6 +308,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3{density}")
         if lat.skin_report is not None:
             con.say(lat.skin_report.summary())
+        if lat.keep_report is not None:
+            con.say(lat.keep_report.summary())
         if lat.trim_report is not None:
             con.say(lat.trim_report.summary())
         if lat.escape_report is not None:
@@ -461,7 +475,8 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
         "--fill",
         choices=("auto", "inside", "clip", "conform"),
         default=None,
-        help="how cells meet the boundary (default: clip with --skin, else auto: inside, or "
+        help="how cells meet the boundary (default: clip with --skin or --keep, else auto: "
+        "inside, or "
         "conform when no whole cell fits, as in thin parts); "
         "voxel only: an error with --method tet, whose lattice always conforms",
     )
@@ -626,6 +641,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("part", help="part file: .step/.stp, or a closed mesh .stl/.obj/.ply/.3mf/.off")
     p.add_argument("-o", "--output", required=True, help=_OUTPUT_HELP)
     _add_lattice_options(p)
+    p.add_argument(
+        "--keep",
+        action="append",
+        type=_keep_zone,
+        default=None,
+        metavar="SELECTOR:MM",
+        help="keep the part solid within MM of the faces a CadQuery selector picks (e.g. "
+        "'>Z:2', '%%CYLINDER:1.5'; a box as 'x0,y0,z0,x1,y1,z1:MARGIN'); repeatable",
+    )
     _add_beam_lattice_option(p)
     p.add_argument("--report", metavar="DIR", help="also write a validation report and pictures")
     _add_print_options(p)

@@ -203,6 +203,8 @@ class Lattice:
     min_diameter : float
     overhang_removal : conformal.printability.OverhangRemoval or None
         What ``fill(..., remove_overhangs=True)`` removed.
+    keep : tuple of conformal.keep.KeepZone
+        Keep-solid zones (see :meth:`fill`), resolved on the part.
     """
 
     def __init__(
@@ -216,6 +218,7 @@ class Lattice:
         escape_holes: float | None = None,
         escape_at: Any = None,
         build_direction: Any = None,
+        keep: Any = None,
     ) -> None:
         if not isinstance(graph, LatticeGraph):
             raise TypeError(f"graph must be a LatticeGraph, got {type(graph).__name__}")
@@ -267,6 +270,16 @@ class Lattice:
         self.escape_report: Any = None
         #: What the last B-rep build did (``lattice_cad.brep.BrepReport``; STEP, to_workplane).
         self.brep_report: Any = None
+        #: Keep-solid zones (issue 13): resolved faces or boxes, built with the mesh.
+        self.keep: tuple[Any, ...] = ()
+        #: The zones' volumes, faces matched and bodies (set when the mesh is built).
+        self.keep_report: Any = None
+        if keep is not None:
+            if part is None:
+                raise ValueError("keep-solid zones need the part: use Lattice.fill(part, keep=...)")
+            from lattice_cad.keep import resolve_keep
+
+            self.keep = resolve_keep(part, keep)
 
     # ---------------------------------------------------------------- build
     @classmethod
@@ -291,6 +304,7 @@ class Lattice:
         self_supporting: bool = False,
         escape_holes: float | None = None,
         escape_at: Any = None,
+        keep: Any = None,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -309,7 +323,8 @@ class Lattice:
             Periodic cells on a grid, or struts along the edges of a tetrahedral mesh.
         fill : {"auto", "inside", "clip", "conform"}, optional
             How the voxel lattice meets the boundary (see ``conformal.voxel_lattice``);
-            default ``"clip"`` with a skin (struts reach into the wall), else ``"auto"``
+            default ``"clip"`` with a skin or ``keep`` zones (struts reach into the wall
+            and the zones), else ``"auto"``
             (``"inside"``, or ``"conform"`` when no whole cell fits, as in thin parts).
             Voxel only: a tet lattice always conforms (its surface nodes lie on the
             part's surface), so passing ``fill`` with ``method="tet"`` is an error.
@@ -346,6 +361,11 @@ class Lattice:
         escape_at : (P, 3) float, optional
             Points (mm) on the outer surface where holes are drilled along the wall
             normal (implies ``escape_holes`` of ``config.ESCAPE_DIAMETER`` if not given).
+        keep : (faces, thickness), "SELECTOR:THICKNESS" or a list of them, optional
+            Keep-solid zones: the part stays solid within ``thickness`` mm of the faces
+            (a CadQuery selector such as ``">Z"`` or ``"%CYLINDER"``, build123d/cadquery
+            faces, or a box ``((xmin, ymin, zmin), (xmax, ymax, zmax))`` with a margin);
+            struts that enter a zone join it. See :mod:`lattice_cad.keep`.
 
         Returns
         -------
@@ -358,6 +378,8 @@ class Lattice:
         PrintabilityError
             A zero build direction, an angle outside 0..90, a cell that no rotation makes
             self-supporting, or nothing left after removing the overhangs.
+        KeepError
+            A keep selector matches no face (the message lists the part's faces).
         ValueError, TypeError
             An option out of range (named in the message).
         """
@@ -371,8 +393,8 @@ class Lattice:
                     f"{' and '.join(given)} only {verb} to method='voxel'; a tet lattice "
                     "follows the part's surface by construction (leave them out)"
                 )
-        if fill is None:
-            fill = "clip" if skin is not None else "auto"
+        if fill is None:  # with a skin or keep zones, struts must reach the boundary
+            fill = "clip" if skin is not None or keep is not None else "auto"
         _check_choice("fill", fill, ("auto", "inside", "clip", "conform"))
         if not isinstance(cell, str):
             raise TypeError(f"cell must be a cell name, got {type(cell).__name__}")
@@ -398,6 +420,11 @@ class Lattice:
         if self_supporting:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         the_part = _load_part(part)
+        zones = None
+        if keep is not None:  # resolved before the lattice: a wrong selector fails fast
+            from lattice_cad.keep import resolve_keep
+
+            zones = resolve_keep(the_part, keep)
         graph, report = _fill_graph(
             the_part,
             method=method,
@@ -423,6 +450,7 @@ class Lattice:
             escape_at=escape_at,
             build_direction=direction,
         )
+        lat.keep = zones or ()
         lat.build_report = report
         lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
         lat.overhang_removal = removal
@@ -469,26 +497,38 @@ class Lattice:
         return fast_stitch.stitch(self.graph, self.segments, progress=self.progress)
 
     @cached_property
+    def _kept_mesh(self) -> Mesh:
+        """The lattice united with its keep-solid zones (the lattice when it has none)."""
+        if not self.keep:
+            return self._lattice_mesh
+        from conformal.keep import build_keep
+        from lattice_cad.core.mesh import Mesh
+
+        result = build_keep(self._lattice_mesh, self.part, self.keep)
+        self.keep_report = result.report
+        return Mesh(vertices=result.vertices, faces=result.faces)
+
+    @cached_property
     def _solid_mesh(self) -> Mesh:
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
         if self.skin is None:
             if self.part is None or not self.trim or self.graph.num_edges == 0:
-                return self._lattice_mesh
+                return self._kept_mesh
             from conformal.trim import trim_to_part
 
             trimmed = trim_to_part(  # checked below, after rounding to float32
-                self._lattice_mesh, self.part, radius=float(self.graph.radii.max()), check=False
+                self._kept_mesh, self.part, radius=float(self.graph.radii.max()), check=False
             )
             self.trim_report = trimmed.report
             if not trimmed.report.trimmed:
-                return self._lattice_mesh
+                return self._kept_mesh
             v, f = _skin.to_arrays(trimmed.solid)
             return Mesh(vertices=v, faces=f)
 
         # checked below, after rounding to float32 (what the files hold)
-        result = _skin.build_skin(self._lattice_mesh, self.part, self.skin, check=False)
+        result = _skin.build_skin(self._kept_mesh, self.part, self.skin, check=False)
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
@@ -575,8 +615,9 @@ class Lattice:
         Returns
         -------
         fast_stitch.Mesh
-            The stitched lattice cut by the part's surface (when the part is known; see
-            ``trim``), or (with a skin) the union of skin and lattice.
+            The stitched lattice (united with its keep-solid zones) cut by the part's
+            surface (when the part is known; see ``trim``), or (with a skin) the union of
+            skin and lattice.
         """
         return self._lattice_mesh if lattice_only else self._printable_mesh
 
@@ -633,6 +674,12 @@ class Lattice:
         from lattice_cad import io
 
         p = Path(path)
+        if self.keep and (beam_lattice == "only" or p.suffix.lower() in suffixes(Kind.SOLIDS)):
+            raise ExportError(  # never drop the zones silently
+                f"{p.name}: keep-solid zones are solid material, not struts: they cannot be "
+                "written as beams only or as the exact strut B-rep; write a mesh (.stl, .3mf, "
+                "or a beam-lattice 3MF with its mesh)"
+            )
         if p.suffix.lower() in suffixes(Kind.FE_MODEL) and beam_lattice is False:
             self.save_inp(p, node_sets=node_sets, material=material)
             return p
@@ -867,6 +914,7 @@ class Lattice:
             "volume": volume,
             "volume_exact": built,
             "skin": self.skin,
+            "keep": [z.label for z in self.keep],
         }
         if self.part is not None:
             pv = float(self.part.volume)

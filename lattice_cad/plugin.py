@@ -35,13 +35,14 @@ def lattice(
     segments: int = config.DEFAULT_SEGMENTS,
     origin: Any = None,
     rotation: Any = None,
+    keep: Any = None,
     **options: Any,
 ) -> Lattice:
     """Fill the solids on the workplane's stack with a lattice.
 
     Parameters
     ----------
-    cell, cell_size, radius, method, fill, skin, segments, origin, rotation
+    cell, cell_size, radius, method, fill, skin, segments, origin, rotation, keep
         See :meth:`lattice_cad.Lattice.fill`.
     **options
         Every other keyword of :meth:`lattice_cad.Lattice.fill` (``trim``,
@@ -79,6 +80,7 @@ def lattice(
         segments=segments,
         origin=origin,
         rotation=rotation,
+        keep=keep,
         **options,
     )
 

@@ -69,6 +69,7 @@ def test_every_flag_is_documented():
             "--method",
             "--fill",
             "--skin",
+            "--keep",
             "--segments",
             "--beam-lattice",
             "--report",

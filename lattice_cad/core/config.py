@@ -112,6 +112,22 @@ VOXELS_PER_THICKNESS = 3.0
 ESCAPE_DIAMETER = 2.0
 
 
+# ------------------------------------------------------------ Keep-solid zones (conformal.keep)
+
+#: Grid points per zone thickness of the distance field around the kept faces. Planar faces
+#: are exact at any spacing; on curved ones the inner surface is off by about h^2 / (8 R)
+#: (R its radius), at most t / 32 where R >= t: well below a B-rep part's chord error (its
+#: mesh is 1e-3 of the diagonal off the exact surface), at 2.4 x less time than t / 3.
+KEEP_VOXELS_PER_THICKNESS = 2.0
+
+#: Chord error of the kept faces' triangulation, relative to the zone thickness.
+KEEP_FACE_DEFLECTION = 0.01
+
+#: The zone's inner surface is simplified (short edges collapsed, moving it by less than
+#: this fraction of the grid spacing) before the booleans.
+KEEP_SIMPLIFY = 0.02
+
+
 # ------------------------------------------------------- Exact reference (reference_boolean)
 
 #: Hub sphere radius over the largest incident strut radius (Wang et al.: 0.001 % larger).

@@ -16,6 +16,7 @@ example ``conformal.PartError``), but they are defined here only.
     │   └── StepUnitsError       a STEP file's unit disagrees with OCCT's reading of it
     ├── SkinError                a part cannot be hollowed (conformal.skin)
     ├── EscapeHoleError          a cavity cannot be opened, or stays closed (conformal.escape)
+    ├── KeepError                a keep-solid zone cannot be used (conformal.keep)
     ├── SimilarityError          invalid similarity parameters (conformal.similarity)
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
     ├── PrintabilityError        invalid build direction, angle or diameter (conformal.printability)
@@ -44,6 +45,7 @@ __all__ = [
     "StepUnitsError",
     "SkinError",
     "EscapeHoleError",
+    "KeepError",
     "SimilarityError",
     "SteadyLatticeError",
     "PrintabilityError",
@@ -97,6 +99,11 @@ class SkinError(LatticeError, ValueError):
 class EscapeHoleError(LatticeError, ValueError):
     """An enclosed cavity of a skinned part gets no escape hole (none fits, or a user point
     has no cavity behind it), or stays enclosed after drilling (the message says which)."""
+
+
+class KeepError(LatticeError, ValueError):
+    """A keep-solid zone cannot be used: a selector that matches no face (the message lists
+    the part's faces), a face not on the part, a bad thickness or box."""
 
 
 class SimilarityError(LatticeError, ValueError):

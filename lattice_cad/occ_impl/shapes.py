@@ -19,7 +19,7 @@ from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
 from OCP.BRepBndLib import BRepBndLib
-from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_Transform
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
@@ -56,6 +56,7 @@ __all__ = [
     "face_area",
     "bounds",
     "translated",
+    "copied",
     "is_compound",
     "face_triangulations",
     "tessellate",
@@ -216,6 +217,19 @@ def translated(shape: TopoDS_Shape, offset: Any) -> TopoDS_Shape:
     mk = BRepBuilderAPI_Transform(shape, trsf, True)
     check_done(mk, "translate")
     return mk.Shape()
+
+
+def copied(shape: TopoDS_Shape) -> TopoDS_Shape:
+    """A deep copy of ``shape`` (geometry too, without its triangulation).
+
+    Meshing the copy leaves the original's triangulation (and the user's shape) as it was.
+    """
+    mk = BRepBuilderAPI_Copy(shape, True, False)
+    check_done(mk, "copy")
+    out = mk.Shape()
+    if out is None or out.IsNull():
+        raise OCCTFailure("copy: null shape")
+    return out
 
 
 def is_compound(shape: TopoDS_Shape) -> bool:
