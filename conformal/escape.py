@@ -49,6 +49,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from lattice_cad.core.checks import check_positive
 from lattice_cad.core.errors import EscapeHoleError
 
 __all__ = [
@@ -434,7 +435,7 @@ def verify(
     from lattice_cad.core.mesh import mesh_arrays
 
     t0 = time.perf_counter()
-    h = _positive("voxel", voxel)
+    h = check_positive("voxel", voxel)
     b = _unit(build_direction, "build_direction")
     arrays = mesh_arrays(solid)
     if arrays is None:
@@ -454,14 +455,6 @@ def verify(
 
 
 # ---------------------------------------------------------------- hole checks
-def _positive(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-        raise TypeError(f"{name} must be a number, got {value!r}")
-    if not (math.isfinite(float(value)) and float(value) > 0):
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
-    return float(value)
-
-
 def _unit(vec: ArrayLike, name: str) -> NDArray[np.float64]:
     try:
         a = np.asarray(vec, dtype=np.float64).reshape(3)
@@ -725,8 +718,8 @@ def drill(
     from lattice_cad.core.mesh import mesh_arrays
 
     t0 = time.perf_counter()
-    d = _positive("diameter", diameter)
-    wall = _positive("thickness", thickness)
+    d = check_positive("diameter", diameter)
+    wall = check_positive("thickness", thickness)
     b = _unit(build_direction, "build_direction")
     if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or segments < 3:
         raise ValueError(f"segments must be an integer >= 3, got {segments!r}")
@@ -736,7 +729,7 @@ def drill(
     user = user.reshape(-1, 3)
     if not np.all(np.isfinite(user)):
         raise ValueError("points must be finite coordinates")
-    h = _positive("voxel", voxel) if voxel is not None else grid_step(d, wall)
+    h = check_positive("voxel", voxel) if voxel is not None else grid_step(d, wall)
 
     man = solid if isinstance(solid, manifold3d.Manifold) else as_manifold(solid, name="solid")
     arrays = mesh_arrays(man)

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 
 from lattice_cad.core import config
+from lattice_cad.core.checks import check_positive
 from lattice_cad.core.errors import EscapeHoleError, ExportError, LatticeWarning
 from lattice_cad.core.formats import Kind, format_for, resolve, suffixes
 from lattice_cad.core.graph import LatticeGraph
@@ -45,14 +46,6 @@ def _check_choice(name: str, value: Any, allowed: tuple[str, ...]) -> str:
     if value not in allowed:
         raise ValueError(f"{name} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
     return str(value)
-
-
-def _positive(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-        raise TypeError(f"{name} must be a number, got {value!r}")
-    if not (math.isfinite(float(value)) and float(value) > 0):
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
-    return float(value)
 
 
 def load_graph(path: str | os.PathLike[str]) -> LatticeGraph:
@@ -223,7 +216,7 @@ class Lattice:
         if not isinstance(graph, LatticeGraph):
             raise TypeError(f"graph must be a LatticeGraph, got {type(graph).__name__}")
         if skin is not None:
-            skin = _positive("skin", skin)
+            skin = check_positive("skin", skin)
             if part is None:
                 raise ValueError("a skin needs the part: use Lattice.fill(part, skin=...)")
         if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)):
@@ -254,7 +247,7 @@ class Lattice:
         if escape_holes is not None or escape_at is not None:
             if skin is None:
                 raise ValueError("escape holes open the cavity of a skin: pass skin= as well")
-            escape_holes = _positive("escape_holes", escape_holes or config.ESCAPE_DIAMETER)
+            escape_holes = check_positive("escape_holes", escape_holes or config.ESCAPE_DIAMETER)
         if escape_at is not None:
             try:
                 escape_at = np.asarray(escape_at, dtype=np.float64).reshape(-1, 3)
@@ -402,10 +395,10 @@ class Lattice:
 
         if method == "voxel" and cell not in CELLS:
             raise ValueError(f"unknown cell {cell!r}; choose from {', '.join(sorted(CELLS))}")
-        cell_size = _positive("cell_size", cell_size)
-        radius = _positive("radius", radius)
+        cell_size = check_positive("cell_size", cell_size)
+        radius = check_positive("radius", radius)
         if skin is not None:
-            skin = _positive("skin", skin)
+            skin = check_positive("skin", skin)
         from conformal import printability as _pr
 
         direction = _pr.as_build_direction(

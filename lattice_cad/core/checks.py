@@ -6,12 +6,20 @@ and returns the value coerced to the type the kernels need.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-__all__ = ["ProgressCallback", "Progress", "check_segments", "check_seed", "check_workers"]
+__all__ = [
+    "ProgressCallback",
+    "Progress",
+    "check_positive",
+    "check_segments",
+    "check_seed",
+    "check_workers",
+]
 
 #: ``callback(stage, done, total)``: called as long operations advance.
 ProgressCallback = Callable[[str, int, int], Any]
@@ -19,6 +27,15 @@ ProgressCallback = Callable[[str, int, int], Any]
 
 def _is_int(value: Any) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def check_positive(name: str, value: Any) -> float:
+    """``value`` as a finite positive float; a TypeError or ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    if not (math.isfinite(float(value)) and float(value) > 0):
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return float(value)
 
 
 def check_segments(segments: Any) -> int:
