@@ -349,8 +349,10 @@ def _voxel_surfaces(part: Any, thickness: float, h: float) -> tuple[Any, Any, An
     out = [part_solid(part)]  # touching solids of an assembly united
     # marching tetrahedra give about 20 triangles per voxel face of the surface, mostly on
     # flat walls: manifold3d's simplification (no surface moves by more than the tolerance,
-    # a quarter of the wall's accuracy bound) removes ~95 % of them before the booleans
-    tol = SIMPLIFY_FRACTION * max(WALL_RTOL * thickness, WALL_ATOL)
+    # a quarter of the wall's relative accuracy bound) removes ~95 % of them before the
+    # booleans. Relative only: on a small part the absolute bound (0.02 mm) is a large
+    # fraction of the wall, and so coarse a surface folds when rounded to float32.
+    tol = SIMPLIFY_FRACTION * WALL_RTOL * thickness
     for level in (0.5 * thickness, thickness):
         v, f = marching_tets(depth - level, origin, h)  # depth is sampled at the grid points
         if len(f) == 0:
