@@ -50,6 +50,9 @@ class TrimReport:
     pieces_removed : int
         Pieces cut loose by the trim and removed.
     seconds : float
+    failed : str
+        Why the trimmed lattice could not be written (then the lattice is written uncut and
+        ``protrusion_before`` is what the file has); empty when it was.
     """
 
     trimmed: bool
@@ -60,12 +63,19 @@ class TrimReport:
     bodies: int
     pieces_removed: int
     seconds: float
+    failed: str = ""
 
     @property
     def within_tolerance(self) -> bool:
-        return self.protrusion_after <= self.tolerance
+        return not self.failed and self.protrusion_after <= self.tolerance
 
     def summary(self) -> str:
+        if self.failed:
+            return (
+                f"trim: NOT cut to the part's surface (the cut could not be written in single "
+                f"precision: {self.failed}); the lattice reaches up to "
+                f"{self.protrusion_before:.3g} mm outside the part"
+            )
         if not self.trimmed:
             return (
                 f"trim: the lattice lies inside the part (largest protrusion "

@@ -15,6 +15,7 @@ Everything heavy (the mesh, the skin, the exact reference) is built lazily, once
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import warnings
@@ -141,19 +142,27 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
     (with the folds the rounding makes collapsed), or :class:`ExportError`."""
     import fast_stitch
     from lattice_cad import io
+    from lattice_cad.core.mesh import Mesh, weld
 
     out, _ = io.single_precision(mesh, name=name)
-    report = fast_stitch.check(out)
-    for _ in range(20):  # tiny folds where the booleans left needles: collapse them
-        if report.valid:
-            break
-        out = _collapse_folds(out, report)
+    for attempt in range(2):
         report = fast_stitch.check(out)
-    if not report.valid:
-        raise ExportError(
-            f"{name} cannot be written in single precision (STL, 3MF): rounding its "
-            f"coordinates to float32 breaks it ({report})"
-        )
+        for _ in range(20):  # tiny folds where the booleans left needles: collapse them
+            if report.valid:
+                break
+            out = _collapse_folds(out, report)
+            report = fast_stitch.check(out)
+        if not report.valid:
+            raise ExportError(
+                f"{name} cannot be written in single precision (STL, 3MF): rounding its "
+                f"coordinates to float32 breaks it ({report})"
+            )
+        # readers that merge vertices closer than config.NEAR_VERTEX (trimesh, and the
+        # tools built on it) must find the same closed solid: merge them here, check again
+        v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
+        if len(v2) == len(out.vertices) or attempt == 1:
+            break
+        out = Mesh(vertices=v2, faces=f2)
     return out
 
 
@@ -538,7 +547,17 @@ class Lattice:
         # a stitched lattice keeps its clearances through the rounding; a skin or a trim
         # (manifold3d booleans) can have surfaces a float32 step apart: checked in full
         if solid is not self._lattice_mesh:
-            mesh = _checked_single_precision(solid, "the lattice")
+            try:
+                mesh = _checked_single_precision(solid, "the lattice")
+            except ExportError as exc:
+                if self.skin is not None or self.keep or self.trim_report is None:
+                    raise
+                # the cut by the part's surface left slivers that float32 cannot hold (tiny
+                # struts on a mesh part): write the lattice uncut, and say so in the report
+                self.trim_report = dataclasses.replace(
+                    self.trim_report, failed=str(exc).splitlines()[0][:300]
+                )
+                return self._fallback_untrimmed()
         else:
             mesh, repaired = io.single_precision(solid, name="the lattice")
             if repaired:
@@ -551,6 +570,20 @@ class Lattice:
                     )
         if self.escape_holes is not None:
             self._verify_escape(mesh)
+        return mesh
+
+    def _fallback_untrimmed(self) -> Mesh:
+        """The stitched lattice in single precision, when its trim cannot be written."""
+        import fast_stitch
+        from lattice_cad import io
+
+        mesh, repaired = io.single_precision(self._lattice_mesh, name="the lattice")
+        if repaired and not fast_stitch.check(mesh).valid:
+            raise ExportError(
+                "the lattice cannot be written in single precision (STL, 3MF): rounding its "
+                "coordinates to float32 breaks it; move it closer to the origin or use "
+                "thicker struts"
+            )
         return mesh
 
     def _drill(self, solid: Any) -> Any:

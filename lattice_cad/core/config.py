@@ -213,6 +213,10 @@ MAX_BREP_STRUTS = 2_000
 #: the largest strut radius (``conformal.trim``; checked on every vertex and reported).
 TRIM_RTOL = 0.01
 
+#: Vertices of a written mesh closer than this (mm) are merged before the final check:
+#: trimesh (and tools built on it) merge them on reading, so the file must be closed then.
+NEAR_VERTEX = 1e-8
+
 #: Measured rates of the B-rep path (``lattice_cad.brep.estimate``), on the development
 #: machine (2 cores shared with other jobs, load 10-14; benchmarks/brep_rates.md): a fixed
 #: start (imports, process pool), seconds per stump of a distinct hub (its sphere-and-
