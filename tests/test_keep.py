@@ -182,7 +182,11 @@ def _inside_printable(mesh, pts, *, independent=200):
     inside = Part(mesh.vertices, mesh.faces, name="printable").contains(pts)
     few = slice(None, independent)
     tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False)
-    assert (tm.contains(pts[few]) == inside[few]).all()
+    # trimesh's ray test divides by the area of every triangle it meets: the slivers a
+    # boolean cut leaves (valid, nonzero in exact arithmetic) give it a zero denominator
+    with np.errstate(divide="ignore", invalid="ignore"):
+        independent_inside = tm.contains(pts[few])
+    assert (independent_inside == inside[few]).all()
     return inside
 
 
