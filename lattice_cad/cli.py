@@ -231,15 +231,33 @@ def _cmd_check(args: argparse.Namespace, con: _Console) -> int:
     from fast_stitch.check import check
     from lattice_cad.io import read_mesh
 
+    _refuse_non_mesh(args.mesh)
     with con.step("read"):
         v, f = read_mesh(args.mesh)
     if len(f) == 0:
-        print(f"{args.mesh}: INVALID: the mesh has no triangles")
+        print(f"{args.mesh}: INVALID: the file holds no triangles")
         return 1
     with con.step("check"):
         rep = check((v, f), self_intersections=not args.no_self_intersections)
     print(f"{args.mesh}: {rep}")
     return 0 if rep.valid else 1
+
+
+def _refuse_non_mesh(path: str) -> None:
+    """``check`` takes meshes: say what a part or graph file is instead of a suffix error."""
+    from lattice_cad.core.errors import InputFileError
+
+    s = Path(path).suffix.lower()
+    if s in (".step", ".stp"):
+        raise InputFileError(
+            f"{path}: is a STEP part, not a mesh; `lattice-cad check` checks mesh files "
+            f"({' '.join(suffixes(Kind.MESH, action='read'))})"
+        )
+    if s in suffixes(Kind.GRAPH, action="read"):
+        raise InputFileError(
+            f"{path}: is a lattice graph, not a mesh; stitch it first "
+            f"(`lattice-cad stitch {path} -o out.stl`)"
+        )
 
 
 def _cmd_preview(args: argparse.Namespace, con: _Console) -> int:
@@ -307,9 +325,15 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``lattice-cad`` (one sub-parser per command)."""
+    # SUPPRESS: a sub-command's parser must not reset -q/--debug given before the command
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
-    common.add_argument("--debug", action="store_true", help="show tracebacks of errors")
+    common.add_argument(
+        "-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+        help="print nothing but errors",
+    )  # fmt: skip
+    common.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks of errors"
+    )
 
     parser = argparse.ArgumentParser(
         prog="lattice-cad",
@@ -430,6 +454,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``lattice-cad``; returns the exit code (also the console-script entry point)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.quiet = getattr(args, "quiet", False)  # given before or after the command
+    args.debug = getattr(args, "debug", False)
     con = _Console(args.quiet)
     try:
         with warnings.catch_warnings():

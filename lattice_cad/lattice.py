@@ -293,6 +293,7 @@ class Lattice:
         import fast_stitch
         from lattice_cad import io
 
+        self.graph.check_precision("float32")  # before stitching: STL/3MF store float32
         mesh, repaired = io.single_precision(self._solid_mesh, name="the lattice")
         # a stitched lattice keeps its clearances through the rounding; a skin (manifold3d
         # booleans) can have surfaces a float32 step apart, so it is checked in full

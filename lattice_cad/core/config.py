@@ -29,6 +29,59 @@ STL_MAX_TRIANGLES = 2**32 - 1
 THREEMF_MAX = 2**31 - 1
 
 
+# ------------------------------------------------------------ Precision contract (graphs)
+
+#: Check every :class:`LatticeGraph` against the precision limits below (switch off only to
+#: measure them, as ``benchmarks/precision_sweep.py`` does).
+PRECISION_CONTRACT = True
+
+#: Largest ``|x| / r`` for float64 (``|x|``: the largest absolute coordinate of a strut's two
+#: nodes, ``r``: its smaller end radius). Measured with ``benchmarks/precision_sweep.py``
+#: (random stars and jittered 2x2x2 bcc blocks, 30 graphs per half decade, P = 6, stitched
+#: and checked with the contract off): all 60 valid at every ratio up to 1e14; the first
+#: invalid meshes (zero-area and self-intersecting faces, never an error) at 10**14.5
+#: (3/30 bcc), 30/60 at 1e15, 58/60 at 1e16. Two and a half decades of margin (larger P
+#: puts profile vertices closer together).
+PRECISION_RATIO_F64 = 1e12
+
+#: Largest ``|x| / r`` for single-precision output (STL, 3MF, beam-lattice 3MF store
+#: float32 coordinates). Measured as above after rounding the valid float64 mesh to float32
+#: as the writers do (``lattice_cad.io.single_precision``, flat triangles collapsed) and
+#: checking it in full: all valid up to 1e6, the first failures at 10**6.5 (11/30 bcc),
+#: 35/60 at 1e7, all from 1e8. One and a half decades of margin.
+PRECISION_RATIO_F32 = 1e5
+
+#: Largest absolute coordinate: the exact predicates multiply three coordinate
+#: differences, which must not overflow (a length's square overflows above 1.3e154: the
+#: campaign's "parallel" struts of length 1e155). Measured (``precision_sweep.py
+#: --absolute``, stars scaled by 10**k at the origin, radius 0.01..0.02 x scale): valid up
+#: to 10**100, every one invalid at 10**110 and refused from 10**160. Ten decades of margin.
+MAX_COORDINATE = 1e90
+
+#: Smallest radius: products of radius-sized differences (areas' squares: r**4) must stay
+#: normal floating-point numbers. Measured as above: valid down to scale 10**-70 (radii
+#: ~1e-72), every one invalid at 10**-80 (zero-area faces, no error). Ten decades of
+#: margin.
+MIN_RADIUS = 1e-60
+
+#: Largest coordinate and smallest radius of single-precision files: readers compute
+#: normals and lengths in float32 from products of two coordinate differences, which must
+#: neither overflow (3.4e38) nor underflow (1.2e-38).
+MAX_COORDINATE_F32 = 1e18
+MIN_RADIUS_F32 = 1e-18
+
+
+# ----------------------------------------------------------------- Memory (core.resources)
+
+#: Cap on the memory lattice-cad plans to use, in bytes (None: what the system reports).
+#: The environment variable ``LATTICE_CAD_MEMORY_LIMIT`` (e.g. ``8G``) caps it too.
+MEMORY_LIMIT: int | None = None
+
+#: Fraction of the available memory one operation may plan to use (estimates are not
+#: exact, and the interpreter, numba and the caller hold memory too).
+MEMORY_FRACTION = 0.85
+
+
 # ------------------------------------------------------------------- Stitching (fast_stitch)
 
 #: Relative safety margin on profile offsets (keeps hull triangles away from slivers).
