@@ -8,7 +8,7 @@ the valid float64 meshes as STL/3MF store them (``lattice_cad.io.single_precisio
 checks again. The thresholds ``config.PRECISION_RATIO_F64`` / ``PRECISION_RATIO_F32`` are
 chosen from this table with a safety factor.
 
-    PYTHONPATH=. python benchmarks/precision_sweep.py [--trials 40]
+    PYTHONPATH=. python benchmarks/precision_sweep.py [--trials 40] [--absolute | --fuzz-families]
 """
 
 from __future__ import annotations
@@ -99,16 +99,51 @@ def absolute(trials: int, rng: np.random.Generator) -> None:
         config.MIN_RADIUS, config.MAX_COORDINATE = saved
 
 
+def fuzz_families(trials: int) -> None:
+    """The fuzzer's chains, random graphs and stars (``tests/test_fuzz.py``), P = 3 and 8:
+    float64 validity against ``|x| / r`` (run from the repository root)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.test_fuzz import _unit, make
+
+    saved = config.PRECISION_CONTRACT
+    config.PRECISION_CONTRACT = False
+    try:
+        for fam in ("chain", "random", "star"):
+            for exp in (8, 9, 10, 10.5, 11, 11.5, 12):
+                bad = tot = 0
+                for sd in range(trials):
+                    rng = np.random.default_rng(sd)
+                    nodes, edges, radii = make(fam, rng)
+                    nodes = nodes + _unit(rng, 1)[0] * np.min(radii) * 10**exp
+                    for P in (3, 8):
+                        try:
+                            m = fast_stitch.stitch(LatticeGraph(nodes, edges, radii), P)
+                        except LatticeError:
+                            continue
+                        tot += 1
+                        bad += not fast_stitch.check(m).valid
+                print(f"{fam:>7} log10 |x|/r {exp:>5}: {bad}/{tot} invalid", flush=True)
+    finally:
+        config.PRECISION_CONTRACT = saved
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--trials", type=int, default=40)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--absolute", action="store_true", help="sweep the absolute scale instead")
+    ap.add_argument("--fuzz-families", action="store_true", help="chains and random graphs")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     rng = np.random.default_rng(args.seed)
     if args.absolute:
         absolute(args.trials, rng)
+        return
+    if args.fuzz_families:
+        fuzz_families(args.trials)
         return
     saved = config.PRECISION_CONTRACT
     config.PRECISION_CONTRACT = False

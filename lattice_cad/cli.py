@@ -100,6 +100,13 @@ def _load_graph(path: str) -> Any:
     return LatticeGraph.load(path)
 
 
+def _check_output(out: Path) -> None:
+    """Refuse a missing directory or a directory in the way before any work."""
+    from lattice_cad.core.atomic import check_target
+
+    check_target(out)
+
+
 def _write_report(con: _Console, lat: Any, directory: str) -> None:
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
@@ -116,6 +123,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     from lattice_cad.lattice import Lattice
 
     out = Path(args.output)
+    _check_output(out)
     with con.step("load + lattice"):
         lat = Lattice.fill(
             args.part,
@@ -171,6 +179,7 @@ def _cmd_stitch(args: argparse.Namespace, con: _Console) -> int:
     lat = Lattice(graph, segments=args.segments)
     lat.progress = not con.quiet
     out = Path(args.output)
+    _check_output(out)
     with con.step("stitch"):
         mesh = lat.mesh()
     with con.step(f"write {out.suffix.lstrip('.')}"):

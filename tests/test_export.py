@@ -95,7 +95,7 @@ def test_limits(tmp_path):
 
 def test_failed_export_leaves_nothing(tmp_path):
     # struts far from the origin: float32 STL rounding makes triangles degenerate
-    g = block("cubic", 1, cell_size=1e-3, origin=(1e5, 1e5, 1e5), radius=1e-4)
+    g = block("cubic", 1, cell_size=1e-3, origin=(1e4, 1e4, 1e4), radius=1e-4)
     m = fast_stitch.stitch(g, 6)
     target = tmp_path / "far.stl"
     with pytest.raises(ExportError, match="far.stl"):
@@ -185,7 +185,7 @@ def test_single_precision_refuses_what_float32_cannot_hold():
     from lattice_cad.lattice import Lattice
 
     lat = Lattice(g, segments=8)
-    # the precision contract refuses it before stitching (|x| / r = 1e7 > 1e5 for float32)
+    # the precision contract refuses it before stitching (|x| / r = 1e7 > 3e4 for float32)
     with pytest.raises(InvalidGraphError, match=r"edge 0 \(0, 1\).*single precision"):
         lat.mesh()
     _, repaired = export.single_precision(lat.mesh(lattice_only=True))

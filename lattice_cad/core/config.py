@@ -36,20 +36,21 @@ THREEMF_MAX = 2**31 - 1
 PRECISION_CONTRACT = True
 
 #: Largest ``|x| / r`` for float64 (``|x|``: the largest absolute coordinate of a strut's two
-#: nodes, ``r``: its smaller end radius). Measured with ``benchmarks/precision_sweep.py``
-#: (random stars and jittered 2x2x2 bcc blocks, 30 graphs per half decade, P = 6, stitched
-#: and checked with the contract off): all 60 valid at every ratio up to 1e14; the first
-#: invalid meshes (zero-area and self-intersecting faces, never an error) at 10**14.5
-#: (3/30 bcc), 30/60 at 1e15, 58/60 at 1e16. Two and a half decades of margin (larger P
-#: puts profile vertices closer together).
-PRECISION_RATIO_F64 = 1e12
+#: nodes, ``r``: its smaller end radius). Measured with the contract off
+#: (``benchmarks/precision_sweep.py``: stars and jittered bcc blocks, 30 per half decade;
+#: and the fuzzer's families: 40 chains, random graphs and stars at P = 3 and 8): every
+#: star and block is valid up to 1e14 (first invalid 10**14.5), but random graphs (struts
+#: crossing near nodes) fail from 1e11 (4/51; 9/50 at 10**11.5) and chains with shallow
+#: bends from 10**11.5 (2/67). Invalid means zero-area or self-intersecting faces, never
+#: an error. Two decades of margin below the first failure.
+PRECISION_RATIO_F64 = 1e9
 
 #: Largest ``|x| / r`` for single-precision output (STL, 3MF, beam-lattice 3MF store
-#: float32 coordinates). Measured as above after rounding the valid float64 mesh to float32
-#: as the writers do (``lattice_cad.io.single_precision``, flat triangles collapsed) and
-#: checking it in full: all valid up to 1e6, the first failures at 10**6.5 (11/30 bcc),
-#: 35/60 at 1e7, all from 1e8. One and a half decades of margin.
-PRECISION_RATIO_F32 = 1e5
+#: float32 coordinates). Measured as above on the printable mesh (``Lattice.mesh()``:
+#: rounded to float32 as the writers do, flat triangles collapsed) checked in full: every
+#: family valid up to 10**5.5; first failures at 1e6 (1/30 blocks), 10**6.5 (11/30 bcc),
+#: all from 1e8. One and a half decades of margin.
+PRECISION_RATIO_F32 = 3e4
 
 #: Largest absolute coordinate: the exact predicates multiply three coordinate
 #: differences, which must not overflow (a length's square overflows above 1.3e154: the

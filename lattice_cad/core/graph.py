@@ -29,6 +29,7 @@ from lattice_cad.core.errors import (
     MissingFileError,
 )
 from lattice_cad.core.formats import Kind, format_for
+from lattice_cad.core.resources import require_memory
 
 __all__ = ["LatticeGraph", "precision_problem"]
 
@@ -251,6 +252,14 @@ class LatticeGraph:
         """Write the graph to ``.npz`` or ``.json`` (atomically). Returns the path."""
         p = Path(path)
         fmt = format_for(p, Kind.GRAPH)
+        numbers = 3 * self.num_nodes + 4 * self.num_edges
+        # JSON goes through Python lists (about 120 bytes per number, text included);
+        # npz compresses copies of the arrays (about 16)
+        require_memory(
+            (120 if fmt.name == "json" else 16) * numbers,
+            f"writing {p.name} ({self.num_edges:,} struts)",
+            advice="save the graph as .npz (compact) rather than .json",
+        )
         if fmt.name == "json":
             with atomic_write(p, "w") as fh:
                 json.dump(self.to_dict(), fh)

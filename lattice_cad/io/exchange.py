@@ -645,8 +645,9 @@ def check_mesh_file(path: str | os.PathLike[str]) -> Path:
         raise MissingFileError(f"mesh file not found: {p}")
     size = p.stat().st_size
     what = fmt.name.upper()
+    what = ("an " if what[0] in "AEIOFHLMNRSX" else "a ") + what  # an STL, a PLY
     if size == 0:
-        raise InputFileError(f"{p}: the file is empty (0 bytes), not a {what} file")
+        raise InputFileError(f"{p}: the file is empty (0 bytes), not {what} file")
     try:
         with open(p, "rb") as fh:
             head = fh.read(4096)
@@ -672,7 +673,7 @@ def check_mesh_file(path: str | os.PathLike[str]) -> Path:
     magic = _MAGIC.get(fmt.name)
     if magic and not any(head.lstrip().startswith(m) for m in magic):
         raise InputFileError(
-            f"{p}: not a {what} file (it does not start with "
+            f"{p}: not {what} file (it does not start with "
             f"{' or '.join(repr(m.decode('latin-1')) for m in magic)})"
         )
     return p
