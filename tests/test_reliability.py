@@ -63,6 +63,18 @@ def test_extreme_magnitudes_are_refused_by_name(offset, r, length, message):
         LatticeGraph(*star(offset, r, length))
 
 
+def test_huge_coordinates_where_the_clearance_check_overflows():
+    """Found by the fuzzer: crossing struts are refused at every scale up to 1e70, but at
+    1e77 the clearance test overflowed and a self-intersecting mesh came out."""
+    from tests.test_fuzz import make
+
+    nodes, edges, radii = make("random", np.random.default_rng(1))
+    with pytest.raises(StitchError, match="overlap although they share no node"):
+        fast_stitch.stitch(LatticeGraph(nodes * 1e50, edges, np.asarray(radii) * 1e50), 3)
+    with pytest.raises(InvalidGraphError, match="beyond the largest supported coordinate"):
+        LatticeGraph(nodes * 1e77, edges, np.asarray(radii) * 1e77)
+
+
 def test_the_contract_threshold_is_where_the_sweep_put_it():
     """Just inside the float64 limit a star stitches valid; just outside it is refused."""
     r = 0.01

@@ -53,11 +53,14 @@ PRECISION_RATIO_F64 = 1e9
 PRECISION_RATIO_F32 = 3e4
 
 #: Largest absolute coordinate: the exact predicates multiply three coordinate
-#: differences, which must not overflow (a length's square overflows above 1.3e154: the
-#: campaign's "parallel" struts of length 1e155). Measured (``precision_sweep.py
-#: --absolute``, stars scaled by 10**k at the origin, radius 0.01..0.02 x scale): valid up
-#: to 10**100, every one invalid at 10**110 and refused from 10**160. Ten decades of margin.
-MAX_COORDINATE = 1e90
+#: differences and the clearance check squares squared distances, which must not overflow
+#: (a length's square overflows above 1.3e154: the campaign's "parallel" struts of length
+#: 1e155). Measured: stars scaled by 10**k at the origin (``precision_sweep.py
+#: --absolute``, radius 0.01..0.02 x scale) are valid up to 10**100 and all invalid at
+#: 10**110; but a random graph whose crossing struts are refused at every scale up to
+#: 10**70 came out self-intersecting at 10**77 (found by the fuzzer: the clearance test
+#: overflows). Ten decades of margin below that.
+MAX_COORDINATE = 1e60
 
 #: Smallest radius: products of radius-sized differences (areas' squares: r**4) must stay
 #: normal floating-point numbers. Measured as above: valid down to scale 10**-70 (radii

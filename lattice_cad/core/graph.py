@@ -58,11 +58,16 @@ class LatticeGraph:
     Raises
     ------
     InvalidGraphError
-        With the offending node or edge index in the message, for: wrong array
+        With the offending node or edge index in the message, for: anything but
+        real numbers (one rule for nodes, edges and radii: strings, even numeric
+        ones, booleans, complex numbers and None are refused), wrong array
         shapes, non-finite coordinates or radii, radius <= 0, node index out of
-        range, self-loops, duplicate edges (in either direction), zero-length
-        edges, a radius not strictly below half the edge length, and distinct
-        nodes at the same position.
+        range (reported as given), self-loops, duplicate edges (in either
+        direction), zero-length edges, a radius not strictly below half the edge
+        length, distinct nodes at the same position, and the precision contract
+        (:func:`precision_problem`): coordinates beyond ``config.MAX_COORDINATE``,
+        radii below ``config.MIN_RADIUS``, and struts whose ``|x| / r`` exceeds
+        ``config.PRECISION_RATIO_F64``.
 
     Warns
     -----
