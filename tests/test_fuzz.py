@@ -17,7 +17,7 @@ wrong shapes.
 Profiles
 --------
 The normal test run uses the short profile (100 derandomized examples per test, about
-10 s). The long profile (3000 per test by default) takes about 10 minutes on 2 cores.
+10 s). The long profile (3000 per test by default) took 14 minutes on 2 shared cores.
 The long profile is run with::
 
     LATTICE_CAD_FUZZ=long [LATTICE_CAD_FUZZ_EXAMPLES=3000] [LATTICE_CAD_FUZZ_SEED=1] \\
