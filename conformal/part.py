@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
-from lattice_cad.core.errors import LatticeWarning, PartError
+from lattice_cad.core.errors import LatticeWarning, MissingFileError, PartError
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
 
@@ -323,7 +323,7 @@ def load_part(
     if isinstance(source, (str, os.PathLike)):
         path = Path(source)
         if not path.exists():
-            raise FileNotFoundError(f"part file not found: {path}")
+            raise MissingFileError(f"part file not found: {path}")
         if path.is_dir():
             raise PartError(f"{path}: is a directory, not a part file")
         suffix = path.suffix.lower()
@@ -337,9 +337,14 @@ def load_part(
                 raise PartError(f"{path}: the file is empty")
             from lattice_cad.occ_impl.step import read_step
 
-            shape = read_step(path)
+            said: list[str] = []
+            shape = read_step(path, messages=said)
             if shape is None:
-                raise PartError(f"{path}: not a readable STEP file (OCCT could not read it)")
+                why = "; ".join(said[:3]) + (" ..." if len(said) > 3 else "")
+                raise PartError(
+                    f"{path}: not a readable STEP file (OCCT could not read it"
+                    + (f": {why})" if why else ")")
+                )
             return _from_shape(shape, str(path), deflection, angular_deflection)
         if suffix in _MESH_SUFFIXES:
             return _from_mesh_file(path, _unit_scale(units))
@@ -489,8 +494,15 @@ def _closed_problem(f: NDArray[np.int64]) -> str:
 def _from_mesh_file(path: Path, scale: float) -> Part:
     import trimesh
 
+    from lattice_cad.core.errors import InputFileError
+    from lattice_cad.io.exchange import check_mesh_file
+
     if path.stat().st_size == 0:
         raise PartError(f"{path}: the file is empty")
+    try:
+        check_mesh_file(path)  # not the format of its suffix: say so, before trimesh guesses
+    except InputFileError as exc:
+        raise PartError(str(exc)) from None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

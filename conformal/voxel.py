@@ -48,6 +48,7 @@ from conformal.radius import FitError, RadiusSpec, fit_radii, resolve_radii
 from lattice_cad.core import config
 from lattice_cad.core.errors import FillError, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.resources import require_memory
 
 __all__ = ["voxel_lattice", "voxelize", "BuildReport", "Voxels", "main_components"]
 
@@ -149,6 +150,11 @@ def voxelize(
     dims = hi - lo
     if int(np.prod(dims + 1)) > 400_000_000:
         raise ValueError(f"grid of {dims.tolist()} cells is too large; use larger cells")
+    require_memory(
+        16 * int(np.prod(dims + 1)),
+        f"classifying a grid of {' x '.join(str(int(d)) for d in dims)} cells",
+        advice="use larger cells",
+    )
     corner = part.grid_contains(start, h, dims + 1)
     cut = _kernels.mark_cut_cells(part.triangles, start, h, dims, 1e-9)
     all_in = (
@@ -267,6 +273,13 @@ def voxel_lattice(
     ijk = np.argwhere(occupied).astype(np.int64)
     if not len(ijk):
         raise _nothing_fits(part, h, radius, f"no cell of size {_mm(h)} fits inside")
+    # the builder's own estimate: tiling, cleanup, graph validation and radius fitting keep
+    # a few copies of every strut (about 600 bytes) and node (about 300 bytes)
+    require_memory(
+        len(ijk) * (600 * len(c.edges) + 300 * len(c.nodes)),
+        f"a lattice of {len(ijk):,} {c.name} cells (about {len(ijk) * len(c.edges):,} struts)",
+        advice="use larger cells",
+    )
     nodes, edges, _ = tile_arrays(c, ijk, cell_size=h, origin=vox.origin)
     rep.seconds["tile"] = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -99,6 +99,7 @@ from lattice_cad.core.checks import ProgressCallback, check_seed, check_workers
 from lattice_cad.core.errors import StitchError
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh
+from lattice_cad.core.resources import require_memory
 
 __all__ = ["stitch_lslt", "segments_for_chord_error", "triangle_quality"]
 
@@ -275,6 +276,13 @@ def _stitch(
 
     # ------------------------------------------------------------------ tubes
     n_tube = int(tube_f.sum())
+    n_faces = n_tube + len(fans)
+    require_memory(
+        24 * (n_vertices + n_faces) + 48 * n_faces + 400 * graph.num_edges,
+        f"LSLT stitching of {graph.num_edges:,} struts ({n_faces:,} triangles)",
+        advice="use a larger chord_error, fewer or larger cells, or write the lattice as a "
+        "3MF beam lattice, which needs no mesh",
+    )
     vertices = np.empty((n_vertices, 3))
     vertices[: len(node_v)] = node_v
     faces = np.empty((n_tube + len(fans), 3), dtype=np.int64)

@@ -213,6 +213,13 @@ def _load_graph(path: str) -> Any:
     return LatticeGraph.load(path)
 
 
+def _check_output(out: Path) -> None:
+    """Refuse a missing directory or a directory in the way before any work."""
+    from lattice_cad.core.atomic import check_target
+
+    check_target(out)
+
+
 def _write_report(con: _Console, lat: Any, directory: str) -> None:
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
@@ -268,6 +275,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     fe_options = _fe_options(args, out)
     if args.beam_lattice:  # refuse a wrong suffix before the work
         resolve(out, Kind.BEAM_LATTICE)
+    _check_output(out)
     with con.step("load + lattice"):
         lat = Lattice.fill(
             args.part,
@@ -351,6 +359,7 @@ def _cmd_stitch(args: argparse.Namespace, con: _Console) -> int:
     lat = Lattice(graph, segments=args.segments)
     lat.progress = not con.quiet
     out = Path(args.output)
+    _check_output(out)
     with con.step("stitch"):
         mesh = lat.mesh()
     with con.step(f"write {out.suffix.lstrip('.')}"):
@@ -413,15 +422,33 @@ def _cmd_check(args: argparse.Namespace, con: _Console) -> int:
     from fast_stitch.check import check
     from lattice_cad.io import read_mesh
 
+    _refuse_non_mesh(args.mesh)
     with con.step("read"):
         v, f = read_mesh(args.mesh)
     if len(f) == 0:
-        print(f"{args.mesh}: INVALID: the mesh has no triangles")
+        print(f"{args.mesh}: INVALID: the file holds no triangles")
         return 1
     with con.step("check"):
         rep = check((v, f), self_intersections=not args.no_self_intersections)
     print(f"{args.mesh}: {rep}")
     return 0 if rep.valid else 1
+
+
+def _refuse_non_mesh(path: str) -> None:
+    """``check`` takes meshes: say what a part or graph file is instead of a suffix error."""
+    from lattice_cad.core.errors import InputFileError
+
+    s = Path(path).suffix.lower()
+    if s in (".step", ".stp"):
+        raise InputFileError(
+            f"{path}: is a STEP part, not a mesh; `lattice-cad check` checks mesh files "
+            f"({' '.join(suffixes(Kind.MESH, action='read'))})"
+        )
+    if s in suffixes(Kind.GRAPH, action="read"):
+        raise InputFileError(
+            f"{path}: is a lattice graph, not a mesh; stitch it first "
+            f"(`lattice-cad stitch {path} -o out.stl`)"
+        )
 
 
 def _cmd_preview(args: argparse.Namespace, con: _Console) -> int:
@@ -618,9 +645,15 @@ def _beam_lattice_mode(args: argparse.Namespace) -> Any:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``lattice-cad`` (one sub-parser per command)."""
+    # SUPPRESS: a sub-command's parser must not reset -q/--debug given before the command
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
-    common.add_argument("--debug", action="store_true", help="show tracebacks of errors")
+    common.add_argument(
+        "-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+        help="print nothing but errors",
+    )  # fmt: skip
+    common.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks of errors"
+    )
 
     parser = argparse.ArgumentParser(
         prog="lattice-cad",
@@ -775,6 +808,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``lattice-cad``; returns the exit code (also the console-script entry point)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.quiet = getattr(args, "quiet", False)  # given before or after the command
+    args.debug = getattr(args, "debug", False)
     con = _Console(args.quiet)
     try:
         with warnings.catch_warnings():

@@ -543,6 +543,7 @@ class Lattice:
         import fast_stitch
         from lattice_cad import io
 
+        self.graph.check_precision("float32")  # before stitching: STL/3MF store float32
         solid = self._solid_mesh
         # a stitched lattice keeps its clearances through the rounding; a skin or a trim
         # (manifold3d booleans) can have surfaces a float32 step apart: checked in full

@@ -9,7 +9,14 @@ import fast_stitch
 from conformal import block
 from fast_stitch.check import check
 from lattice_cad import io as export
-from lattice_cad.core.errors import BeamOnlyWarning, ExportError, ExportWarning, LatticeWarning
+from lattice_cad.core.errors import (
+    BeamOnlyWarning,
+    ExportError,
+    ExportWarning,
+    InputFileError,
+    InvalidGraphError,
+    LatticeWarning,
+)
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +96,7 @@ def test_limits(tmp_path):
 
 def test_failed_export_leaves_nothing(tmp_path):
     # struts far from the origin: float32 STL rounding makes triangles degenerate
-    g = block("cubic", 1, cell_size=1e-3, origin=(1e5, 1e5, 1e5), radius=1e-4)
+    g = block("cubic", 1, cell_size=1e-3, origin=(1e4, 1e4, 1e4), radius=1e-4)
     m = fast_stitch.stitch(g, 6)
     target = tmp_path / "far.stl"
     with pytest.raises(ExportError, match="far.stl"):
@@ -151,7 +158,7 @@ def test_read_errors(tmp_path):
         export.read_mesh(tmp_path / "nope.stl")
     bad = tmp_path / "bad.3mf"
     bad.write_bytes(b"not a zip")
-    with pytest.raises(ExportError, match="bad.3mf: not a readable 3MF"):
+    with pytest.raises(InputFileError, match="bad.3mf: not a 3MF file"):
         export.read_mesh(bad)
 
 
@@ -180,7 +187,8 @@ def test_single_precision_refuses_what_float32_cannot_hold():
     from lattice_cad.lattice import Lattice
 
     lat = Lattice(g, segments=8)
-    with pytest.raises(ExportError, match=r"cannot be written in single precision"):
+    # the precision contract refuses it before stitching (|x| / r = 1e7 > 3e4 for float32)
+    with pytest.raises(InvalidGraphError, match=r"edge 0 \(0, 1\).*single precision"):
         lat.mesh()
     _, repaired = export.single_precision(lat.mesh(lattice_only=True))
     assert repaired > 0  # triangles collapse in float32; the rest still self-intersects

@@ -337,7 +337,8 @@ def test_stl_is_binary_checked_and_reads_back(tmp_path):
 
 
 def test_stl_float32_collapse_is_refused_and_nothing_is_written(tmp_path):
-    g = LatticeGraph([[1e7, 0, 0], [1e7 + 0.01, 0, 0], [1e7, 0.01, 0]], [[0, 1], [0, 2]], 1e-4)
+    # |x| / r = 5e8: inside the float64 precision contract (1e9), far outside float32 (3e4)
+    g = LatticeGraph([[5e4, 0, 0], [5e4 + 0.01, 0, 0], [5e4, 0.01, 0]], [[0, 1], [0, 2]], 1e-4)
     mesh = fast_stitch.stitch(g, 6)
     assert_valid(mesh, self_intersections=False)  # fine in float64
     with pytest.raises(ExportError, match="single precision"):

@@ -52,6 +52,63 @@ STL_MAX_TRIANGLES = 2**32 - 1
 THREEMF_MAX = 2**31 - 1
 
 
+# ------------------------------------------------------------ Precision contract (graphs)
+
+#: Check every :class:`LatticeGraph` against the precision limits below (switch off only to
+#: measure them, as ``benchmarks/precision_sweep.py`` does).
+PRECISION_CONTRACT = True
+
+#: Largest ``|x| / r`` for float64 (``|x|``: the largest absolute coordinate of a strut's two
+#: nodes, ``r``: its smaller end radius). Measured with the contract off
+#: (``benchmarks/precision_sweep.py``: stars and jittered bcc blocks, 30 per half decade;
+#: and the fuzzer's families: 40 chains, random graphs and stars at P = 3 and 8): every
+#: star and block is valid up to 1e14 (first invalid 10**14.5), but random graphs (struts
+#: crossing near nodes) fail from 1e11 (4/51; 9/50 at 10**11.5) and chains with shallow
+#: bends from 10**11.5 (2/67). Invalid means zero-area or self-intersecting faces, never
+#: an error. Two decades of margin below the first failure.
+PRECISION_RATIO_F64 = 1e9
+
+#: Largest ``|x| / r`` for single-precision output (STL, 3MF, beam-lattice 3MF store
+#: float32 coordinates). Measured as above on the printable mesh (``Lattice.mesh()``:
+#: rounded to float32 as the writers do, flat triangles collapsed) checked in full: every
+#: family valid up to 10**5.5; first failures at 1e6 (1/30 blocks), 10**6.5 (11/30 bcc),
+#: all from 1e8. One and a half decades of margin.
+PRECISION_RATIO_F32 = 3e4
+
+#: Largest absolute coordinate: the exact predicates multiply three coordinate
+#: differences and the clearance check squares squared distances, which must not overflow
+#: (a length's square overflows above 1.3e154: the campaign's "parallel" struts of length
+#: 1e155). Measured: stars scaled by 10**k at the origin (``precision_sweep.py
+#: --absolute``, radius 0.01..0.02 x scale) are valid up to 10**100 and all invalid at
+#: 10**110; but a random graph whose crossing struts are refused at every scale up to
+#: 10**70 came out self-intersecting at 10**77 (found by the fuzzer: the clearance test
+#: overflows). Ten decades of margin below that.
+MAX_COORDINATE = 1e60
+
+#: Smallest radius: products of radius-sized differences (areas' squares: r**4) must stay
+#: normal floating-point numbers. Measured as above: valid down to scale 10**-70 (radii
+#: ~1e-72), every one invalid at 10**-80 (zero-area faces, no error). Ten decades of
+#: margin.
+MIN_RADIUS = 1e-60
+
+#: Largest coordinate and smallest radius of single-precision files: readers compute
+#: normals and lengths in float32 from products of two coordinate differences, which must
+#: neither overflow (3.4e38) nor underflow (1.2e-38).
+MAX_COORDINATE_F32 = 1e18
+MIN_RADIUS_F32 = 1e-18
+
+
+# ----------------------------------------------------------------- Memory (core.resources)
+
+#: Cap on the memory lattice-cad plans to use, in bytes (None: what the system reports).
+#: The environment variable ``LATTICE_CAD_MEMORY_LIMIT`` (e.g. ``8G``) caps it too.
+MEMORY_LIMIT: int | None = None
+
+#: Fraction of the available memory one operation may plan to use (estimates are not
+#: exact, and the interpreter, numba and the caller hold memory too).
+MEMORY_FRACTION = 0.85
+
+
 # ------------------------------------------------------------------- Stitching (fast_stitch)
 
 #: Relative safety margin on profile offsets (keeps hull triangles away from slivers).

@@ -24,6 +24,11 @@ example ``conformal.PartError``), but they are defined here only.
     ├── SelectionError           a selector picks no face or node (names the selector)
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
     ├── ExternalCrash            a C++ library crashed or hung in a child process
+    ├── InsufficientMemoryError  the estimated peak memory exceeds what is available
+    ├── OutputError              a file cannot be written (names the target, never a temp)
+    ├── InputFileError           a file cannot be read: a directory, empty, truncated, or
+    │   │                        not the format its suffix says (names the file)
+    │   └── MissingFileError     the file does not exist (also a FileNotFoundError)
     └── ReferenceBuildError      the exact reference cannot be built (reference_boolean)
         └── DirtyLatticeError    hubs would overlap, the stacked reference is not exact
 
@@ -55,6 +60,10 @@ __all__ = [
     "ExternalCrash",
     "ReferenceBuildError",
     "DirtyLatticeError",
+    "InsufficientMemoryError",
+    "OutputError",
+    "InputFileError",
+    "MissingFileError",
     "LatticeWarning",
     "ExportWarning",
     "BeamOnlyWarning",
@@ -137,6 +146,25 @@ class OCCTFailure(LatticeError, RuntimeError):
 
 class ExternalCrash(LatticeError, RuntimeError):
     """OpenCascade or gmsh crashed or hung in a child process (the caller's process lives)."""
+
+
+class InsufficientMemoryError(LatticeError, MemoryError):
+    """The work's estimated peak memory exceeds the available memory, checked before any
+    allocation; the message gives both amounts and what to do instead."""
+
+
+class OutputError(LatticeError, OSError):
+    """A file cannot be written (no such directory, a directory in the way, permissions, a
+    full disk); the message names the target path, never the temp file beside it."""
+
+
+class InputFileError(LatticeError, ValueError):
+    """A file cannot be read: it is empty, truncated, a directory, or not the format its
+    suffix says. The message names the file."""
+
+
+class MissingFileError(InputFileError, FileNotFoundError):
+    """An input file does not exist (the message names it)."""
 
 
 class ReferenceBuildError(LatticeError, RuntimeError):

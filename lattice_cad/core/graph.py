@@ -12,18 +12,26 @@ import json
 import os
 import warnings
 import zipfile
+import zlib
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from lattice_cad.core import config
 from lattice_cad.core.atomic import atomic_write
-from lattice_cad.core.errors import InvalidGraphError, LatticeWarning
+from lattice_cad.core.errors import (
+    InputFileError,
+    InvalidGraphError,
+    LatticeWarning,
+    MissingFileError,
+)
 from lattice_cad.core.formats import Kind, format_for
+from lattice_cad.core.resources import require_memory
 
-__all__ = ["LatticeGraph"]
+__all__ = ["LatticeGraph", "precision_problem"]
 
 _FORMAT = "lattice-cad-graph"
 _VERSION = 1
@@ -50,11 +58,16 @@ class LatticeGraph:
     Raises
     ------
     InvalidGraphError
-        With the offending node or edge index in the message, for: wrong array
+        With the offending node or edge index in the message, for: anything but
+        real numbers (one rule for nodes, edges and radii: strings, even numeric
+        ones, booleans, complex numbers and None are refused), wrong array
         shapes, non-finite coordinates or radii, radius <= 0, node index out of
-        range, self-loops, duplicate edges (in either direction), zero-length
-        edges, a radius not strictly below half the edge length, and distinct
-        nodes at the same position.
+        range (reported as given), self-loops, duplicate edges (in either
+        direction), zero-length edges, a radius not strictly below half the edge
+        length, distinct nodes at the same position, and the precision contract
+        (:func:`precision_problem`): coordinates beyond ``config.MAX_COORDINATE``,
+        radii below ``config.MIN_RADIUS``, and struts whose ``|x| / r`` exceeds
+        ``config.PRECISION_RATIO_F64``.
 
     Warns
     -----
@@ -178,6 +191,25 @@ class LatticeGraph:
             return np.zeros((2, 3))
         return np.stack([self.nodes.min(axis=0), self.nodes.max(axis=0)])
 
+    def check_precision(self, dtype: Literal["float64", "float32"] = "float64") -> None:
+        """Refuse struts too thin for their coordinates' magnitude in ``dtype``.
+
+        The constructor checks float64 (``config.PRECISION_RATIO_F64``); writers of
+        single-precision files (STL, 3MF, beam-lattice 3MF) check float32
+        (``config.PRECISION_RATIO_F32``) before any work. See :func:`precision_problem`.
+
+        Raises
+        ------
+        InvalidGraphError
+            Naming the worst strut, the radius it needs and the offset that centres the
+            lattice on the origin (when that helps).
+        """
+        if dtype not in ("float64", "float32"):
+            raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
+        msg = precision_problem(self.nodes, self.edges, self.radii, dtype)
+        if msg:
+            raise InvalidGraphError(msg)
+
     # ------------------------------------------------------------- equality
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LatticeGraph):
@@ -210,20 +242,29 @@ class LatticeGraph:
             raise InvalidGraphError(
                 f"graph format version {data['version']} is newer than supported"
             )
-        try:
-            nodes = np.asarray(data["nodes"], dtype=np.float64).reshape(-1, 3)
-            edges = np.asarray(data["edges"]).reshape(-1, 2)
-            radii = np.asarray(data["radii"], dtype=np.float64)
-        except KeyError as exc:
-            raise InvalidGraphError(f"graph data is missing the key {exc.args[0]!r}") from None
-        except (TypeError, ValueError) as exc:
-            raise InvalidGraphError(f"graph data is malformed: {exc}") from None
-        return cls(nodes, edges, radii)
+        missing = [k for k in ("nodes", "edges", "radii") if k not in data]
+        if missing:
+            raise InvalidGraphError(f"graph data is missing the key {missing[0]!r}")
+        nodes, edges = data["nodes"], data["edges"]
+        # an empty list stands for an empty (0, 3) or (0, 2) array
+        return cls(
+            np.zeros((0, 3)) if _is_empty_list(nodes) else nodes,
+            np.zeros((0, 2), dtype=np.int64) if _is_empty_list(edges) else edges,
+            data["radii"],
+        )
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the graph to ``.npz`` or ``.json`` (atomically). Returns the path."""
         p = Path(path)
         fmt = format_for(p, Kind.GRAPH)
+        numbers = 3 * self.num_nodes + 4 * self.num_edges
+        # JSON goes through Python lists (about 120 bytes per number, text included);
+        # npz compresses copies of the arrays (about 16)
+        require_memory(
+            (120 if fmt.name == "json" else 16) * numbers,
+            f"writing {p.name} ({self.num_edges:,} struts)",
+            advice="save the graph as .npz (compact) rather than .json",
+        )
         if fmt.name == "json":
             with atomic_write(p, "w") as fh:
                 json.dump(self.to_dict(), fh)
@@ -244,68 +285,180 @@ class LatticeGraph:
         """Read a graph written by :meth:`save` (``.npz`` or ``.json``)."""
         p = Path(path)
         fmt = format_for(p, Kind.GRAPH, action="read")
+        if p.is_dir():
+            raise InputFileError(f"{p}: is a directory, not a graph file")
         if not p.exists():
-            raise FileNotFoundError(f"graph file not found: {p}")
+            raise MissingFileError(f"graph file not found: {p}")
+        if p.stat().st_size == 0:
+            raise InputFileError(f"{p}: the file is empty (0 bytes), not a .{fmt.name} graph")
         try:
             if fmt.name == "json":
                 with open(p, encoding="utf-8") as fh:
                     data = json.load(fh)
                 return cls.from_dict(data)
-            with np.load(p, allow_pickle=False) as z:
-                if str(z.get("format", "")) != _FORMAT:
-                    raise InvalidGraphError(f"{p}: not a lattice-cad graph archive")
-                return cls(z["nodes"], z["edges"], z["radii"])
+            with open(p, "rb") as fh:  # ours to close, whatever np.load raises
+                z = np.load(fh, allow_pickle=False)
+                if not isinstance(z, np.lib.npyio.NpzFile):
+                    raise InputFileError(f"{p}: not an .npz archive (a single numpy array)")
+                with z:
+                    if str(z.get("format", "")) != _FORMAT:
+                        raise InvalidGraphError(f"{p}: not a lattice-cad graph archive")
+                    return cls(z["nodes"], z["edges"], z["radii"])
+        except InputFileError:
+            raise
         except InvalidGraphError as exc:
-            raise InvalidGraphError(f"{p}: {exc}") from None
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
-            raise InvalidGraphError(f"{p}: cannot read graph: {exc}") from None
+            msg = str(exc)
+            raise InvalidGraphError(msg if msg.startswith(f"{p}:") else f"{p}: {msg}") from None
+        except json.JSONDecodeError as exc:
+            raise InputFileError(f"{p}: not a JSON file (truncated or corrupt: {exc})") from None
+        except UnicodeDecodeError:
+            raise InputFileError(f"{p}: not a JSON file (not UTF-8 text)") from None
+        except (EOFError, zipfile.BadZipFile, zlib.error) as exc:
+            raise InputFileError(
+                f"{p}: not a readable .npz archive (truncated or corrupt: {exc})"
+            ) from None
+        except KeyError as exc:
+            raise InvalidGraphError(f"{p}: the archive has no array {exc}") from None
+        except (OSError, ValueError) as exc:
+            raise InputFileError(f"{p}: cannot read the graph: {exc}") from None
 
 
 # ---------------------------------------------------------------- coercion
-def _as_nodes(nodes: ArrayLike) -> NDArray[np.float64]:
+def _is_empty_list(x: Any) -> bool:
+    return isinstance(x, list) and len(x) == 0
+
+
+def _find_non_number(value: Any, path: tuple[int, ...] = ()) -> tuple[tuple[int, ...], Any] | None:
+    """The first element of a nested sequence that is not a real number (bool, str, ...)."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind in "iuf":
+            return None
+        if value.dtype.kind != "O":
+            return (path, value.flat[0].item()) if value.size else None
+        for i, x in enumerate(value):
+            found = _find_non_number(x, (*path, i))
+            if found is not None:
+                return found
+        return None
+    if isinstance(value, (list, tuple)):
+        for i, x in enumerate(value):
+            found = _find_non_number(x, (*path, i))
+            if found is not None:
+                return found
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        return path, value
+    if isinstance(value, (complex, np.complexfloating)):
+        return path, value
+    return None
+
+
+def _describe(x: Any) -> str:
+    """``a boolean (True)``, ``a string ('0.1')``, ``None``: what a non-number is."""
+    if x is None:
+        return "None"
+    if isinstance(x, (bool, np.bool_)):
+        kind = "a boolean"
+    elif isinstance(x, (str, bytes, np.str_, np.bytes_)):
+        kind = "a string"
+    elif isinstance(x, (complex, np.complexfloating)):
+        kind = "a complex number"
+    else:
+        kind = f"a {type(x).__name__}"
+    return f"{kind} ({x!r})"
+
+
+def _as_number_array(value: Any, what: str) -> NDArray[Any]:
+    """``value`` as an int, uint, float or (for huge Python ints) object array of real numbers.
+
+    The one input rule of :class:`LatticeGraph`, the same for nodes, edges and radii: real
+    numbers only. Strings (even numeric ones), booleans, complex numbers, None and other
+    objects are refused with :class:`InvalidGraphError` naming the array and the element.
+    """
+    if isinstance(value, (str, bytes)):
+        raise InvalidGraphError(f"{what} must be real numbers, got {_describe(value)}")
     try:
-        a = np.array(nodes, dtype=np.float64, copy=True)
+        a = np.asarray(value)
     except (TypeError, ValueError) as exc:
-        raise InvalidGraphError(f"nodes must be numbers: {exc}") from None
-    if a.size == 0:
+        raise InvalidGraphError(f"{what} must be an array of numbers: {exc}") from None
+    kind = a.dtype.kind
+    # a list may mix bools into numbers (numpy then casts them silently): look at the elements
+    if kind == "O" or (kind in "iuf" and not isinstance(value, np.ndarray) and a.ndim > 0):
+        found = _find_non_number(value)
+        if found is not None:
+            where, x = found
+            at = f" at index {list(where)}" if where else ""
+            raise InvalidGraphError(
+                f"{what} must be real numbers, got {_describe(x)}{at}"
+            )
+        if kind == "O" and what != "edges":  # e.g. Python ints beyond 64 bits
+            try:
+                a = np.asarray(value, dtype=np.float64)
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise InvalidGraphError(f"{what} must be an array of numbers: {exc}") from None
+        return a  # edges keep exact Python ints for the range check
+    elif kind not in "iuf":
+        x = a.flat[0].item() if a.size else a.dtype
+        names = {"b": "booleans", "U": "strings", "S": "strings", "c": "complex numbers",
+                 "M": "dates", "m": "time spans", "V": "records"}  # fmt: skip
+        if a.size == 0 and kind in "bUSc":
+            return a.astype(np.float64)
+        raise InvalidGraphError(
+            f"{what} must be real numbers, got {names.get(kind, str(a.dtype))} "
+            f"(dtype {a.dtype}, e.g. {x!r})"
+        )
+    return a
+
+
+def _as_nodes(nodes: ArrayLike) -> NDArray[np.float64]:
+    raw = _as_number_array(nodes, "nodes")
+    if raw.size == 0:
         return np.zeros((0, 3), dtype=np.float64)
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise InvalidGraphError(f"nodes must have shape (N, 3), got {a.shape}")
+    if raw.ndim != 2 or raw.shape[1] != 3:
+        raise InvalidGraphError(f"nodes must have shape (N, 3), got {raw.shape}")
+    with np.errstate(over="ignore"):
+        a = np.array(raw, dtype=np.float64, copy=True)
     return np.ascontiguousarray(a)
 
 
+def _fmt_index(x: Any) -> str:
+    if isinstance(x, (float, np.floating)):
+        return f"{float(x):g}"
+    return str(int(x))
+
+
 def _as_edges(edges: ArrayLike, n_nodes: int) -> NDArray[np.int64]:
-    raw = np.asarray(edges)
+    raw = _as_number_array(edges, "edges")
     if raw.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
     if raw.ndim != 2 or raw.shape[1] != 2:
         raise InvalidGraphError(f"edges must have shape (M, 2), got {raw.shape}")
-    if raw.dtype.kind in "iu":
-        a = raw.astype(np.int64)
-    elif raw.dtype.kind == "f":
+    if raw.dtype.kind == "f":
         bad = ~np.isfinite(raw) | (raw != np.round(raw))
         if bad.any():
             e = int(np.flatnonzero(bad.any(axis=1))[0])
             raise InvalidGraphError(f"edge {e} has a non-integer node index {raw[e].tolist()}")
-        a = raw.astype(np.int64)
-    else:
-        raise InvalidGraphError(f"edges must be integer node indices, got dtype {raw.dtype}")
-    out = (a < 0) | (a >= n_nodes)
+    elif raw.dtype.kind == "O":  # Python ints beyond 64 bits, or integral floats among them
+        flat = raw.ravel()
+        for k, x in enumerate(flat):
+            if isinstance(x, (float, np.floating)) and not float(x).is_integer():
+                raise InvalidGraphError(
+                    f"edge {k // 2} has a non-integer node index {raw[k // 2].tolist()}"
+                )
+    # range check in the given type: a uint64 2**64 - 1 or a float 1e20 must not wrap
+    out = (raw < 0) | (raw >= n_nodes)
     if out.any():
         e = int(np.flatnonzero(out.any(axis=1))[0])
-        k = int(a[e][out[e]][0])
-        raise InvalidGraphError(
-            f"edge {e} references node {k}, but the graph has {n_nodes} nodes "
-            f"(valid indices 0..{n_nodes - 1})"
-        )
-    return np.ascontiguousarray(a)
+        k = _fmt_index(raw[e][np.asarray(out[e], dtype=bool)][0])
+        has = f"{n_nodes} nodes (valid indices 0..{n_nodes - 1})" if n_nodes else "no nodes"
+        raise InvalidGraphError(f"edge {e} references node {k}, but the graph has {has}")
+    return np.ascontiguousarray(raw.astype(np.int64))
 
 
 def _as_radii(radii: ArrayLike, n_edges: int) -> NDArray[np.float64]:
-    try:
-        r = np.asarray(radii, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidGraphError(f"radii must be numbers: {exc}") from None
+    raw = _as_number_array(radii, "radii")
+    with np.errstate(over="ignore"):
+        r = np.asarray(raw, dtype=np.float64)
     if r.ndim == 0:
         out = np.full((n_edges, 2), float(r))
     elif r.shape == (n_edges,):
@@ -328,6 +481,15 @@ def _validate(
         raise InvalidGraphError(f"node {n} has a non-finite coordinate {nodes[n].tolist()}")
     if len(edges) == 0:
         return
+    huge = np.abs(nodes).max(axis=1) > config.MAX_COORDINATE
+    if huge.any():
+        n = int(np.flatnonzero(huge)[0])
+        raise InvalidGraphError(
+            f"node {n} at {_fmt_point(nodes[n])} is beyond the largest supported coordinate "
+            f"{config.MAX_COORDINATE:g} (lengths' squares and the exact predicates' products "
+            "would overflow); use a larger length unit (smaller numbers) or move the lattice to "
+            "the origin"
+        )
     loops = edges[:, 0] == edges[:, 1]
     if loops.any():
         e = int(np.flatnonzero(loops)[0])
@@ -355,6 +517,14 @@ def _validate(
             f"edge {e} has radius {radii[e, side]:g} at node {int(edges[e, side])}; "
             "radii must be > 0"
         )
+    tiny = radii < config.MIN_RADIUS
+    if tiny.any():
+        e, side = (int(v) for v in np.argwhere(tiny)[0])
+        raise InvalidGraphError(
+            f"edge {e} has radius {radii[e, side]:g} at node {int(edges[e, side])}, below the "
+            f"smallest supported radius {config.MIN_RADIUS:g} (products of such lengths "
+            "underflow in floating point); use a smaller length unit"
+        )
     vec = nodes[edges[:, 1]] - nodes[edges[:, 0]]
     length = np.sqrt(np.einsum("ij,ij->i", vec, vec))
     zero = length == 0.0
@@ -372,6 +542,10 @@ def _validate(
             f"edge {e} ({int(edges[e, 0])}, {int(edges[e, 1])}): radius {radii[e].max():g} is not "
             f"strictly below half its length {length[e]:g} (must be < {0.5 * length[e]:g})"
         )
+    if config.PRECISION_CONTRACT:
+        msg = precision_problem(nodes, edges, radii, "float64")
+        if msg:
+            raise InvalidGraphError(msg)
     # distinct nodes at the same position (only among nodes that carry struts)
     used = np.flatnonzero(np.bincount(edges.ravel(), minlength=len(nodes)) > 0)
     if len(used) > 1:
@@ -381,3 +555,84 @@ def _validate(
         if len(same):
             a, b = sorted((int(used[order[same[0]]]), int(used[order[same[0] + 1]])))
             raise InvalidGraphError(f"nodes {a} and {b} coincide at {_fmt_point(nodes[a])}")
+
+
+def precision_problem(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    dtype: Literal["float64", "float32"] = "float64",
+) -> str | None:
+    """Why ``dtype`` coordinates cannot represent these struts, or None when they can.
+
+    The precision contract: every strut's ``|x| / r`` (the largest absolute coordinate of
+    its two nodes over its smaller end radius) must be at most
+    ``config.PRECISION_RATIO_F64`` (``PRECISION_RATIO_F32`` for single-precision files).
+
+    Parameters
+    ----------
+    nodes : (N, 3) float64
+    edges : (M, 2) int64
+    radii : (M, 2) float64
+    dtype : {"float64", "float32"}
+
+    Returns
+    -------
+    str or None
+        The message naming the worst strut, the radius it would need, and (when that
+        helps) the offset that centres the lattice on the origin.
+    """
+    if len(edges) == 0:
+        return None
+    if dtype == "float32":
+        used = np.unique(edges)
+        big = np.abs(nodes[used]).max(axis=1)
+        if big.max() > config.MAX_COORDINATE_F32:
+            n = int(used[np.argmax(big)])
+            return (
+                f"node {n} at {_fmt_point(nodes[n])} is beyond the largest coordinate of "
+                f"single-precision files (STL, 3MF: {config.MAX_COORDINATE_F32:g}); use a "
+                "larger length unit or move the lattice to the origin"
+            )
+        if radii.min() < config.MIN_RADIUS_F32:
+            e, side = (int(v) for v in np.argwhere(radii == radii.min())[0])
+            return (
+                f"edge {e} has radius {radii[e, side]:g} at node {int(edges[e, side])}, below "
+                f"the smallest radius of single-precision files (STL, 3MF: "
+                f"{config.MIN_RADIUS_F32:g}); use a smaller length unit"
+            )
+    limit = config.PRECISION_RATIO_F64 if dtype == "float64" else config.PRECISION_RATIO_F32
+    a = np.abs(nodes).max(axis=1)
+    scale = np.maximum(a[edges[:, 0]], a[edges[:, 1]])
+    rmin = radii.min(axis=1)
+    ratio = scale / rmin
+    e = int(np.argmax(ratio))
+    if not ratio[e] > limit:
+        return None
+    ulp = float(np.spacing(np.float64(scale[e]) if dtype == "float64" else np.float32(scale[e])))
+    n0, n1 = (int(v) for v in edges[e])
+    used = np.unique(edges)
+    lo, hi = nodes[used].min(axis=0), nodes[used].max(axis=0)
+    centre = 0.5 * (lo + hi)
+    centred = np.abs(nodes - centre).max(axis=1)
+    ratio_c = np.maximum(centred[edges[:, 0]], centred[edges[:, 1]]) / rmin
+    where = "STL and 3MF files store coordinates in single precision (float32)"
+    if dtype == "float64":
+        where = "float64"
+    msg = (
+        f"edge {e} ({n0}, {n1}): radius {rmin[e]:.4g} is too small for its position: its "
+        f"coordinates reach {scale[e]:.4g}, where {where} resolves only {ulp:.3g}, so the "
+        f"mesh would be degenerate (|x| / r = {ratio[e]:.3g}; at most {limit:g} is "
+        f"supported for {dtype}); give it a radius of at least {scale[e] / limit:.4g}"
+    )
+    shift = "(" + ", ".join(f"{-float(c):.6g}" for c in centre) + ")"
+    if ratio_c.max() <= limit:
+        msg += f", or move the lattice by {shift} (centre it on the origin): it then fits as is"
+    elif ratio_c.max() < 0.5 * ratio.max():
+        ec = int(np.argmax(ratio_c))
+        need = float(np.max(np.maximum(centred[edges[:, 0]], centred[edges[:, 1]]))) / limit
+        msg += (
+            f", or move the lattice by {shift} (centre it on the origin), after which radii "
+            f"of at least {need:.4g} suffice (edge {ec} is then the worst)"
+        )
+    return msg

@@ -16,8 +16,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lattice_cad.core import config
-from lattice_cad.core.atomic import atomic_write
+from lattice_cad.core.atomic import atomic_write, check_target
 from lattice_cad.core.errors import ExportError
+from lattice_cad.core.resources import require_disk
 
 if TYPE_CHECKING:
     import trimesh
@@ -190,6 +191,8 @@ class Mesh:
                 f"{p.name}: {n} triangles do not fit in a binary STL "
                 f"(at most {config.STL_MAX_TRIANGLES})"
             )
+        check_target(p)
+        require_disk(p, stl_size(n))
         buf = np.empty((min(n, _STL_CHUNK), 12), dtype=np.float32)
         rec = np.zeros(min(n, _STL_CHUNK), dtype=[("data", "<f4", (12,)), ("attr", "<u2")])
         with atomic_write(p, "wb") as fh:
@@ -200,10 +203,12 @@ class Mesh:
                 out = buf[: stop - start]
                 bad = stl_records(self.vertices, self.faces[start:stop], out)
                 if bad:
+                    k = int(np.flatnonzero(~out[:, :3].any(axis=1))[0])
+                    where = ", ".join(f"{float(c):.6g}" for c in out[k, 3:6])
                     raise ExportError(
-                        f"{p.name}: {bad} triangle(s) (first in faces {start}..{stop - 1}) become "
-                        "degenerate when coordinates are rounded to single precision for STL; "
-                        "move the lattice closer to the origin or use thicker struts"
+                        f"{p.name}: {bad} triangle(s) become degenerate when coordinates are "
+                        f"rounded to single precision for STL, the first face {start + k} at "
+                        f"({where}); move the lattice closer to the origin or use thicker struts"
                     )
                 r = rec[: stop - start]
                 r["data"] = out

@@ -40,11 +40,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lattice_cad.core import config
-from lattice_cad.core.atomic import atomic_write
-from lattice_cad.core.errors import BeamOnlyWarning, ExportError, ExportWarning
+from lattice_cad.core.atomic import atomic_write, check_target, output_error
+from lattice_cad.core.errors import (
+    BeamOnlyWarning,
+    ExportError,
+    ExportWarning,
+    InputFileError,
+    MissingFileError,
+    OutputError,
+)
 from lattice_cad.core.formats import Kind, format_for, suffixes
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh, mesh_arrays, stl_size, weld
+from lattice_cad.core.resources import require_disk, require_memory
 
 __all__ = [
     "ExportError",
@@ -59,6 +67,7 @@ __all__ = [
     "save_graph",
     "save_beam_lattice",
     "read_mesh",
+    "check_mesh_file",
     "read_beam_lattice",
     "single_precision",
     "collapse_faces",
@@ -95,6 +104,11 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
         than the float32 spacing at their coordinates); the message says where.
     """
     v, f = _arrays(mesh)
+    require_memory(
+        160 * len(v) + 120 * len(f),
+        f"rounding {name} ({len(f):,} triangles) to single precision for STL/3MF",
+        advice="use fewer or larger cells or fewer segments, or write a 3MF beam lattice",
+    )
     v32 = v.astype(np.float32).astype(np.float64)
     v2, f2 = weld(v32, f)
     merged = len(f) - len(f2)  # triangles that lost a vertex to rounding
@@ -245,17 +259,55 @@ def check_limits(
     return size
 
 
+def writer_memory(fmt: str, n_vertices: int, n_faces: int) -> int:
+    """Estimated peak memory (bytes) of :func:`save_mesh` beyond the mesh itself.
+
+    STL is written in chunks of 2**20 triangles (about 200 bytes each while in flight);
+    3MF copies the arrays to float32/uint32 and lib3mf holds its own model (about 60 bytes
+    per vertex and per triangle); PLY and OBJ are built in memory by trimesh (twice the
+    file for PLY, five times for OBJ's text).
+    """
+    s = fmt.lower().lstrip(".")
+    if s == "stl":
+        return 200 * min(n_faces, 1 << 20)
+    if s == "3mf":
+        return 60 * (n_vertices + n_faces)
+    if s == "ply":
+        return 2 * estimate_bytes("ply", n_vertices, n_faces) + 24 * (n_vertices + n_faces)
+    return 5 * estimate_bytes("obj", n_vertices, n_faces) + 24 * (n_vertices + n_faces)
+
+
 def _write_via_temp(path: Path, write: Any) -> None:
-    """Let ``write(tmp_path)`` produce the file, then copy it atomically onto ``path``."""
+    """Let ``write(tmp_path)`` produce the file, then copy it atomically onto ``path``.
+
+    Errors name ``path``, never the temp file (:class:`OutputError`).
+    """
+    check_target(path)
     directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise output_error(path, exc) from None
     os.close(fd)
     try:
-        write(tmp)
+        try:
+            write(tmp)
+        except OSError as exc:
+            raise output_error(path, exc) from None
+        except Exception as exc:  # lib3mf's own exception type
+            if type(exc).__name__ != "ELib3MFException":
+                raise
+            raise OutputError(
+                f"cannot write {path}: lib3mf failed: {_strip_temp(str(exc), tmp, path)}"
+            ) from None
         with atomic_write(path, "wb") as fh, open(tmp, "rb") as src:
             shutil.copyfileobj(src, fh, 1 << 22)
     finally:
         Path(tmp).unlink(missing_ok=True)
+
+
+def _strip_temp(message: str, tmp: str, path: Path) -> str:
+    return message.replace(tmp, str(path)).replace(Path(tmp).name, path.name)
 
 
 # ------------------------------------------------------------------- lib3mf
@@ -384,7 +436,14 @@ def save_mesh(mesh: Any, path: str | os.PathLike[str], *, name: str = "lattice")
     v, f = _arrays(mesh)
     if len(f) == 0:
         raise ExportError(f"{p.name}: the mesh is empty (no triangles)")
-    check_limits(p, len(v), len(f))
+    size = check_limits(p, len(v), len(f))
+    check_target(p)
+    require_memory(
+        writer_memory(fmt.name, len(v), len(f)),
+        f"writing {p.name} ({len(f):,} triangles)",
+        advice="write STL (streamed in chunks) or a 3MF beam lattice instead",
+    )
+    require_disk(p, size, temp_copies=2 if fmt.name == "3mf" else 1)
     if fmt.name == "stl":
         m = mesh if isinstance(mesh, Mesh) else Mesh(vertices=v, faces=f)
         m.save(p)
@@ -483,6 +542,7 @@ def save_beam_lattice(
     format_for(p, Kind.BEAM_LATTICE)
     if graph.num_edges == 0:
         raise ExportError(f"{p.name}: the graph has no struts: nothing to write")
+    graph.check_precision("float32")  # 3MF stores positions in single precision
     used = np.flatnonzero(graph.degree > 0)
     remap = np.full(graph.num_nodes, -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
@@ -495,12 +555,19 @@ def save_beam_lattice(
         raise ExportError(f"{p.name}: the triangle mesh of the lattice is empty")
     if skin is not None and len(skin_f) == 0:
         raise ExportError(f"{p.name}: the skin mesh is empty")
-    check_limits(
+    size = check_limits(
         p,
         len(nodes) + len(tri_v) + len(skin_v) + len(clip_v),
         len(tri_f) + len(skin_f) + len(clip_f),
         n_beams=len(edges),
     )
+    check_target(p)
+    require_memory(
+        200 * len(edges) + 100 * len(nodes) + 100 * (len(tri_f) + len(skin_f) + len(clip_f)),
+        f"writing the beam lattice {p.name} ({len(edges):,} beams)",
+        advice="use fewer or larger cells",
+    )
+    require_disk(p, size, temp_copies=2)
     if mesh is None:
         warnings.warn(
             f"{p.name} holds beams only (3MF Beam Lattice, no triangles): readers without "
@@ -628,7 +695,7 @@ def _read_3mf_model(path: Path) -> tuple[Any, Any]:
     try:
         reader.ReadFromFile(str(path))
     except lib3mf.ELib3MFException as exc:
-        raise ExportError(f"{path}: not a readable 3MF file: {exc}") from None
+        raise InputFileError(f"{path}: not a readable 3MF file: {exc}") from None
     return lib3mf, model
 
 
@@ -674,7 +741,7 @@ def read_beam_lattice(path: str | os.PathLike[str]) -> dict[str, Any]:
         ``clipped`` (whether one uses a clipping mesh); ``skin_triangles``: triangles of
         the other built objects (a skin beside a beam-only lattice).
     """
-    p = Path(path)
+    p = check_mesh_file(path)
     lib3mf, model = _read_3mf_model(p)
     objs = _mesh_objects(model)
     built = set()
@@ -706,6 +773,69 @@ def read_beam_lattice(path: str | os.PathLike[str]) -> dict[str, Any]:
     return out
 
 
+_MAGIC = {"3mf": (b"PK\x03\x04",), "ply": (b"ply",), "off": (b"OFF", b"COFF", b"NOFF", b"4OFF")}
+
+
+def check_mesh_file(path: str | os.PathLike[str]) -> Path:
+    """Refuse a mesh file that is missing, a directory, empty or not the format of its suffix.
+
+    Cheap (reads the first bytes): binary STL must be exactly ``84 + 50 n`` bytes for the
+    ``n`` triangles its header counts, ASCII STL must start with ``solid``; 3MF is a zip
+    archive; PLY and OFF start with their keyword.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    MissingFileError
+        The file does not exist.
+    InputFileError
+        A directory, an empty file, or not the format its suffix says (names the file).
+    """
+    p = Path(path)
+    fmt = format_for(p, Kind.MESH, action="read")
+    if p.is_dir():
+        raise InputFileError(f"{p}: is a directory, not a mesh file")
+    if not p.exists():
+        raise MissingFileError(f"mesh file not found: {p}")
+    size = p.stat().st_size
+    what = fmt.name.upper()
+    what = ("an " if what[0] in "AEIOFHLMNRSX" else "a ") + what  # an STL, a PLY
+    if size == 0:
+        raise InputFileError(f"{p}: the file is empty (0 bytes), not {what} file")
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(4096)
+    except OSError as exc:
+        raise InputFileError(f"{p}: cannot read the file: {exc.strerror or exc}") from None
+    if fmt.name == "stl":
+        n = int(np.frombuffer(head[80:84], dtype="<u4")[0]) if len(head) >= 84 else -1
+        if n >= 0 and 84 + 50 * n == size:
+            return p
+        text = head.lstrip()
+        if text[:5].lower() == b"solid" and (b"facet" in head or b"endsolid" in head):
+            return p
+        binary = (
+            f"a binary STL of {n:,} triangles (as its header says) would be "
+            f"{84 + 50 * n:,} bytes, the file has {size:,}"
+            if n >= 0
+            else f"the file has only {size} bytes, less than a binary STL header (84)"
+        )
+        raise InputFileError(
+            f"{p}: not an STL file (truncated or another format): {binary}, and it does not "
+            "start with 'solid ... facet' as an ASCII STL does"
+        )
+    magic = _MAGIC.get(fmt.name)
+    if magic and not any(head.lstrip().startswith(m) for m in magic):
+        raise InputFileError(
+            f"{p}: not {what} file (it does not start with "
+            f"{' or '.join(repr(m.decode('latin-1')) for m in magic)})"
+        )
+    return p
+
+
 def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Read the triangles of a mesh file (``.stl``, ``.3mf``, ``.ply``, ``.obj``, ``.off``...).
 
@@ -722,13 +852,12 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
 
     Raises
     ------
-    FileNotFoundError, ExportError
-        A missing or unreadable file (named in the message).
+    MissingFileError, InputFileError
+        A missing, empty or unreadable file, or one that is not the format of its suffix
+        (named in the message; see :func:`check_mesh_file`).
     """
-    p = Path(path)
+    p = check_mesh_file(path)
     fmt = format_for(p, Kind.MESH, action="read")
-    if not p.is_file():
-        raise FileNotFoundError(f"mesh file not found: {p}")
     if fmt.name == "3mf":
         lib3mf, model = _read_3mf_model(p)
         objs = _mesh_objects(model)
@@ -759,7 +888,7 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
             warnings.simplefilter("ignore")
             loaded: Any = trimesh.load(str(p), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for bad files
-        raise ExportError(f"{p}: cannot read mesh: {exc}") from None
+        raise InputFileError(f"{p}: cannot read the mesh: {exc}") from None
     v = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
     f = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
     if fmt.name == "stl" and len(v):

@@ -26,6 +26,7 @@ from OCP.TColStd import TColStd_SequenceOfAsciiString
 from OCP.TopoDS import TopoDS_Shape
 
 from lattice_cad.core.errors import OCCTFailure, StepUnitsError
+from lattice_cad.occ_impl.quiet import c_stdout_captured
 from lattice_cad.occ_impl.shapes import (
     bounds,
     compound,
@@ -47,8 +48,13 @@ __all__ = [
 ]
 
 
-def read_step(path: str | os.PathLike[str]) -> TopoDS_Shape | None:
+def read_step(
+    path: str | os.PathLike[str], *, messages: list[str] | None = None
+) -> TopoDS_Shape | None:
     """Read a STEP file (lengths converted to mm). None when OCCT cannot read it.
+
+    OCCT's console messages (``**** ERR StepFile ...``) never reach stdout: they are
+    captured and, when ``messages`` is given, appended to it (to explain a failure).
 
     Raises
     ------
@@ -58,13 +64,19 @@ def read_step(path: str | os.PathLike[str]) -> TopoDS_Shape | None:
     """
     with occt_errors(f"cannot read {os.fspath(path)}"):
         reader = STEPControl_Reader()
-        status = reader.ReadFile(str(path))
+        with c_stdout_captured() as said:
+            status = reader.ReadFile(str(path))
+        if messages is not None:
+            messages.extend(said)
         if status != IFSelect_RetDone:
             return None
         names = TColStd_SequenceOfAsciiString()
         reader.FileUnits(names, TColStd_SequenceOfAsciiString(), TColStd_SequenceOfAsciiString())
         occt_units = [names.Value(i).ToCString() for i in range(1, names.Length() + 1)]
-        reader.TransferRoots()
+        with c_stdout_captured() as said:
+            reader.TransferRoots()
+        if messages is not None:
+            messages.extend(said)
         if reader.NbShapes() == 0:
             return None
         shape = reader.OneShape()
