@@ -125,7 +125,13 @@ def _tolerance(radius: float, extent: float) -> float:
     return max(config.TRIM_RTOL * radius, rounding)
 
 
-def trim_to_part(lattice: Any, part: Any, *, radius: float, check: bool = True) -> TrimResult:
+#: A direction parallel to no face a CAD user draws (unit vector), for ``shift``.
+_SHIFT = np.array([0.5317, -0.3183, 0.7854]) / np.linalg.norm([0.5317, -0.3183, 0.7854])
+
+
+def trim_to_part(
+    lattice: Any, part: Any, *, radius: float, check: bool = True, shift: float = 0.0
+) -> TrimResult:
     """Intersect a stitched lattice with its part.
 
     Parameters
@@ -135,6 +141,11 @@ def trim_to_part(lattice: Any, part: Any, *, radius: float, check: bool = True) 
     part : conformal.Part
     radius : float
         The largest strut radius (mm): the tolerance is stated relative to it.
+    shift : float
+        Cut with the part moved by this fraction of the tolerance in a fixed generic
+        direction (0: exactly at the surface). A retry when the exact cut leaves slivers
+        that do not survive float32 (surfaces of struts that lie in the part's surface);
+        the protrusion stays below ``shift`` times the tolerance.
     check : bool
         Check the result in full (``conformal.skin.checked``: a ``SkinError`` names where
         it fails). ``Lattice`` passes False: it checks after rounding to float32.
@@ -156,6 +167,8 @@ def trim_to_part(lattice: Any, part: Any, *, radius: float, check: bool = True) 
     tol = _tolerance(radius, extent)
     before = protrusion(part, v0)
     shape = part_solid(part)
+    if shift:
+        shape = shape.translate(tuple(float(c) for c in _SHIFT * (shift * tol)))
     outside = lat - shape
     if outside.is_empty():
         report = TrimReport(

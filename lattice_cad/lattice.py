@@ -554,7 +554,11 @@ class Lattice:
                 if self.skin is not None or self.keep or self.trim_report is None:
                     raise
                 # the cut by the part's surface left slivers that float32 cannot hold (tiny
-                # struts on a mesh part): write the lattice uncut, and say so in the report
+                # struts lying in the surface): cut once more a quarter of the tolerance
+                # off the surface, else write the lattice uncut and say so in the report
+                retry = self._retrim()
+                if retry is not None:
+                    return retry
                 self.trim_report = dataclasses.replace(
                     self.trim_report, failed=str(exc).splitlines()[0][:300]
                 )
@@ -571,6 +575,28 @@ class Lattice:
                     )
         if self.escape_holes is not None:
             self._verify_escape(mesh)
+        return mesh
+
+    def _retrim(self) -> Mesh | None:
+        """The trim cut with the part moved off its surface by a quarter of the tolerance
+        (see ``conformal.trim.trim_to_part(shift=)``), or None if that fails too."""
+        from conformal import skin as _skin
+        from conformal.trim import trim_to_part
+        from lattice_cad.core.mesh import Mesh
+
+        trimmed = trim_to_part(
+            self._kept_mesh,
+            self.part,
+            radius=float(self.graph.radii.max()),
+            check=False,
+            shift=0.25,
+        )
+        v, f = _skin.to_arrays(trimmed.solid)
+        try:
+            mesh = _checked_single_precision(Mesh(vertices=v, faces=f), "the lattice")
+        except ExportError:
+            return None
+        self.trim_report = trimmed.report
         return mesh
 
     def _fallback_untrimmed(self) -> Mesh:
