@@ -252,3 +252,15 @@ def test_cli_step(tmp_path, capsys):
     assert not out.exists()
     code = main([*args, "-q"])
     assert code == 0 and out.exists()
+
+
+def test_writing_step_prints_nothing(tmp_path, capfd):
+    """Issue 12: OCCT's transfer statistics went to the C stdout on every STEP write."""
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+
+    from lattice_cad.occ_impl.step import write_step
+
+    write_step(BRepPrimAPI_MakeBox(1.0, 2.0, 3.0).Shape(), tmp_path / "box.step")
+    out, _ = capfd.readouterr()
+    assert out == ""
+    assert (tmp_path / "box.step").stat().st_size > 0

@@ -253,14 +253,23 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "M
         # the same shape gives the same bytes: the product is named after the file (OCCT
         # numbers it per session otherwise) and the header's time stamp is fixed below
         Interface_Static.SetCVal_s("write.step.product.name", Path(target).stem or "lattice")
+        # OCCT prints its transfer statistics on the C stdout: captured, never shown
         with occt_errors(f"cannot write {target}: STEP transfer"):
             writer = STEPControl_Writer()
             writer.Model().SetWriteLengthUnit(mm_per_unit)
-            if writer.Transfer(shape, STEPControl_AsIs) != IFSelect_RetDone:
-                raise OCCTFailure(f"cannot write {target}: the STEP transfer failed")
+            with c_stdout_captured() as said:
+                done = writer.Transfer(shape, STEPControl_AsIs)
+            if done != IFSelect_RetDone:
+                raise OCCTFailure(
+                    f"cannot write {target}: the STEP transfer failed ({' '.join(said)[:200]})"
+                )
         with occt_errors(f"cannot write {target}"):
-            if writer.Write(tmp) != IFSelect_RetDone:
-                raise OCCTFailure(f"cannot write {target}: OCCT's STEP writer failed")
+            with c_stdout_captured() as said:
+                done = writer.Write(tmp)
+            if done != IFSelect_RetDone:
+                raise OCCTFailure(
+                    f"cannot write {target}: OCCT's STEP writer failed ({' '.join(said)[:200]})"
+                )
         _stable_header(tmp, Path(target).name)
         box = bounds(shape)
         check_step_units(tmp, [unit], float(np.linalg.norm(box[1] - box[0])))
