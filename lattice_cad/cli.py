@@ -120,15 +120,10 @@ def _segments(text: str) -> int:
 
 
 def _direction(text: str) -> tuple[float, float, float]:
-    try:
-        values = tuple(float(x) for x in text.replace(" ", "").split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y,Z (3 numbers), got {text!r}") from None
-    if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
-        raise argparse.ArgumentTypeError(f"expected X,Y,Z (3 finite numbers), got {text!r}")
+    values = _point(text)
     if not any(values):
         raise argparse.ArgumentTypeError("the build direction must not be 0,0,0")
-    return (values[0], values[1], values[2])
+    return values
 
 
 def _angle(text: str) -> float:
@@ -196,7 +191,7 @@ def _say_printability(con: _Console, lat: Any) -> None:
 
 
 def _point(text: str) -> tuple[float, float, float]:
-    parts = text.split(",")
+    parts = text.replace(" ", "").split(",")
     try:
         xyz = tuple(float(p) for p in parts)
     except ValueError:
@@ -580,16 +575,6 @@ def _add_print_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _at_least_one(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value}")
-    return value
-
-
 def _add_fe_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("beam FE model (-o NAME.inp, CalculiX/Abaqus)")
     g.add_argument(
@@ -616,7 +601,7 @@ def _add_fe_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--elements-per-strut",
-        type=_at_least_one,
+        type=_positive_int,
         default=config.FE_ELEMENTS_PER_STRUT,
         metavar="K",
         help=f"quadratic beam elements per strut (default {config.FE_ELEMENTS_PER_STRUT})",

@@ -19,12 +19,12 @@ builds the solid zones (:mod:`conformal.keep`).
 from __future__ import annotations
 
 import math
-from collections import Counter
 from typing import Any
 
 import numpy as np
 
 from lattice_cad.core.errors import KeepError
+from lattice_cad.selectors import brep_faces, face_inventory, pick_faces
 
 __all__ = ["resolve_keep", "parse_keep"]
 
@@ -90,25 +90,8 @@ def _zone_specs(keep: Any) -> list[Any]:
     )
 
 
-def _brep_faces(part: Any) -> list[Any]:
-    """The cadquery Faces of the part's B-rep solids (TopExp order, solid by solid)."""
-    import cadquery as cq
-
-    if part.shape is None:
-        return []
-    return [f for s in part.shape for f in cq.Shape.cast(s).Faces()]
-
-
-def _inventory(faces: list[Any]) -> str:
-    counts = Counter(f.geomType() for f in faces)
-    listed = ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
-    return f"{len(faces)} faces: {listed}" if faces else "no faces"
-
-
 def _select(part: Any, selector: str, label: str) -> list[Any]:
-    import cadquery as cq
-
-    faces = _brep_faces(part)
+    faces = brep_faces(part)
     if not faces:
         raise KeepError(
             f"keep zone {label!r}: a face selector needs a B-rep part (STEP, CadQuery, "
@@ -116,18 +99,17 @@ def _select(part: Any, selector: str, label: str) -> list[Any]:
             "(xmax, ymax, zmax)) instead"
         )
     try:
-        chosen = cq.selectors.StringSyntaxSelector(selector).filter(faces)
-    except Exception as exc:  # pyparsing and cadquery raise several kinds
+        chosen = pick_faces(faces, selector)
+    except ValueError as exc:
         raise KeepError(
-            f"keep zone {label!r}: {selector!r} is not a CadQuery selector "
-            f"({type(exc).__name__}: {' '.join(str(exc).split())})"
+            f"keep zone {label!r}: {selector!r} is not a CadQuery selector ({exc})"
         ) from None
     if not chosen:
         raise KeepError(
             f"keep zone {label!r}: selector {selector!r} matches no face of the part; "
-            f"it has {_inventory(faces)}"
+            f"it has {face_inventory(faces)}"
         )
-    return list(chosen)
+    return chosen
 
 
 def _as_faces(obj: Any, label: str) -> list[Any]:

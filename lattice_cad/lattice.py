@@ -518,11 +518,7 @@ class Lattice:
         if self.skin is None:
             if self.part is None or not self.trim or self.graph.num_edges == 0:
                 return self._kept_mesh
-            from conformal.trim import trim_to_part
-
-            trimmed = trim_to_part(  # checked below, after rounding to float32
-                self._kept_mesh, self.part, radius=float(self.graph.radii.max()), check=False
-            )
+            trimmed = self._cut()  # checked below, after rounding to float32
             self.trim_report = trimmed.report
             if not trimmed.report.trimmed:
                 return self._kept_mesh
@@ -540,8 +536,6 @@ class Lattice:
 
     @cached_property
     def _printable_mesh(self) -> Mesh:
-        import fast_stitch
-        from lattice_cad import io
 
         self.graph.check_precision("float32")  # before stitching: STL/3MF store float32
         solid = self._solid_mesh
@@ -562,17 +556,9 @@ class Lattice:
                 self.trim_report = dataclasses.replace(
                     self.trim_report, failed=str(exc).splitlines()[0][:300]
                 )
-                return self._fallback_untrimmed()
+                return self._stitched_single_precision()
         else:
-            mesh, repaired = io.single_precision(solid, name="the lattice")
-            if repaired:
-                report = fast_stitch.check(mesh)
-                if not report.valid:
-                    raise ExportError(
-                        f"the lattice cannot be written in single precision (STL, 3MF): "
-                        f"rounding its coordinates to float32 breaks it ({report}); move it "
-                        "closer to the origin or use thicker struts"
-                    )
+            mesh = self._stitched_single_precision()
         if self.escape_holes is not None:
             self._verify_escape(mesh)
         return mesh
@@ -581,16 +567,9 @@ class Lattice:
         """The trim cut with the part moved off its surface by a quarter of the tolerance
         (see ``conformal.trim.trim_to_part(shift=)``), or None if that fails too."""
         from conformal import skin as _skin
-        from conformal.trim import trim_to_part
         from lattice_cad.core.mesh import Mesh
 
-        trimmed = trim_to_part(
-            self._kept_mesh,
-            self.part,
-            radius=float(self.graph.radii.max()),
-            check=False,
-            shift=0.25,
-        )
+        trimmed = self._cut(shift=0.25)
         v, f = _skin.to_arrays(trimmed.solid)
         try:
             mesh = _checked_single_precision(Mesh(vertices=v, faces=f), "the lattice")
@@ -599,25 +578,36 @@ class Lattice:
         self.trim_report = trimmed.report
         return mesh
 
-    def _fallback_untrimmed(self) -> Mesh:
-        """The stitched lattice in single precision, when its trim cannot be written."""
+    def _cut(self, *, shift: float = 0.0) -> Any:
+        """The lattice (with its keep zones) cut by the part's surface, not yet checked
+        (``conformal.trim.trim_to_part``; ``shift``: see there)."""
+        from conformal.trim import trim_to_part
+
+        radius = float(self.graph.radii.max())
+        return trim_to_part(self._kept_mesh, self.part, radius=radius, check=False, shift=shift)
+
+    def _stitched_single_precision(self) -> Mesh:
+        """The stitched lattice in single precision: the stitch keeps its clearances through
+        the rounding, so only a mesh the rounding repaired is checked again."""
         import fast_stitch
         from lattice_cad import io
 
         mesh, repaired = io.single_precision(self._lattice_mesh, name="the lattice")
-        if repaired and not fast_stitch.check(mesh).valid:
-            raise ExportError(
-                "the lattice cannot be written in single precision (STL, 3MF): rounding its "
-                "coordinates to float32 breaks it; move it closer to the origin or use "
-                "thicker struts"
-            )
+        if repaired:
+            report = fast_stitch.check(mesh)
+            if not report.valid:
+                raise ExportError(
+                    f"the lattice cannot be written in single precision (STL, 3MF): rounding "
+                    f"its coordinates to float32 breaks it ({report}); move it closer to the "
+                    "origin or use thicker struts"
+                )
         return mesh
 
     def _drill(self, solid: Any) -> Any:
         """Escape holes in the skinned solid (``conformal.escape.drill``), unverified."""
         from conformal import escape
 
-        up = (0.0, 0.0, 1.0) if self.build_direction is None else self.build_direction
+        up = self.build_direction  # config.BUILD_DIRECTION unless given
         assert self.escape_holes is not None and self.skin is not None
         res = escape.drill(
             solid,
@@ -643,7 +633,7 @@ class Lattice:
         from conformal import escape
 
         assert self.escape_holes is not None
-        up = (0.0, 0.0, 1.0) if self.build_direction is None else self.build_direction
+        up = self.build_direction  # config.BUILD_DIRECTION unless given
         step = escape.grid_step(self.escape_holes, self.skin)
         check = escape.verify(mesh, voxel=step, build_direction=up)
         self.escape_report = dataclasses.replace(self.escape_report, verification=check)

@@ -35,7 +35,14 @@ from lattice_cad.core.errors import SelectionError
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.io import fe
 
-__all__ = ["select_nodes", "resolve_node_sets", "face_triangles"]
+__all__ = [
+    "select_nodes",
+    "resolve_node_sets",
+    "face_triangles",
+    "brep_faces",
+    "face_inventory",
+    "pick_faces",
+]
 
 
 def _part_shape(part: Any) -> Any:
@@ -69,19 +76,55 @@ def face_triangles(faces: Any, deflection: float) -> NDArray[np.float64]:
     return np.ascontiguousarray(v[f])
 
 
-def _cadquery_faces(part: Any, selector: str) -> Any:
-    """The faces of the part that a CadQuery string selector picks (a list of cq.Face)."""
+def brep_faces(part: Any) -> list[Any]:
+    """The cadquery Faces of a part's B-rep solids (TopExp order, solid by solid); [] for a
+    part read from a mesh."""
     import cadquery as cq
 
-    shape = _part_shape(part)
-    wp = cq.Workplane().add(cq.Shape.cast(shape))
+    shape = getattr(part, "shape", None)
+    if shape is None:
+        return []
+    solids = shape if isinstance(shape, (list, tuple)) else [shape]
+    return [f for s in solids for f in cq.Shape.cast(s).Faces()]
+
+
+def face_inventory(faces: list[Any]) -> str:
+    """E.g. ``"7 faces: 1 CYLINDER, 6 PLANE"``."""
+    from collections import Counter
+
+    counts = Counter(f.geomType() for f in faces)
+    listed = ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
+    return f"{len(faces)} faces: {listed}" if faces else "no faces"
+
+
+def pick_faces(faces: list[Any], selector: str) -> list[Any]:
+    """The faces a CadQuery string selector (``">Z"``, ``"%CYLINDER"``...) picks.
+
+    Raises
+    ------
+    ValueError
+        The selector is not CadQuery selector syntax (the parser's message, on one line).
+    """
+    import cadquery as cq
+
     try:
-        faces = wp.faces(selector).vals()
-    except Exception as exc:  # pyparsing and cadquery raise many kinds
+        return list(cq.selectors.StringSyntaxSelector(selector).filter(faces))
+    except Exception as exc:  # pyparsing and cadquery raise several kinds
+        raise ValueError(f"{type(exc).__name__}: {' '.join(str(exc).split())}") from None
+
+
+def _cadquery_faces(part: Any, selector: str) -> Any:
+    """The faces of the part that a CadQuery string selector picks (a list of cq.Face)."""
+    faces = brep_faces(part)
+    try:
+        chosen = pick_faces(faces, selector)
+    except ValueError as exc:
         raise SelectionError(f"{selector!r} is not a CadQuery face selector: {exc}") from None
-    if not faces:
-        raise SelectionError(f"{selector!r} selects no face of the part")
-    return faces
+    if not chosen:
+        raise SelectionError(
+            f"{selector!r} selects no face of the part; it has {face_inventory(faces)}"
+        )
+    return chosen
 
 
 def select_nodes(
