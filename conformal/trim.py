@@ -126,7 +126,8 @@ def _tolerance(radius: float, extent: float) -> float:
 
 
 #: A direction parallel to no face a CAD user draws (unit vector), for ``shift``.
-_SHIFT = np.array([0.5317, -0.3183, 0.7854]) / np.linalg.norm([0.5317, -0.3183, 0.7854])
+_S = np.array([0.5317, -0.3183, 0.7854])
+SHIFT_DIRECTION = _S / np.linalg.norm(_S)
 
 
 def trim_to_part(
@@ -168,7 +169,7 @@ def trim_to_part(
     before = protrusion(part, v0)
     shape = part_solid(part)
     if shift:
-        shape = shape.translate(tuple(float(c) for c in _SHIFT * (shift * tol)))
+        shape = shape.translate(tuple(float(c) for c in SHIFT_DIRECTION * (shift * tol)))
     outside = lat - shape
     if outside.is_empty():
         report = TrimReport(

@@ -525,8 +525,23 @@ class Lattice:
             v, f = _skin.to_arrays(trimmed.solid)
             return Mesh(vertices=v, faces=f)
 
-        # checked below, after rounding to float32 (what the files hold)
-        result = _skin.build_skin(self._kept_mesh, self.part, self.skin, check=False)
+        return self._skinned()
+
+    def _skinned(self, *, shift: float = 0.0) -> Mesh:
+        """The lattice (with its keep zones) inside its skin, not yet checked; ``shift``
+        moves the lattice by that many trim tolerances (``config.TRIM_RTOL`` r) in a
+        generic direction, for the retry when float32 cannot hold the exact result."""
+        from conformal import skin as _skin
+        from conformal.trim import SHIFT_DIRECTION
+        from lattice_cad.core.mesh import Mesh
+
+        lattice = self._kept_mesh
+        if shift:
+            step = shift * config.TRIM_RTOL * float(self.graph.radii.max())
+            moved = lattice.vertices + SHIFT_DIRECTION * step
+            lattice = Mesh(vertices=moved, faces=lattice.faces)
+        # checked after rounding to float32 (what the files hold)
+        result = _skin.build_skin(lattice, self.part, self.skin, check=False)
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
@@ -545,7 +560,15 @@ class Lattice:
             try:
                 mesh = _checked_single_precision(solid, "the lattice")
             except ExportError as exc:
-                if self.skin is not None or self.keep or self.trim_report is None:
+                if self.skin is not None:
+                    # the booleans left surfaces a float32 step apart (a strut grazing the
+                    # skin's inner wall): build the skin once more with the lattice moved
+                    # a quarter of the trim tolerance in a generic direction
+                    mesh = _checked_single_precision(self._skinned(shift=0.25), "the lattice")
+                    if self.escape_holes is not None:
+                        self._verify_escape(mesh)
+                    return mesh
+                if self.keep or self.trim_report is None:
                     raise
                 # the cut by the part's surface left slivers that float32 cannot hold (tiny
                 # struts lying in the surface): cut once more a quarter of the tolerance

@@ -77,6 +77,25 @@ def test_skin_falls_back_to_the_voxel_field_and_says_so():
 
 
 @pytest.mark.slow
+def test_skin_whose_exact_result_float32_cannot_hold_is_built_again_moved():
+    """Regression (bench_preview's ge-skin case): GE bracket, BCC with a skin; the exact
+    boolean result gets a non-manifold edge when rounded to float32, so the product refused
+    to write a mesh it had built. It now builds the skin once more with the lattice moved a
+    quarter of the trim tolerance, and writes a checked mesh."""
+    part = _part("step/dolfiny_ge_bracket_rotated_nonds.step")
+    cell = float(np.ptp(part.vertices, axis=0).max()) / 15
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(part, "bcc", cell, cell / 12, skin=cell / 6)
+        mesh = lat.mesh()
+    np.testing.assert_array_equal(mesh.vertices, mesh.vertices.astype(np.float32))
+    assert fast_stitch.check(mesh).valid
+    ind = independent_check(mesh, self_intersections=False)
+    assert ind["watertight"] and ind["winding_consistent"] and ind["manifold3d"], ind
+    assert _bodies(mesh) == lat.skin_report.bodies == 1
+
+
+@pytest.mark.slow
 def test_tet_lattice_of_the_seeds_table5_case_stitches():
     """GE bracket, tet 5 mm, r = 0.25, P = 6 (Verma et al., Table 5: 5,853 nodes, 35.2K
     edges): refused before ("cannot be thinned enough"); the graph repair fixes it without
