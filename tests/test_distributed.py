@@ -57,9 +57,8 @@ def canonical(corners: np.ndarray) -> np.ndarray:
     rows = np.arange(len(t))
     for k in (1, 2):
         a, b = t[:, k], t[rows, best]
-        less = (a[:, 0] < b[:, 0]) | (
-            (a[:, 0] == b[:, 0]) & ((a[:, 1] < b[:, 1]) | ((a[:, 1] == b[:, 1]) & (a[:, 2] < b[:, 2])))
-        )
+        tie_y = (a[:, 1] == b[:, 1]) & (a[:, 2] < b[:, 2])
+        less = (a[:, 0] < b[:, 0]) | ((a[:, 0] == b[:, 0]) & ((a[:, 1] < b[:, 1]) | tie_y))
         best = np.where(less, k, best)
     out = np.stack([t[rows, (best + j) % 3] for j in range(3)], axis=1).reshape(-1, 9)
     return out[np.lexsort(out.T[::-1])]
