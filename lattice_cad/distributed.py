@@ -620,9 +620,12 @@ def _assemble(
             fh.write(np.uint32(0).tobytes())  # the count goes in last
             total = 0
             for p in pieces:
+                total += p.stat().st_size // 50
                 with open(p, "rb") as src:
                     shutil.copyfileobj(src, fh, 1 << 22)
-                total += p.stat().st_size // 50
+                # the pieces are ours (in the work directory): free the disk as we go, so
+                # the peak is one STL plus one piece (a failure reruns the stitch phase)
+                p.unlink()
             if total != triangles:
                 raise ShardingError(f"{path}: pieces hold {total} triangles, expected {triangles}")
             fh.seek(80)
