@@ -26,8 +26,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 PART = ROOT.parent / "shared" / "data" / "meshes" / "bunny_closed_odedstein.obj"
 STRUTS_PER_CELL = 8  # BCC: 8 half-diagonals per cell
