@@ -553,7 +553,10 @@ def _client(scheduler: Any, workers: int | None) -> Iterator[Any]:
         n_workers=workers or 2,
         threads_per_worker=1,
         processes=True,
+        # no dashboard, and the scheduler's HTTP server on a free port (the default 8787
+        # may be taken by another cluster: distributed then warns)
         dashboard_address=None,
+        scheduler_kwargs={"dashboard_address": ":0"},
     )
     client = distributed.Client(cluster)
     try:
