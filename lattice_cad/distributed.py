@@ -717,6 +717,8 @@ def fill_sharded(
     scheduler : str or distributed.Client, optional
         An existing scheduler's address (``"tcp://host:8786"``) or client; default a
         LocalCluster of ``workers`` processes with one thread each.
+    workers : int, optional
+        Worker processes of the LocalCluster (default 2; ignored with ``scheduler``).
     fill : {"inside", "auto"}
         ``"auto"`` is ``"inside"`` (other fills are refused when no whole cell fits).
     fit : {"shrink", "off"}
