@@ -32,7 +32,7 @@ from conformal.radius import check_fit, fit_radii, graded_by_distance
 from conformal.similarity import Canonical, Similarity
 from conformal.steady import SteadyLattice
 from conformal.tet import tet_lattice, tet_mesh
-from conformal.voxel import BuildReport, voxel_lattice, voxelize
+from conformal.voxel import BuildReport, grid_of, inside_cells, voxel_lattice, voxelize
 from lattice_cad.core.errors import (
     FitError,
     PartError,
@@ -55,6 +55,8 @@ __all__ = [
     "load_part",
     "voxel_lattice",
     "voxelize",
+    "grid_of",
+    "inside_cells",
     "BuildReport",
     "tet_lattice",
     "tet_mesh",

@@ -70,9 +70,9 @@ def _tri_z(tri, t, px, py):
 
 
 @njit(cache=True)
-def _col_range(lo, hi, o, h, n):
-    a = int(np.ceil((lo - o) / h))
-    b = int(np.floor((hi - o) / h))
+def _col_range(lo, hi, o, h, n, off):
+    a = int(np.ceil((lo - o) / h)) - off
+    b = int(np.floor((hi - o) / h)) - off
     if a < 0:
         a = 0
     if b > n - 1:
@@ -81,8 +81,8 @@ def _col_range(lo, hi, o, h, n):
 
 
 @njit(cache=True, parallel=True)
-def grid_winding(tri, origin, step, dims):
-    """Winding numbers at the points of a regular grid.
+def grid_winding(tri, origin, step, dims, offset):
+    """Winding numbers at the points of a regular grid (or of a block of it).
 
     Parameters
     ----------
@@ -91,6 +91,10 @@ def grid_winding(tri, origin, step, dims):
     origin, step : (3,) float64
         Grid point ``(i, j, k)`` is ``origin + (i, j, k) * step``.
     dims : (3,) int64
+    offset : (3,) int64
+        First grid index of the block: output ``[i, j, k]`` is grid point
+        ``offset + (i, j, k)``, computed with exactly the arithmetic of the whole grid
+        (zeros for the whole grid).
 
     Returns
     -------
@@ -106,12 +110,12 @@ def grid_winding(tri, origin, step, dims):
         x1 = max(tri[t, 0, 0], max(tri[t, 1, 0], tri[t, 2, 0]))
         y0 = min(tri[t, 0, 1], min(tri[t, 1, 1], tri[t, 2, 1]))
         y1 = max(tri[t, 0, 1], max(tri[t, 1, 1], tri[t, 2, 1]))
-        ia, ib = _col_range(x0, x1, origin[0], step[0], nx)
-        ja, jb = _col_range(y0, y1, origin[1], step[1], ny)
+        ia, ib = _col_range(x0, x1, origin[0], step[0], nx, offset[0])
+        ja, jb = _col_range(y0, y1, origin[1], step[1], ny, offset[1])
         for i in range(ia, ib + 1):
-            px = origin[0] + i * step[0]
+            px = origin[0] + (offset[0] + i) * step[0]
             for j in range(ja, jb + 1):
-                py = origin[1] + j * step[1]
+                py = origin[1] + (offset[1] + j) * step[1]
                 if _tri_cover(tri, t, px, py) != 0:
                     count[i * ny + j + 1] += 1
     start = np.cumsum(count)
@@ -124,12 +128,12 @@ def grid_winding(tri, origin, step, dims):
         x1 = max(tri[t, 0, 0], max(tri[t, 1, 0], tri[t, 2, 0]))
         y0 = min(tri[t, 0, 1], min(tri[t, 1, 1], tri[t, 2, 1]))
         y1 = max(tri[t, 0, 1], max(tri[t, 1, 1], tri[t, 2, 1]))
-        ia, ib = _col_range(x0, x1, origin[0], step[0], nx)
-        ja, jb = _col_range(y0, y1, origin[1], step[1], ny)
+        ia, ib = _col_range(x0, x1, origin[0], step[0], nx, offset[0])
+        ja, jb = _col_range(y0, y1, origin[1], step[1], ny, offset[1])
         for i in range(ia, ib + 1):
-            px = origin[0] + i * step[0]
+            px = origin[0] + (offset[0] + i) * step[0]
             for j in range(ja, jb + 1):
-                py = origin[1] + j * step[1]
+                py = origin[1] + (offset[1] + j) * step[1]
                 s = _tri_cover(tri, t, px, py)
                 if s != 0:
                     c = i * ny + j
@@ -149,7 +153,7 @@ def grid_winding(tri, origin, step, dims):
         w = 0
         q = b - a - 1
         for k in range(nz - 1, -1, -1):
-            z = origin[2] + k * step[2]
+            z = origin[2] + (offset[2] + k) * step[2]
             while q >= 0 and zs[a + order[q]] > z:
                 w += ss[a + order[q]]
                 q -= 1
@@ -523,10 +527,12 @@ def _tri_box(tri, t, cx, cy, cz, ex, ey, ez):
 
 
 @njit(cache=True, parallel=True)
-def mark_cut_cells(tri, origin, h, dims, pad):
+def mark_cut_cells(tri, origin, h, dims, pad, offset):
     """(nx, ny, nz) bool: cells ``origin + [i, i+1] * h`` that a triangle touches.
 
-    Each box is grown by ``pad`` (relative) so that the test is conservative.
+    Each box is grown by ``pad`` (relative) so that the test is conservative. ``offset``
+    (3,) int64: first cell index of the block (output ``[i, j, k]`` is grid cell
+    ``offset + (i, j, k)``, with the whole grid's arithmetic; zeros for the whole grid).
     """
     nx, ny, nz = dims[0], dims[1], dims[2]
     cut = np.zeros((nx, ny, nz), dtype=np.bool_)
@@ -539,16 +545,16 @@ def mark_cut_cells(tri, origin, h, dims, pad):
         for a in range(3):
             mn = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
             mx = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
-            lo[a] = max(0, int(np.floor((mn - origin[a]) / h[a] - pad)))
-            hi[a] = min(dims[a] - 1, int(np.floor((mx - origin[a]) / h[a] + pad)))
+            lo[a] = max(0, int(np.floor((mn - origin[a]) / h[a] - pad)) - offset[a])
+            hi[a] = min(dims[a] - 1, int(np.floor((mx - origin[a]) / h[a] + pad)) - offset[a])
         for i in range(lo[0], hi[0] + 1):
-            cx = origin[0] + (i + 0.5) * h[0]
+            cx = origin[0] + (offset[0] + i + 0.5) * h[0]
             for j in range(lo[1], hi[1] + 1):
-                cy = origin[1] + (j + 0.5) * h[1]
+                cy = origin[1] + (offset[1] + j + 0.5) * h[1]
                 for k in range(lo[2], hi[2] + 1):
                     if cut[i, j, k]:
                         continue
-                    cz = origin[2] + (k + 0.5) * h[2]
+                    cz = origin[2] + (offset[2] + k + 0.5) * h[2]
                     if _tri_box(tri, t, cx, cy, cz, ex, ey, ez):
                         cut[i, j, k] = True
     return cut

@@ -315,7 +315,9 @@ def _label_empty(
 
     step = np.full(3, h)
     solid = part.grid_contains(origin, step, dims)
-    solid |= _kernels.mark_cut_cells(part.triangles, origin - 0.5 * h, step, dims, 1e-6)
+    solid |= _kernels.mark_cut_cells(
+        part.triangles, origin - 0.5 * h, step, dims, 1e-6, np.zeros(3, np.int64)
+    )
     labels, _ = ndimage.label(~solid, structure=np.ones((3, 3, 3), dtype=bool))
     return labels.astype(np.int32, copy=False)
 

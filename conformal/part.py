@@ -174,16 +174,24 @@ class Part:
         return self.winding(points) != 0
 
     def grid_contains(
-        self, origin: ArrayLike, step: ArrayLike, dims: ArrayLike
+        self,
+        origin: ArrayLike,
+        step: ArrayLike,
+        dims: ArrayLike,
+        *,
+        offset: ArrayLike | None = None,
     ) -> NDArray[np.bool_]:
         """(nx, ny, nz) bool: inside test of the grid points ``origin + (i, j, k) * step``.
 
-        One vertical ray per (i, j) column: O(columns + crossings + points).
+        One vertical ray per (i, j) column: O(columns + crossings + points). ``offset``
+        (3,) int: classify only the block of ``dims`` points starting at grid index
+        ``offset`` (bit-identical to the same points of the whole grid).
         """
         o = np.asarray(origin, dtype=np.float64).reshape(3)
         s = np.asarray(step, dtype=np.float64).reshape(3)
         d = np.asarray(dims, dtype=np.int64).reshape(3)
-        return _kernels.grid_winding(self.triangles, o, s, d) != 0
+        off = np.zeros(3, np.int64) if offset is None else np.asarray(offset, np.int64).reshape(3)
+        return _kernels.grid_winding(self.triangles, o, s, d, off) != 0
 
     def inscribed_radius(self, *, resolution: int = 96) -> float:
         """Radius of the largest ball inside the part (half its greatest thickness), mm.

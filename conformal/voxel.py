@@ -50,7 +50,15 @@ from lattice_cad.core.errors import FillError, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.resources import require_memory
 
-__all__ = ["voxel_lattice", "voxelize", "BuildReport", "Voxels", "main_components"]
+__all__ = [
+    "voxel_lattice",
+    "voxelize",
+    "grid_of",
+    "inside_cells",
+    "BuildReport",
+    "Voxels",
+    "main_components",
+]
 
 FillMode = Literal["auto", "inside", "clip", "conform"]
 FitMode = Literal["shrink", "raise", "off"]
@@ -156,7 +164,7 @@ def voxelize(
         advice="use larger cells",
     )
     corner = part.grid_contains(start, h, dims + 1)
-    cut = _kernels.mark_cut_cells(part.triangles, start, h, dims, 1e-9)
+    cut = _kernels.mark_cut_cells(part.triangles, start, h, dims, 1e-9, np.zeros(3, np.int64))
     all_in = (
         corner[:-1, :-1, :-1]
         & corner[1:, :-1, :-1]
@@ -168,6 +176,68 @@ def voxelize(
         & corner[1:, 1:, 1:]
     )
     return Voxels(start, h, all_in & ~cut, cut, corner)
+
+
+def grid_of(
+    part: Part, cell_size: float | ArrayLike, *, origin: ArrayLike | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """The cell grid :func:`voxelize` lays over ``part``, without classifying it.
+
+    Returns
+    -------
+    start : (3,) float64
+        Corner of cell ``(0, 0, 0)``.
+    h : (3,) float64
+        Cell size.
+    dims : (3,) int64
+        Number of cells along each axis.
+    """
+    h = _vec3(cell_size, "cell_size")
+    if (h <= 0).any():
+        raise ValueError(f"cell_size must be > 0, got {h.tolist()}")
+    b = part.bounds
+    if origin is None:  # the same arithmetic as voxelize
+        n = np.maximum(np.ceil((b[1] - b[0]) / h), 1.0)
+        o = 0.5 * (b[0] + b[1]) - 0.5 * n * h
+    else:
+        o = _vec3(origin, "origin")
+    lo = np.floor((b[0] - o) / h).astype(np.int64)
+    hi = np.ceil((b[1] - o) / h).astype(np.int64)
+    hi = np.maximum(hi, lo + 1)
+    return o + lo * h, h, hi - lo
+
+
+def inside_cells(
+    part: Part,
+    start: NDArray[np.float64],
+    h: NDArray[np.float64],
+    lo: ArrayLike,
+    hi: ArrayLike,
+) -> NDArray[np.bool_]:
+    """Inside cells of the block ``lo <= (i, j, k) < hi`` of the grid ``(start, h)``.
+
+    Bit-identical to ``voxelize(...).inside[lo:hi]`` of the whole grid (the same
+    arithmetic per point and cell), in memory proportional to the block.
+
+    Returns
+    -------
+    (hi - lo) bool
+    """
+    lo_a = np.asarray(lo, dtype=np.int64).reshape(3)
+    d = np.asarray(hi, dtype=np.int64).reshape(3) - lo_a
+    corner = part.grid_contains(start, h, d + 1, offset=lo_a)
+    cut = _kernels.mark_cut_cells(part.triangles, start, h, d, 1e-9, lo_a)
+    all_in = (
+        corner[:-1, :-1, :-1]
+        & corner[1:, :-1, :-1]
+        & corner[:-1, 1:, :-1]
+        & corner[:-1, :-1, 1:]
+        & corner[1:, 1:, :-1]
+        & corner[1:, :-1, 1:]
+        & corner[:-1, 1:, 1:]
+        & corner[1:, 1:, 1:]
+    )
+    return all_in & ~cut
 
 
 def _rotation(rotation: ArrayLike | None) -> NDArray[np.float64] | None:

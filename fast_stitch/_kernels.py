@@ -205,8 +205,13 @@ def node_slots(offsets, inc_edge, inc_side, qdir, sign, radii, rmax, slots, slot
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def same_key(nodes_a, nodes_b, offsets, slot_q, slot_r, out):
-    """out[i] = node nodes_a[i] has exactly the slots of node nodes_b[i] (hash check)."""
+def same_key(nodes_a, nodes_b, offsets, slots, slot_q, radii, out):
+    """out[i] = node nodes_a[i] has exactly the slots of node nodes_b[i] (hash check).
+
+    Radii are compared exactly (not by their quantised key), so a node shares the hub of
+    another only when the hub's inputs are bit-identical: the hub of a node is then a
+    function of its own struts alone, whichever node of its group was built (what
+    sharded stitching relies on for identical seams)."""
     for i in prange(nodes_a.shape[0]):
         a = nodes_a[i]
         b = nodes_b[i]
@@ -216,8 +221,10 @@ def same_key(nodes_a, nodes_b, offsets, slot_q, slot_r, out):
             for t in range(da):
                 ta = offsets[a] + t
                 tb = offsets[b] + t
+                ea = slots[ta]
+                eb = slots[tb]
                 if (
-                    slot_r[ta] != slot_r[tb]
+                    radii[ea // 2, ea % 2] != radii[eb // 2, eb % 2]
                     or slot_q[ta, 0] != slot_q[tb, 0]
                     or slot_q[ta, 1] != slot_q[tb, 1]
                     or slot_q[ta, 2] != slot_q[tb, 2]

@@ -276,7 +276,7 @@ def _stitch(
         rep_nodes = hubs[first]
         cand = rep_nodes[inverse]
         ok = np.empty(len(hubs), dtype=np.bool_)
-        _kernels.same_key(hubs, cand, offsets, slot_q, slot_r, ok)
+        _kernels.same_key(hubs, cand, offsets, slots, slot_q, radii, ok)
         node_rep[hubs] = inverse
         if not ok.all():  # hash collision: those nodes get hubs of their own
             extra = hubs[~ok]

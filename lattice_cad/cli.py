@@ -266,6 +266,8 @@ def _fe_options(args: argparse.Namespace, out: Path) -> dict[str, Any] | None:
 def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     from lattice_cad.lattice import Lattice
 
+    if args.shards is not None:
+        return _cmd_fill_sharded(args, con)
     out = Path(args.output)
     fe_options = _fe_options(args, out)
     if args.beam_lattice:  # refuse a wrong suffix before the work
@@ -681,6 +683,26 @@ def build_parser() -> argparse.ArgumentParser:
         f"{config.MAX_BREP_STRUTS:,}; larger lattices are refused with an estimate of the "
         "time and size)",
     )
+    g = p.add_argument_group("sharded (Dask distributed; pip install 'lattice-cad[distributed]')")
+    g.add_argument(
+        "--shards",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="fill in N blocks of cells on a Dask cluster and stream one STL (fill inside; "
+        "the stitched lattice, not trimmed)",
+    )
+    g.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="with --shards: an existing Dask scheduler (tcp://host:8786); default a local "
+        "cluster of --workers processes",
+    )
+    g.add_argument(
+        "--workers", type=_positive_int, default=None, metavar="N",
+        help="with --shards and no --scheduler: local worker processes (default 2)",
+    )  # fmt: skip
     p.set_defaults(func=_cmd_fill)
 
     p = sub.add_parser(
@@ -824,3 +846,46 @@ def _entry() -> None:  # pragma: no cover - console script
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
+
+
+def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
+    """``fill --shards N``: lattice_cad.distributed.fill_sharded, refusing what it cannot do."""
+    from lattice_cad.core.errors import ShardingError
+    from lattice_cad.distributed import fill_sharded
+
+    refused = [
+        flag
+        for flag, on in (
+            ("--method tet", args.method != "voxel"),
+            ("--skin", args.skin is not None),
+            ("--keep", args.keep is not None),
+            ("--escape-holes/--escape-at", args.escape_holes is not None or args.escape_at),
+            ("--beam-lattice", bool(args.beam_lattice)),
+            ("--report", args.report is not None),
+            ("--remove-overhangs", args.remove_overhangs),
+            ("--self-supporting", args.self_supporting),
+            ("--node-set/--material", bool(args.node_set or args.material)),
+        )
+        if on
+    ]
+    if refused:
+        raise ShardingError(
+            f"{', '.join(refused)} cannot be combined with --shards (the sharded path writes "
+            "the stitched lattice of fill inside as .stl or .3mf)"
+        )
+    with con.step(f"sharded fill ({args.shards} shards)"):
+        res = fill_sharded(
+            args.part,
+            args.output,
+            args.cell,
+            args.cell_size,
+            args.radius,
+            shards=args.shards,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            fill=args.fill or "inside",
+            segments=args.segments,
+            progress=not con.quiet,
+        )
+    con.say(res.summary())
+    return 0

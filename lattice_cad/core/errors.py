@@ -21,6 +21,8 @@ example ``conformal.PartError``), but they are defined here only.
     ├── SteadyLatticeError       invalid steady-lattice input (conformal.steady)
     ├── PrintabilityError        invalid build direction, angle or diameter (conformal.printability)
     ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
+    ├── ShardingError            an option the sharded (Dask) path refuses, a halo too small
+    ├── DistributedUnavailableError  (ImportError) Dask distributed is not installed
     ├── SelectionError           a selector picks no face or node (names the selector)
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
     ├── ExternalCrash            a C++ library crashed or hung in a child process
@@ -56,6 +58,8 @@ __all__ = [
     "PrintabilityError",
     "ExportError",
     "SelectionError",
+    "ShardingError",
+    "DistributedUnavailableError",
     "OCCTFailure",
     "ExternalCrash",
     "ReferenceBuildError",
@@ -135,6 +139,15 @@ class ExportError(LatticeError, ValueError):
 class SelectionError(LatticeError, ValueError):
     """A selector (face, plane, box or node list) cannot be resolved or picks nothing; the
     message names the selector and says what is near (for example the closest node)."""
+
+
+class ShardingError(LatticeError, ValueError):
+    """An option the sharded (Dask) path does not support, or a shard whose halo is too
+    small for the lattice (the message says which)."""
+
+
+class DistributedUnavailableError(LatticeError, ImportError):
+    """The sharded path needs Dask distributed: ``pip install 'lattice-cad[distributed]'``."""
 
 
 class OCCTFailure(LatticeError, RuntimeError):

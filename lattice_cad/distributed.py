@@ -1,0 +1,1086 @@
+"""Sharded fill and stitch on Dask distributed: bounded memory per worker, identical output.
+
+The part's grid of cells is cut into blocks of whole cells (one *shard* each). Every task
+loads the part itself from its path, classifies and tiles its block with a halo of
+``halo`` cells on every side (:func:`conformal.inside_cells`, :func:`conformal.tile_arrays`),
+stitches that graph with :func:`fast_stitch.stitch` and writes the triangles it *owns*
+as binary STL records to a piece file; the client streams the pieces into one STL.
+
+Why the pieces fit together exactly
+-----------------------------------
+- **Global ids without a numbering pass.** A node's id is its global integer lattice
+  coordinate (``conformal.tile_arrays``' ``node_ijk``) packed into an int64; its position
+  is ``origin + node_ijk / denominator * cell_size`` in every shard, bit for bit, and
+  cells are classified with the whole grid's arithmetic (``Part.grid_contains(offset=)``).
+- **Ownership.** A node belongs to the shard whose block holds its cell
+  (``node_ijk // denominator``, clipped to the grid); a strut belongs to the owner of its
+  end with the lower global id (its first end: edges are sorted by global coordinates).
+  Each shard writes the hubs (or caps) of its nodes and the cylinders of its struts, so
+  every triangle is written exactly once and nothing is deduplicated.
+- **Identical seams.** The stitcher derives a strut's frame and phase from its quantised
+  direction and ``seed`` (not from its index) and a node's hub only from the struts at
+  that node (hubs are shared between nodes only when their inputs are bit-identical), so a
+  profile shared by two shards has the same vertices in both. A shard's hubs are correct
+  when the shard graph has *all* struts at its own nodes and at their neighbours: two
+  cells of halo give that for every cell whose struts stay in the cell (all built-in
+  cells); a shard that finds one of those nodes on the halo's edge raises
+  :class:`ShardingError`.
+- **Global clean-up, done exactly.** Dangling struts are pruned in each shard twice (halo
+  edge kept / halo edge pruned); the true result lies between, so equal answers near the
+  block prove it exact (else :class:`ShardingError`). The largest connected piece (per
+  solid of the part) is found by a union-find over the shards' component labels, joined
+  by the global ids of the nodes two shards share.
+
+Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits) of any
+built-in or user cell without rotation, a scalar or callable radius (a picklable
+function of the (M, 3) strut midpoints), ``fit="shrink"`` when it thins nothing near a
+block and ``fit="off"``; written as binary STL (any size) or 3MF (one merged mesh, up
+to :data:`MAX_3MF_TRIANGLES`). Refused with :class:`ShardingError`: ``"clip"`` and
+``"conform"`` (their surface clean-up merges nodes by distance across blocks),
+``rotation``, skins, keep zones, trimming to the part (the output is the stitched
+lattice, ``Lattice.mesh(lattice_only=True)``), beam-lattice 3MF and ``method="lslt"``.
+
+:func:`stitch_sharded` does the same for a user graph held as NPZ shards
+(:func:`write_graph_shards`): struts are routed to spatial blocks (those with an end
+within the longest strut of the block), and each block stitches and writes what it owns.
+
+Files must be on a file system that the client and all workers share (``tmpdir``); the
+output is written atomically (a temp file renamed into place once complete): it is
+complete or absent, and a rerun gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import resource
+import shutil
+import tempfile
+import time
+import uuid
+import warnings
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lattice_cad.core import config
+from lattice_cad.core.atomic import atomic_write, check_target
+from lattice_cad.core.errors import (
+    DistributedUnavailableError,
+    InputFileError,
+    LatticeWarning,
+    ShardingError,
+)
+
+__all__ = [
+    "fill_sharded",
+    "stitch_sharded",
+    "write_graph_shards",
+    "ShardedResult",
+    "ShardStats",
+    "MAX_3MF_TRIANGLES",
+    "INSTALL_HINT",
+]
+
+INSTALL_HINT = "pip install 'lattice-cad[distributed]'"
+#: Largest sharded 3MF (one merged mesh object; a 3MF object must be closed, so the open
+#: shard pieces cannot be objects of their own).
+MAX_3MF_TRIANGLES = 20_000_000
+_HEADER = b"lattice-cad sharded binary STL"
+_REC = np.dtype([("n", "<f4", 3), ("v", "<f4", 9), ("attr", "<u2")])
+
+
+def _require_dask() -> Any:
+    """The ``distributed`` module, or :class:`DistributedUnavailableError`."""
+    try:
+        import dask  # noqa: F401
+        import distributed
+    except ImportError as exc:
+        raise DistributedUnavailableError(
+            f"the sharded path (--shards, lattice_cad.distributed) needs Dask distributed, "
+            f"which is not installed ({exc}): {INSTALL_HINT}"
+        ) from None
+    return distributed
+
+
+# ===================================================================== results
+@dataclass(frozen=True)
+class ShardStats:
+    """What one shard did (returned by its stitch task).
+
+    ``struts`` counts the struts of its graph (halo included), ``owned_struts`` those it
+    wrote; ``peak_rss`` is the worker process's peak resident memory (bytes) after it.
+    """
+
+    shard: int
+    owned_struts: int
+    struts: int
+    triangles: int
+    seconds: float
+    cpu_seconds: float
+    peak_rss: int
+    worker: str
+
+
+@dataclass
+class ShardedResult:
+    """The outcome of :func:`fill_sharded` / :func:`stitch_sharded`.
+
+    Attributes
+    ----------
+    path : Path
+        The written file.
+    struts, triangles : int
+        Totals of the written lattice.
+    shards : list of ShardStats
+        Shards that wrote something, in shard order.
+    seconds : dict
+        Wall time of each phase (``build``, ``stitch``, ``assemble``, ``total``).
+    removed_dangling, removed_islands : int
+        Clean-up counts (as ``conformal.BuildReport``).
+    """
+
+    path: Path
+    struts: int
+    triangles: int
+    shards: list[ShardStats] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+    removed_dangling: int = 0
+    removed_islands: int = 0
+
+    @property
+    def peak_rss_per_worker(self) -> dict[str, int]:
+        """Peak resident memory (bytes) of each worker process."""
+        out: dict[str, int] = {}
+        for s in self.shards:
+            out[s.worker] = max(out.get(s.worker, 0), s.peak_rss)
+        return out
+
+    @property
+    def halo_overhead(self) -> float:
+        """Struts stitched but not owned, as a fraction of the owned struts."""
+        owned = sum(s.owned_struts for s in self.shards)
+        return sum(s.struts for s in self.shards) / max(owned, 1) - 1.0
+
+    def summary(self) -> str:
+        """Human-readable totals, per-worker peak memory and halo overhead."""
+        lines = [
+            f"{self.path}: {self.struts:,} struts, {self.triangles:,} triangles in "
+            f"{len(self.shards)} shard(s); halo overhead {100 * self.halo_overhead:.1f} %",
+            "  " + ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items()),
+        ]
+        for w, rss in sorted(self.peak_rss_per_worker.items()):
+            lines.append(f"  worker {w}: peak RSS {rss / 2**20:.0f} MiB")
+        return "\n".join(lines)
+
+
+# ===================================================================== helpers
+def _peak_rss() -> int:
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+
+        return f"{get_worker().address} (pid {os.getpid()})"
+    except (ImportError, ValueError):
+        return f"pid {os.getpid()}"
+
+
+@contextlib.contextmanager
+def _threads(n: int) -> Iterator[None]:
+    import numba
+
+    prev = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(prev)
+
+
+_PARTS: dict[tuple[str, float, str], Any] = {}
+
+
+def _load(path: str, units: str | float | None) -> Any:
+    """The part at ``path``, loaded once per worker process (keyed by path and mtime)."""
+    from conformal import load_part
+
+    key = (path, os.path.getmtime(path), repr(units))
+    if key not in _PARTS:
+        _PARTS.clear()
+        _PARTS[key] = load_part(path, units=units)
+    return _PARTS[key]
+
+
+def _split(dims: NDArray[np.int64], n: int) -> NDArray[np.int64]:
+    """(3,) blocks per axis, product >= n: split the axis with the longest blocks."""
+    counts = np.ones(3, dtype=np.int64)
+    while int(np.prod(counts)) < n:
+        a = int(np.argmax(dims / counts))
+        if counts[a] >= dims[a]:
+            break
+        counts[a] += 1
+    return counts
+
+
+def _pack(ijk: NDArray[np.int64], span: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Global node ids from integer lattice coordinates (0 <= ijk < span)."""
+    return (ijk[:, 0] * span[1] + ijk[:, 1]) * span[2] + ijk[:, 2]
+
+
+def _prune(n: int, edges: NDArray[np.int64], protected: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Struts left after repeatedly removing struts at unprotected degree-1 nodes (the
+    rule of ``conformal.voxel_lattice``'s clean-up)."""
+    alive = np.ones(len(edges), dtype=bool)
+    while True:
+        deg = np.bincount(edges[alive].ravel(), minlength=n)
+        leaf = (deg == 1) & ~protected
+        drop = alive & (leaf[edges[:, 0]] | leaf[edges[:, 1]])
+        if not drop.any():
+            return alive
+        alive &= ~drop
+
+
+def _compact(
+    nodes: NDArray[np.float64], owned: NDArray[np.bool_], used: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The used nodes (order kept, so local order stays global order)."""
+    return nodes[used], owned[used]
+
+
+def _write_piece(path: Path, records: Iterator[NDArray[Any]]) -> None:
+    """Write STL records to ``path`` via a temp file and rename (a retried task
+    overwrites a half-written piece of a killed attempt)."""
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.part")
+    try:
+        with open(tmp, "wb") as fh:
+            for rec in records:
+                fh.write(rec.tobytes())
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
+def _owned_records(
+    graph: Any,
+    mesh: Any,
+    owned_node: NDArray[np.bool_],
+    owned_strut: NDArray[np.bool_],
+    P: int,
+    where: str,
+) -> tuple[Iterator[NDArray[Any]], int]:
+    """STL records (chunks of the ``_REC`` dtype) of the owned cylinders, hubs and caps."""
+    from lattice_cad.core.mesh import stl_records
+
+    m = graph.num_edges
+    deg = graph.degree
+    counts = np.where(deg >= 2, deg * P + 2 * deg - 4, np.where(deg == 1, P - 2, 0))
+    mask = np.concatenate([np.repeat(owned_strut, 2 * P), np.repeat(owned_node, counts)])
+    assert len(mask) == len(mesh.faces) and len(mesh.faces) - 2 * m * P == counts.sum()
+    rows = np.flatnonzero(mask)
+
+    def gen() -> Iterator[NDArray[Any]]:
+        chunk = 1 << 18
+        buf = np.empty((min(len(rows), chunk), 12), dtype=np.float32)
+        for lo in range(0, len(rows), chunk):
+            part = rows[lo : lo + chunk]
+            out = buf[: len(part)]
+            bad = stl_records(mesh.vertices, mesh.faces[part], out)
+            if bad:
+                raise ShardingError(
+                    f"{where}: {bad} triangle(s) become flat when rounded to single precision "
+                    "(STL); the single-process path repairs them, the sharded one cannot: "
+                    "use thicker struts or move the part closer to the origin"
+                )
+            rec = np.zeros(len(part), dtype=_REC)
+            rec["n"] = out[:, :3]
+            rec["v"] = out[:, 3:]
+            yield rec
+
+    return gen(), len(rows)
+
+
+def _stitch_owned(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    owned_node: NDArray[np.bool_],
+    owned_strut: NDArray[np.bool_],
+    *,
+    segments: int,
+    seed: int,
+    volume_preserving: bool,
+    piece: Path,
+    where: str,
+) -> int:
+    """Stitch one shard's graph and write the triangles it owns; their count."""
+    import fast_stitch
+    from lattice_cad.core.graph import LatticeGraph
+
+    graph = LatticeGraph(nodes, edges, radii)
+    graph.check_precision("float32")
+    mesh = fast_stitch.stitch(
+        graph, segments, seed=seed, volume_preserving=volume_preserving, workers=None
+    )
+    records, n = _owned_records(graph, mesh, owned_node, owned_strut, segments, where)
+    _write_piece(piece, records)
+    return n
+
+
+# ================================================================ the fill tasks
+@dataclass(frozen=True)
+class _FillSpec:
+    path: str
+    units: str | float | None
+    cell: Any
+    start: tuple[float, float, float]
+    h: tuple[float, float, float]
+    dims: tuple[int, int, int]
+    counts: tuple[int, int, int]
+    size: tuple[int, int, int]
+    halo: int
+    prune: bool
+    tmpdir: str
+    threads: int
+
+
+def _block(spec: _FillSpec, shard: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    b = np.array(np.unravel_index(shard, spec.counts), dtype=np.int64)
+    size, dims = np.array(spec.size), np.array(spec.dims)
+    lo = b * size
+    return lo, np.minimum(lo + size, dims)
+
+
+def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
+    """Phase 1 of a shard: classify, tile, prune; save the shard graph; report its
+    connected pieces (for the global largest-piece selection)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    import conformal
+
+    with _threads(spec.threads):
+        part = _load(spec.path, spec.units)
+        cell = conformal.CELLS[spec.cell] if isinstance(spec.cell, str) else spec.cell
+        den = int(cell.denominator)
+        start, h = np.array(spec.start), np.array(spec.h)
+        dims = np.array(spec.dims, dtype=np.int64)
+        size = np.array(spec.size, dtype=np.int64)
+        lo, hi = _block(spec, shard)
+        r_lo = np.maximum(lo - spec.halo, 0)
+        r_hi = np.minimum(hi + spec.halo, dims)
+        inside = conformal.inside_cells(part, start, h, r_lo, r_hi)
+        ijk = np.argwhere(inside).astype(np.int64) + r_lo
+        where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+        if not len(ijk):
+            return None
+        nodes, edges, nijk = conformal.tile_arrays(cell, ijk, cell_size=h, origin=start)
+        n = len(nodes)
+        # nodes on a face of the region that the halo cut (the grid's own faces are
+        # complete: no cell lies beyond them) may have struts outside the region
+        incomplete = np.zeros(n, dtype=bool)
+        for a in range(3):
+            if r_lo[a] > 0:
+                incomplete |= nijk[:, a] == r_lo[a] * den
+            if r_hi[a] < dims[a]:
+                incomplete |= nijk[:, a] == r_hi[a] * den
+        ncell = np.minimum(nijk // den, dims - 1)
+        owned = ((ncell // size) == (lo // size)).all(axis=1)
+        if spec.prune:
+            alive = _prune(n, edges, incomplete)
+            lower = _prune(n, edges, np.zeros(n, dtype=bool))
+        else:
+            alive = lower = np.ones(len(edges), dtype=bool)
+        # the nodes whose hubs this shard needs: its own and their neighbours
+        e_alive = edges[alive]
+        need = owned.copy()
+        touch = owned[e_alive].any(axis=1)
+        need[e_alive[touch].ravel()] = True
+        relevant = need[edges].any(axis=1)
+        if incomplete[need].any():
+            k = int(np.flatnonzero(need & incomplete)[0])
+            raise ShardingError(
+                f"{where}: node at {nodes[k].tolist()} needs struts beyond the halo of "
+                f"{spec.halo} cell(s); use a larger halo"
+            )
+        if (relevant & (alive != lower)).any():
+            raise ShardingError(
+                f"{where}: pruning dangling struts reaches beyond the halo of {spec.halo} "
+                "cell(s); use a larger halo (or prune=False)"
+            )
+        pruned_owned = int((~alive & owned[edges[:, 0]]).sum())
+        edges = edges[alive]
+        used = np.zeros(n, dtype=bool)
+        used[edges.ravel()] = True
+        if not owned[edges[:, 0]].any() and not (owned & used).any():
+            return {"shard": shard, "empty": True, "pruned": pruned_owned}
+        new_id = np.cumsum(used) - 1
+        nodes, nijk, owned = nodes[used], nijk[used], owned[used]
+        edges = new_id[edges]
+        span = dims * den + 1
+        key = _pack(nijk, span)
+        g = coo_matrix(
+            (np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(nodes), len(nodes))
+        )
+        n_lab, label = connected_components(g, directed=False)
+        own_e = owned[edges[:, 0]]
+        owned_count = np.bincount(label[edges[own_e, 0]], minlength=n_lab)
+        min_key = np.full(n_lab, np.iinfo(np.int64).max, dtype=np.int64)
+        np.minimum.at(min_key, label, key)
+        first = np.full(n_lab, -1, dtype=np.int64)
+        oe = np.flatnonzero(own_e)
+        first[label[edges[oe[::-1], 0]]] = oe[::-1]
+        rep = np.full((n_lab, 3), np.nan)
+        has = first >= 0
+        rep[has] = 0.5 * (nodes[edges[first[has], 0]] + nodes[edges[first[has], 1]])
+        # nodes another shard may also hold: all that are not ours, and ours near a face
+        nc = np.minimum(nijk // den, dims - 1)
+        inner = ((nc >= lo + spec.halo + 1) & (nc < hi - spec.halo - 1)).all(axis=1)
+        link = ~owned | ~inner
+        np.savez(
+            Path(spec.tmpdir) / f"graph-{shard}.npz",
+            nodes=nodes,
+            edges=edges,
+            owned=owned,
+            label=label,
+        )
+        return {
+            "shard": shard,
+            "empty": False,
+            "pruned": pruned_owned,
+            "owned_count": owned_count,
+            "min_key": min_key,
+            "rep": rep,
+            "link_key": key[link],
+            "link_label": label[link],
+        }
+
+
+def _fill_stitch(
+    spec: _FillSpec,
+    shard: int,
+    keep_label: NDArray[np.bool_],
+    radius: Any,
+    fit: str,
+    min_radius: float | None,
+    segments: int,
+    seed: int,
+    volume_preserving: bool,
+) -> ShardStats | None:
+    """Phase 2 of a shard: keep the selected pieces, radii, stitch, write owned triangles."""
+    from conformal.radius import fit_radii, resolve_radii
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    with _threads(spec.threads):
+        data = np.load(Path(spec.tmpdir) / f"graph-{shard}.npz")
+        nodes, edges, owned, label = data["nodes"], data["edges"], data["owned"], data["label"]
+        edges = edges[keep_label[label[edges[:, 0]]]]
+        used = np.zeros(len(nodes), dtype=bool)
+        used[edges.ravel()] = True
+        if not (owned & used).any():
+            return None
+        nodes, owned = _compact(nodes, owned, used)
+        edges = (np.cumsum(used) - 1)[edges]
+        lo, hi = _block(spec, shard)
+        where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+        r = resolve_radii(radius, nodes, edges)
+        if fit == "shrink":
+            floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
+            new, _ = fit_radii(nodes, edges, r, min_radius=floor)
+            need = owned.copy()
+            need[edges[owned[edges].any(axis=1)].ravel()] = True
+            changed = (new != r).any(axis=1) & need[edges].any(axis=1)
+            if changed.any():
+                e = int(np.flatnonzero(changed)[0])
+                raise ShardingError(
+                    f"{where}: {int(changed.sum())} strut(s) would be thinned to fit (e.g. the "
+                    f"strut from {nodes[edges[e, 0]].tolist()} to {nodes[edges[e, 1]].tolist()});"
+                    " fitting radii is a global iteration the sharded path does not run: use "
+                    "thinner struts, or fit='off'"
+                )
+        # stitch only what the owned triangles depend on: the struts at the owned nodes
+        # and at their neighbours (whose hubs are complete here)
+        need = owned.copy()
+        need[edges[owned[edges].any(axis=1)].ravel()] = True
+        sub = need[edges].any(axis=1)
+        edges, r = edges[sub], r[sub]
+        used = np.zeros(len(nodes), dtype=bool)
+        used[edges.ravel()] = True
+        nodes, owned = _compact(nodes, owned, used)
+        edges = (np.cumsum(used) - 1)[edges]
+        owned_strut = owned[edges[:, 0]]
+        n = _stitch_owned(
+            nodes, edges, r, owned, owned_strut,
+            segments=segments, seed=seed, volume_preserving=volume_preserving,
+            piece=Path(spec.tmpdir) / f"piece-{shard}.stl", where=where,
+        )  # fmt: skip
+        return ShardStats(
+            shard=shard,
+            owned_struts=int(owned_strut.sum()),
+            struts=len(edges),
+            triangles=n,
+            seconds=time.perf_counter() - t0,
+            cpu_seconds=time.process_time() - c0,
+            peak_rss=_peak_rss(),
+            worker=_worker_name(),
+        )
+
+
+# =============================================================== orchestration
+@contextlib.contextmanager
+def _client(scheduler: Any, workers: int | None) -> Iterator[Any]:
+    """A Dask client: ``scheduler`` (a Client, or an address ``tcp://host:8786``), or a
+    LocalCluster of ``workers`` processes (one thread each) closed afterwards."""
+    distributed = _require_dask()
+    if scheduler is not None and not isinstance(scheduler, str):
+        yield scheduler
+        return
+    if isinstance(scheduler, str):
+        client = distributed.Client(scheduler)
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    cluster = distributed.LocalCluster(
+        n_workers=workers or 2,
+        threads_per_worker=1,
+        processes=True,
+        # no dashboard, and the scheduler's HTTP server on a free port (the default 8787
+        # may be taken by another cluster: distributed then warns)
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard_address": ":0"},
+    )
+    client = distributed.Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def _run(
+    client: Any,
+    fn: Callable[..., Any],
+    items: Sequence[Any],
+    *,
+    retries: int,
+    progress: bool,
+    desc: str,
+    extra: Sequence[Any] = (),
+) -> list[Any]:
+    """``fn(*item, *extra)`` for every item on the cluster, with retries, one progress bar
+    over the shards, and every future cancelled on an error or Ctrl-C."""
+    distributed = _require_dask()
+    token = uuid.uuid4().hex[:8]
+    futures = [
+        client.submit(fn, *item, *extra, key=f"lattice-{desc}-{token}-{i}", retries=retries,
+                      pure=False)
+        for i, item in enumerate(items)
+    ]  # fmt: skip
+    bar = None
+    try:
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=len(futures), desc=f"{desc} shards", unit="shard", leave=False)
+        for fut in distributed.as_completed(futures):
+            if fut.status == "error":
+                fut.result()  # raises the task's exception here
+            if bar is not None:
+                bar.update(1)
+        return list(client.gather(futures))
+    except BaseException:
+        client.cancel(futures)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _assemble(
+    path: Path, pieces: Sequence[Path], triangles: int, *, fmt: str
+) -> None:
+    """Stream the pieces into one file (atomically: complete or absent)."""
+    from lattice_cad.core.mesh import stl_size
+    from lattice_cad.core.resources import require_disk
+
+    if fmt == "stl":
+        require_disk(path, stl_size(triangles))
+        if triangles >= 2**32:
+            raise ShardingError(
+                f"{path}: {triangles:,} triangles exceed binary STL's uint32 count"
+            )
+        with atomic_write(path) as fh:
+            fh.write(_HEADER.ljust(80, b" "))
+            fh.write(np.uint32(0).tobytes())  # the count goes in last
+            total = 0
+            for p in pieces:
+                total += p.stat().st_size // 50
+                with open(p, "rb") as src:
+                    shutil.copyfileobj(src, fh, 1 << 22)
+                # the pieces are ours (in the work directory): free the disk as we go, so
+                # the peak is one STL plus one piece (a failure reruns the stitch phase)
+                p.unlink()
+            if total != triangles:
+                raise ShardingError(f"{path}: pieces hold {total} triangles, expected {triangles}")
+            fh.seek(80)
+            fh.write(np.uint32(total).tobytes())
+        return
+    # 3MF: one merged mesh, welded by exact coordinates
+    from lattice_cad.core.mesh import Mesh, weld
+    from lattice_cad.io import save_mesh
+
+    if triangles > MAX_3MF_TRIANGLES:
+        raise ShardingError(
+            f"{path}: a sharded 3MF is one merged mesh, at most {MAX_3MF_TRIANGLES:,} "
+            f"triangles ({triangles:,} here): write .stl instead"
+        )
+    recs = np.concatenate([np.fromfile(p, dtype=_REC) for p in pieces]) if pieces else None
+    if recs is None or not len(recs):
+        raise ShardingError(f"{path}: nothing to write")
+    corners = recs["v"].reshape(-1, 3).astype(np.float64)
+    faces = np.arange(len(corners), dtype=np.int64).reshape(-1, 3)
+    v, f = weld(corners, faces)
+    save_mesh(Mesh(vertices=v, faces=f), path)
+
+
+def _format(path: Path) -> str:
+    suf = path.suffix.lower()
+    if suf not in (".stl", ".3mf"):
+        raise ShardingError(
+            f"{path.name}: the sharded path writes a mesh as .stl or .3mf, got {suf or 'none'!r}"
+        )
+    return suf[1:]
+
+
+@contextlib.contextmanager
+def _workdir(tmpdir: str | os.PathLike[str] | None, keep: bool) -> Iterator[Path]:
+    d = Path(tempfile.mkdtemp(prefix="lattice-cad-shards-", dir=tmpdir))
+    try:
+        yield d
+    finally:
+        if not keep:
+            shutil.rmtree(d, ignore_errors=True)
+
+
+def fill_sharded(
+    part: str | os.PathLike[str],
+    path: str | os.PathLike[str],
+    cell: Any = config.DEFAULT_CELL,
+    cell_size: float | Sequence[float] = config.DEFAULT_CELL_SIZE,
+    radius: float | Callable[[NDArray[np.float64]], Any] = config.DEFAULT_RADIUS,
+    *,
+    shards: int = 2,
+    scheduler: Any = None,
+    workers: int | None = None,
+    fill: Literal["inside", "auto"] = "inside",
+    segments: int = config.DEFAULT_SEGMENTS,
+    seed: int = 0,
+    origin: Any = None,
+    units: str | float | None = None,
+    prune: bool = True,
+    fit: Literal["shrink", "off"] = "shrink",
+    min_radius: float | None = None,
+    volume_preserving: bool = False,
+    halo: int = 2,
+    retries: int = 2,
+    threads_per_task: int = 1,
+    progress: bool = False,
+    tmpdir: str | os.PathLike[str] | None = None,
+) -> ShardedResult:
+    """Fill a part with a lattice on a Dask cluster, one block of cells per task.
+
+    The same lattice as ``conformal.voxel_lattice(part, cell, cell_size, radius,
+    fill="inside")`` stitched by ``fast_stitch.stitch(graph, segments, seed=seed)``: the
+    written triangles are those of the single-process result (see the module docstring).
+
+    Parameters
+    ----------
+    part : path
+        A STEP or closed mesh file, loaded by each task (``conformal.load_part``).
+    path : path
+        Output ``.stl`` (binary, streamed from the shard pieces) or ``.3mf``.
+    cell, cell_size, radius, segments, seed, origin, units, prune, min_radius,
+    volume_preserving
+        As for ``conformal.voxel_lattice`` and ``fast_stitch.stitch``. ``radius``: a
+        number or a picklable callable of the (M, 3) strut midpoints.
+    shards : int
+        Number of blocks the grid is cut into (at least; blocks are whole cells).
+    scheduler : str or distributed.Client, optional
+        An existing scheduler's address (``"tcp://host:8786"``) or client; default a
+        LocalCluster of ``workers`` processes with one thread each.
+    workers : int, optional
+        Worker processes of the LocalCluster (default 2; ignored with ``scheduler``).
+    fill : {"inside", "auto"}
+        ``"auto"`` is ``"inside"`` (other fills are refused when no whole cell fits).
+    fit : {"shrink", "off"}
+        ``"shrink"`` checks that the single-process fitting would thin nothing near any
+        block (else :class:`ShardingError`).
+    halo : int
+        Cells of overlap on every side of a block (2 suffices for cells whose struts stay
+        inside the cell).
+    retries : int
+        Dask retries of a failed task (a worker that dies is replaced and its tasks rerun).
+    threads_per_task : int
+        Numba threads per task (one per worker process by default).
+    progress : bool
+        A progress bar over the shards of each phase.
+    tmpdir : path, optional
+        Where shard graphs and pieces go (must be shared by the client and the workers).
+
+    Returns
+    -------
+    ShardedResult
+
+    Raises
+    ------
+    DistributedUnavailableError
+        Dask distributed is not installed.
+    ShardingError
+        An unsupported option, a halo too small, or radius fitting that would thin struts.
+    FillError
+        No cell fits inside the part.
+    """
+    from conformal.voxel import _nothing_fits, grid_of
+
+    t_start = time.perf_counter()
+    _require_dask()
+    out = check_target(path)
+    fmt = _format(out)
+    if fill not in ("inside", "auto"):
+        raise ShardingError(
+            f"fill={fill!r} is not supported sharded (only 'inside'): 'clip' and 'conform' "
+            "merge surface nodes by distance across blocks; run them in one process"
+        )
+    if fit not in ("shrink", "off"):
+        raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
+    if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
+        raise ValueError(f"halo and shards must be >= 1 and retries >= 0 (got {halo}, "
+                         f"{shards}, {retries})")  # fmt: skip
+    src = Path(part)
+    if not src.is_file():
+        raise InputFileError(f"{src}: the part must be a file that every worker can read")
+    import conformal
+
+    if isinstance(cell, str) and cell not in conformal.CELLS:
+        raise ValueError(f"unknown cell {cell!r}; choose from {', '.join(sorted(conformal.CELLS))}")
+    the_part = _load(str(src.resolve()), units)
+    start, h, dims = grid_of(the_part, cell_size, origin=origin)
+    counts = _split(dims, int(shards))
+    size = -(-dims // counts)
+    counts = -(-dims // size)
+    spec = _FillSpec(
+        path=str(src.resolve()), units=units, cell=cell,
+        start=tuple(start.tolist()), h=tuple(h.tolist()), dims=tuple(dims.tolist()),
+        counts=tuple(counts.tolist()), size=tuple(size.tolist()), halo=int(halo),
+        prune=bool(prune), tmpdir="", threads=int(threads_per_task),
+    )  # fmt: skip
+    n_shards = int(np.prod(counts))
+    result = ShardedResult(path=out, struts=0, triangles=0)
+    with _workdir(tmpdir, keep=False) as work, _client(scheduler, workers) as client:
+        spec = _FillSpec(**{**spec.__dict__, "tmpdir": str(work)})
+        t0 = time.perf_counter()
+        built = _run(client, _fill_build, [(spec, i) for i in range(n_shards)],
+                     retries=retries, progress=progress, desc="build")  # fmt: skip
+        result.seconds["build"] = time.perf_counter() - t0
+        result.removed_dangling = sum(int(b["pruned"]) for b in built if b is not None)
+        live = [b for b in built if b is not None and not b["empty"]]
+        if not live:
+            raise _nothing_fits(the_part, h, radius if not callable(radius) else 0.0,
+                                f"no cell of size {h[0]:.4g} mm fits inside")  # fmt: skip
+        keep = _select_pieces(the_part, live, result)
+        t0 = time.perf_counter()
+        stats = _run(
+            client, _fill_stitch, [(spec, b["shard"], keep[b["shard"]]) for b in live],
+            retries=retries, progress=progress, desc="stitch",
+            extra=(radius, fit, min_radius, int(segments), int(seed), bool(volume_preserving)),
+        )  # fmt: skip
+        result.seconds["stitch"] = time.perf_counter() - t0
+        result.shards = [s for s in stats if s is not None]
+        result.struts = sum(s.owned_struts for s in result.shards)
+        result.triangles = sum(s.triangles for s in result.shards)
+        t0 = time.perf_counter()
+        pieces = [work / f"piece-{s.shard}.stl" for s in result.shards]
+        _assemble(out, pieces, result.triangles, fmt=fmt)
+        result.seconds["assemble"] = time.perf_counter() - t0
+    result.seconds["total"] = time.perf_counter() - t_start
+    return result
+
+
+def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult) -> dict[int, Any]:
+    """Union-find of the shards' component labels: keep the largest connected piece of each
+    separate solid (as ``conformal.voxel.keep_main_components``); per shard, which of its
+    labels to keep."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from conformal.voxel import _solid_shells
+
+    base = np.cumsum([0] + [len(b["owned_count"]) for b in live])
+    total = int(base[-1])
+    keys = np.concatenate([b["link_key"] for b in live])
+    gids = np.concatenate([b["link_label"] + base[i] for i, b in enumerate(live)])
+    order = np.lexsort((gids, keys))
+    keys, gids = keys[order], gids[order]
+    same = keys[1:] == keys[:-1]
+    a, b = gids[:-1][same], gids[1:][same]
+    g = coo_matrix((np.ones(len(a)), (a, b)), shape=(total, total))
+    n_root, root = connected_components(g, directed=False)
+    size = np.bincount(root, weights=np.concatenate([b["owned_count"] for b in live]),
+                       minlength=n_root)  # fmt: skip
+    min_key = np.full(n_root, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(min_key, root, np.concatenate([b["min_key"] for b in live]))
+    rep = np.full((n_root, 3), np.nan)
+    all_rep = np.concatenate([b["rep"] for b in live])
+    ok = ~np.isnan(all_rep[:, 0])
+    rep[root[ok]] = all_rep[ok]
+    present = np.flatnonzero(size > 0)
+    # the order of conformal's labels: by the smallest global node id of each piece
+    present = present[np.argsort(min_key[present], kind="stable")]
+    owner = np.zeros(len(present), dtype=np.int64)
+    shells = _solid_shells(part) if len(present) > 1 else []
+    if len(shells) > 1:
+        for i, shell in enumerate(shells):
+            owner[shell.contains(rep[present])] = i
+    keep_root = np.zeros(n_root, dtype=bool)
+    for o in np.unique(owner):
+        mine = present[owner == o]
+        keep_root[mine[np.argmax(size[mine])]] = True
+    removed = int(size[~keep_root].sum())
+    result.removed_islands = removed
+    if removed:
+        bodies = int(keep_root.sum())
+        warnings.warn(
+            f"{removed} strut(s) in {len(present) - bodies} loose piece(s) were removed: they "
+            f"touched neither the main lattice nor another piece ({bodies} body(ies) left, "
+            "one per separate solid at most)",
+            LatticeWarning,
+            stacklevel=3,
+        )
+    return {b["shard"]: keep_root[root[base[i] : base[i + 1]]] for i, b in enumerate(live)}
+
+
+# ========================================================= sharded user graphs
+def write_graph_shards(
+    graph: Any, directory: str | os.PathLike[str], *, chunks: int
+) -> list[Path]:
+    """Write a graph as NPZ shards of struts (the input of :func:`stitch_sharded`).
+
+    Each ``graph-shard-K.npz`` holds ``edges`` (m, 2) int64 global node ids, ``radii``
+    (m, 2) float64, and ``node_ids`` (n,) int64 / ``nodes`` (n, 3) float64 for every node
+    its struts use. Any producer can write these files chunk by chunk (the whole graph is
+    never needed in one process).
+
+    Returns
+    -------
+    list of Path
+    """
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    m = graph.num_edges
+    bounds = np.linspace(0, m, int(chunks) + 1).astype(np.int64)
+    out = []
+    for k in range(int(chunks)):
+        e = graph.edges[bounds[k] : bounds[k + 1]]
+        ids = np.unique(e)
+        p = d / f"graph-shard-{k}.npz"
+        np.savez(p, edges=e, radii=graph.radii[bounds[k] : bounds[k + 1]], node_ids=ids,
+                 nodes=graph.nodes[ids])  # fmt: skip
+        out.append(p)
+    return out
+
+
+def _read_shard(p: str) -> dict[str, NDArray[Any]]:
+    try:
+        with np.load(p) as z:
+            data = {k: z[k] for k in ("edges", "radii", "node_ids", "nodes")}
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputFileError(
+            f"{p}: not a graph shard (NPZ with edges, radii, node_ids, nodes): {exc}"
+        ) from None
+    return data
+
+
+def _scan(p: str) -> tuple[NDArray[np.float64], NDArray[np.float64], float, int]:
+    d = _read_shard(p)
+    if not len(d["edges"]):
+        return np.full(3, np.inf), np.full(3, -np.inf), 0.0, 0
+    idx = np.searchsorted(d["node_ids"], d["edges"])
+    a, b = d["nodes"][idx[:, 0]], d["nodes"][idx[:, 1]]
+    length = float(np.linalg.norm(b - a, axis=1).max())
+    return d["nodes"].min(axis=0), d["nodes"].max(axis=0), length, len(d["edges"])
+
+
+def _route(p: str, k: int, box: tuple[Any, ...], tmpdir: str) -> int:
+    """Map step: split one input shard's struts over the blocks that need them."""
+    lo, step, counts, margin = (np.asarray(x) for x in box)
+    d = _read_shard(p)
+    idx = np.searchsorted(d["node_ids"], d["edges"])
+    ends = d["nodes"][idx]  # (m, 2, 3)
+    written = 0
+    n_blocks = int(np.prod(counts))
+    # a strut goes to every block whose box grown by ``margin`` holds one of its ends
+    b_lo = np.clip(np.floor((ends - margin - lo) / step).astype(np.int64), 0, counts - 1)
+    b_hi = np.clip(np.floor((ends + margin - lo) / step).astype(np.int64), 0, counts - 1)
+    for blk in range(n_blocks):
+        bi = np.array(np.unravel_index(blk, tuple(counts)))
+        hit = ((b_lo <= bi) & (b_hi >= bi)).all(axis=2).any(axis=1)
+        if not hit.any():
+            continue
+        e = d["edges"][hit]
+        ids = np.unique(e)
+        np.savez(Path(tmpdir) / f"route-{blk}-{k}.npz", edges=e, radii=d["radii"][hit],
+                 node_ids=ids, nodes=d["nodes"][np.searchsorted(d["node_ids"], ids)])  # fmt: skip
+        written += int(hit.sum())
+    return written
+
+
+def _graph_stitch(
+    blk: int,
+    inputs: list[str],
+    box: tuple[Any, ...],
+    tmpdir: str,
+    segments: int,
+    seed: int,
+    volume_preserving: bool,
+    threads: int,
+) -> ShardStats | None:
+    """Reduce step: one block's struts (halo included), stitched; owned triangles written."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    lo, step, counts, _ = (np.asarray(x) for x in box)
+    parts = [_read_shard(p) for p in inputs if Path(p).exists()]
+    if not parts:
+        return None
+    with _threads(threads):
+        e_glob = np.concatenate([q["edges"] for q in parts])
+        radii = np.concatenate([q["radii"] for q in parts])
+        # a strut routed from two input shards appears once per input; keep one copy
+        e_glob, first = np.unique(e_glob, axis=0, return_index=True)
+        radii = radii[first]
+        ids, where_ = np.unique(np.concatenate([q["node_ids"] for q in parts]), return_index=True)
+        nodes = np.concatenate([q["nodes"] for q in parts])[where_]
+        edges = np.searchsorted(ids, e_glob)
+        bi = np.array(np.unravel_index(blk, tuple(counts)))
+        nb = np.clip(np.floor((nodes - lo) / step).astype(np.int64), 0, counts - 1)
+        owned = (nb == bi).all(axis=1)
+        # the end with the lower global id owns the strut (ids are sorted: lower index)
+        owner_end = np.minimum(edges[:, 0], edges[:, 1])
+        owned_strut = owned[owner_end]
+        if not owned_strut.any() and not owned.any():
+            return None
+        n = _stitch_owned(
+            nodes, edges, radii, owned, owned_strut, segments=segments, seed=seed,
+            volume_preserving=volume_preserving, piece=Path(tmpdir) / f"piece-{blk}.stl",
+            where=f"block {blk}",
+        )  # fmt: skip
+        return ShardStats(
+            shard=blk,
+            owned_struts=int(owned_strut.sum()),
+            struts=len(edges),
+            triangles=n,
+            seconds=time.perf_counter() - t0,
+            cpu_seconds=time.process_time() - c0,
+            peak_rss=_peak_rss(),
+            worker=_worker_name(),
+        )
+
+
+def stitch_sharded(
+    graph_shards: Sequence[str | os.PathLike[str]],
+    path: str | os.PathLike[str],
+    segments: int = config.DEFAULT_SEGMENTS,
+    *,
+    blocks: int = 2,
+    seed: int = 0,
+    volume_preserving: bool = False,
+    scheduler: Any = None,
+    workers: int | None = None,
+    retries: int = 2,
+    threads_per_task: int = 1,
+    progress: bool = False,
+    tmpdir: str | os.PathLike[str] | None = None,
+) -> ShardedResult:
+    """Stitch a graph held as NPZ shards (:func:`write_graph_shards`) on a Dask cluster.
+
+    The same triangles as ``fast_stitch.stitch(graph, segments, seed=seed)`` (with the
+    edges as given, orientation included), written as one binary STL (or 3MF). The box
+    of the nodes is cut into ``blocks`` spatial blocks; each gets the struts with an end
+    within the longest strut of its box (so every hub it needs is complete), stitches
+    them and writes the cylinders of the struts whose lower-id end it owns and the hubs
+    of its nodes.
+
+    Parameters
+    ----------
+    graph_shards : sequence of paths
+        NPZ files with ``edges`` (global node ids), ``radii``, ``node_ids``, ``nodes``.
+    path : path
+        Output ``.stl`` or ``.3mf``.
+    segments, seed, volume_preserving
+        As for :func:`fast_stitch.stitch` (``method="verma"``).
+    blocks : int
+        Spatial blocks (stitch tasks), at least.
+    scheduler, workers, retries, threads_per_task, progress, tmpdir
+        As for :func:`fill_sharded`.
+
+    Returns
+    -------
+    ShardedResult
+    """
+    t_start = time.perf_counter()
+    _require_dask()
+    out = check_target(path)
+    fmt = _format(out)
+    srcs = [str(Path(p).resolve()) for p in graph_shards]
+    for p in srcs:
+        if not Path(p).is_file():
+            raise InputFileError(f"{p}: graph shard not found")
+    if not srcs:
+        raise ShardingError("no graph shards given")
+    result = ShardedResult(path=out, struts=0, triangles=0)
+    with _workdir(tmpdir, keep=False) as work, _client(scheduler, workers) as client:
+        t0 = time.perf_counter()
+        scans = _run(client, _scan, [(p,) for p in srcs], retries=retries, progress=progress,
+                     desc="scan")  # fmt: skip
+        lo = np.min([s[0] for s in scans], axis=0)
+        hi = np.max([s[1] for s in scans], axis=0)
+        lmax = max(s[2] for s in scans)
+        if sum(s[3] for s in scans) == 0:
+            raise ShardingError("the graph shards hold no struts")
+        span = np.maximum(hi - lo, 1e-300)
+        counts = _split(np.maximum(np.round(span / span.max() * 1024), 1).astype(np.int64),
+                        int(blocks))  # fmt: skip
+        step = span / counts * (1 + 1e-12)
+        # an end within lmax of the box: every strut at a node within lmax is routed too
+        margin = lmax * (1 + 1e-9) + 1e-12 * float(np.abs(np.concatenate([lo, hi])).max())
+        box = (lo, step, counts, margin)
+        _run(client, _route, [(p, k, box, str(work)) for k, p in enumerate(srcs)],
+             retries=retries, progress=progress, desc="route")  # fmt: skip
+        result.seconds["route"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        n_blocks = int(np.prod(counts))
+        items = [
+            (b, [str(work / f"route-{b}-{k}.npz") for k in range(len(srcs))])
+            for b in range(n_blocks)
+        ]
+        extra = (box, str(work), int(segments), int(seed), bool(volume_preserving),
+                 int(threads_per_task))  # fmt: skip
+        stats = _run(client, _graph_stitch, items, retries=retries, progress=progress,
+                     desc="stitch", extra=extra)  # fmt: skip
+        result.seconds["stitch"] = time.perf_counter() - t0
+        result.shards = [s for s in stats if s is not None]
+        result.struts = sum(s.owned_struts for s in result.shards)
+        result.triangles = sum(s.triangles for s in result.shards)
+        t0 = time.perf_counter()
+        _assemble(out, [work / f"piece-{s.shard}.stl" for s in result.shards],
+                  result.triangles, fmt=fmt)  # fmt: skip
+        result.seconds["assemble"] = time.perf_counter() - t0
+    result.seconds["total"] = time.perf_counter() - t_start
+    return result
