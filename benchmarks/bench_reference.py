@@ -7,7 +7,13 @@
    fast_stitch's volume error against the exact reference at P = 3, 4, 6, 10, 18, 24,
    with and without ``volume_preserving``.
 
-Usage: ``python benchmarks/bench_reference.py [--quick]``
+4. ``--ge {all,bcc,tet}`` (issue 14): the seed's GE bracket lattices, Box-BCC 5.5 mm
+   (inside fill) and tet 5 mm, r = 0.25: the whole report (reference with estimate and
+   bar, sampled unions, deviation) where the reference accepts the lattice, else the hub
+   build on a seeded sample of distinct hubs; ``--fuse-ab N``: alternating A/B of the
+   hub fuse on N tet hubs. Output kept in ``benchmarks/results/bench_reference_speed.txt``.
+
+Usage: ``python benchmarks/bench_reference.py [--quick] [--ge all] [--fuse-ab 6]``
 """
 
 from __future__ import annotations
@@ -15,7 +21,9 @@ from __future__ import annotations
 import argparse
 import inspect
 import os
+import resource
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -154,6 +162,147 @@ def bench_table2(quick: bool) -> None:
     )
 
 
+# ------------------------------------------------- GE bracket (issue 14, item 2: speed)
+GE = Path(__file__).resolve().parents[2] / "shared" / "data" / "step" / (
+    "dolfiny_ge_bracket_rotated_nonds.step"
+)
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and its finished children (the hub workers)."""
+    me = resource.getrusage(resource.RUSAGE_SELF)
+    ch = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + ch.ru_utime + ch.ru_stime
+
+
+def _ge_lattices(which: str) -> list[tuple[str, LatticeGraph]]:
+    import warnings
+
+    from conformal.part import load_part
+    from conformal.tet import tet_lattice
+    from conformal.voxel import voxel_lattice
+
+    warnings.simplefilter("ignore")
+    part = load_part(GE)
+    out = []
+    if which in ("all", "bcc"):
+        out.append(("box-bcc 5.5 mm inside, r 0.25", voxel_lattice(part, "box-bcc", 5.5, 0.25,
+                                                                    fill="inside")))  # fmt: skip
+    if which in ("all", "tet"):
+        out.append(("tet 5 mm, r 0.25", tet_lattice(part, 5.0, 0.25)))
+    return out
+
+
+def bench_ge(which: str, sample: int, union_hubs: int | None) -> None:
+    """The GE bracket lattices: the whole report where the reference accepts the lattice,
+    else the hub build on a seeded sample of the distinct hubs (extrapolated)."""
+    from reference_boolean.compare import compare
+    from reference_boolean.reference import _hub_specs, _run, find_overlaps
+
+    rows = []
+    for name, g in _ge_lattices(which):
+        specs, template, _, _ = _hub_specs(g, True)
+        hubs = int((template >= 0).sum())
+        overlaps = find_overlaps(g)
+        print(f"\n{name}: {g.num_nodes:,} nodes, {g.num_edges:,} struts, {hubs:,} hubs, "
+              f"{len(specs):,} distinct; overlap places {len(overlaps)}", flush=True)  # fmt: skip
+        load0 = os.getloadavg()[0]
+        t0, c0 = time.perf_counter(), _cpu()
+        if not overlaps:
+            mesh = fast_stitch.stitch(g, 6)
+            rep = compare(g, meshes={"fast_stitch P=6": mesh}, union_hubs=union_hubs,
+                          keep_solids=False, progress=True)  # fmt: skip
+            wall, cpu = time.perf_counter() - t0, _cpu() - c0
+            ref = rep.reference
+            tb = ref.timings["build"]
+            rows.append([
+                name, "full report", f"{wall:.1f}", f"{cpu:.1f}", str(ref.unique_hubs),
+                f"{ref.cache_hits:,}", f"{ref.unique_hubs / tb:.2f}",
+                f"{ref.timings.get('estimate', float('nan')):.0f} / {tb:.0f}",
+                "yes" if ref.complete else f"NO ({len(ref.failed)})",
+                f"{rep.timings['unions']:.1f}", f"{load0:.1f}/{os.getloadavg()[0]:.1f}",
+            ])  # fmt: skip
+            err = rep.comparisons["fast_stitch P=6"].relative_volume_error
+            print(f"  reference {ref.timings['total']:.1f} s, unions {rep.timings['unions']:.1f} s"
+                  f" ({rep.union_scope}), deviation {rep.timings.get('deviation', 0):.1f} s, "
+                  f"volume error P=6 {err:+.3%}", flush=True)  # fmt: skip
+        else:
+            rng = np.random.default_rng(0)
+            idx = np.sort(rng.choice(len(specs), size=min(sample, len(specs)), replace=False))
+            sub = [specs[i] for i in idx]
+            tol = 0.01 * float(g.radii.min())
+            res = _run(sub, tol, 0.25, False, 2, 300.0, None)
+            wall, cpu = time.perf_counter() - t0, _cpu() - c0
+            ok = sum(r.status == "ok" for r in res)
+            per_cpu = cpu / len(sub)
+            rows.append([
+                name, f"hub build, sample {len(sub)}", f"{wall:.1f}", f"{cpu:.1f}",
+                str(len(specs)), f"{hubs - len(specs):,}", f"{len(sub) / wall:.2f}",
+                f"all {len(specs)}: {per_cpu * len(specs) / 2:,.0f} s wall on 2 free cores",
+                f"{ok}/{len(sub)} ok", "-", f"{load0:.1f}/{os.getloadavg()[0]:.1f}",
+            ])  # fmt: skip
+            print(f"  {len(sub) / cpu:.3f} hubs per CPU second (goal 10); mean degree "
+                  f"{np.mean([len(s.vecs) for s in sub]):.1f}; refused as a whole "
+                  "(overlapping hubs: clusters come from the 'cluster' work)",
+                  flush=True)  # fmt: skip
+    print()
+    print(table(
+        "GE bracket lattices (../shared/data/step/dolfiny_ge_bracket_rotated_nonds.step), "
+        "2 workers; CPU = this process + hub workers",
+        ["lattice", "measured", "wall s", "CPU s", "distinct", "reused", "hubs/s wall",
+         "estimate / build s", "complete", "unions s", "load before/after"],
+        rows,
+    ))  # fmt: skip
+
+
+def bench_fuse_ab(sample: int, rounds: int) -> None:
+    """Alternating A/B, in this process, on the same tet hubs: the plain BRepAlgoAPI_Fuse
+    (A, before) against truss.general_fuse (B: OBB, no history, no inverted check)."""
+    from lattice_cad.occ_impl import truss
+    from lattice_cad.occ_impl.shapes import fuse, volume
+    from reference_boolean.reference import _hub_specs
+
+    (_, g), = _ge_lattices("tet")  # fmt: skip
+    specs, _, _, _ = _hub_specs(g, True)
+    rng = np.random.default_rng(1)
+    idx = rng.choice(len(specs), size=sample, replace=False)
+    variants = {
+        "A fuse (before)": lambda p: fuse(p[:1], p[1:], parallel=False, check=False),
+        "B general_fuse": lambda p: truss.general_fuse(p),
+    }
+    cpu = {k: 0.0 for k in variants}
+    n = 0
+    skipped: set[int] = set()
+    for _ in range(rounds):
+        for i in idx:
+            if i in skipped:
+                continue
+            vols, spent = [], {}
+            try:
+                for k, fn in variants.items():
+                    prims = truss.make_primitives(specs[i])
+                    c = time.process_time()
+                    sh = fn(prims)
+                    spent[k] = time.process_time() - c
+                    vols.append(volume(sh, eps=1e-10))
+            except MemoryError:  # run under ulimit -v: some degree-15+ tet hubs take GBs
+                skipped.add(int(i))
+                print(f"  hub {int(i)} (degree {len(specs[i].vecs)}): out of memory, skipped")
+                continue
+            for k, v in spent.items():
+                cpu[k] += v
+            n += 1
+            print(f"  hub {int(i)} degree {len(specs[i].vecs)}: "
+                  + ", ".join(f"{k} {v:.3f} s" for k, v in spent.items()), flush=True)
+            assert abs(vols[0] - vols[1]) < 1e-7 * vols[0], vols
+    print(table(
+        f"Hub fuse A/B, tet 5 mm GE bracket, {sample} hubs x {rounds} rounds alternating "
+        f"(load {os.getloadavg()[0]:.1f})",
+        ["variant", "CPU s per hub", "hubs per CPU s"],
+        [[k, f"{v / n:.3f}", f"{n / v:.3f}"] for k, v in cpu.items()],
+    ))  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="small versions, < 1 min")
@@ -166,7 +315,22 @@ def main() -> None:
         action="store_true",
         help="stumps start at the node (the construction before trimming, for comparison)",
     )
+    ap.add_argument("--ge", choices=["all", "bcc", "tet"], default=None,
+                    help="the GE bracket lattices (report time, hubs/s) instead of the rest")
+    ap.add_argument("--ge-sample", type=int, default=24,
+                    help="distinct hubs built where the lattice is refused (tet)")
+    ap.add_argument("--full-union-study", action="store_true",
+                    help="with --ge: manifold3d unions of the whole lattice")
+    ap.add_argument("--fuse-ab", type=int, default=0, metavar="HUBS",
+                    help="A/B of the hub fuse on this many tet hubs (2 rounds)")
     a = ap.parse_args()
+    if a.ge or a.fuse_ab:
+        print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
+        if a.fuse_ab:
+            bench_fuse_ab(a.fuse_ab, 2)
+        if a.ge:
+            bench_ge(a.ge, a.ge_sample, None if a.full_union_study else 200)
+        return
     if a.no_trim:
         from lattice_cad.core import config
 

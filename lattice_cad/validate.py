@@ -20,6 +20,7 @@ def validate(
     volume_preserving: bool | str = "both",
     union_segments: tuple[int, ...] = (16, 32, 64, 128),
     samples: int = 50_000,
+    union_hubs: int | None = config.DEFAULT_UNION_HUBS,
     stitch_options: dict[str, Any] | None = None,
     **reference_options: Any,
 ) -> Any:
@@ -43,6 +44,9 @@ def validate(
         Resolutions of the manifold3d unions in the report.
     samples : int
         Surface samples per direction of the deviation measure.
+    union_hubs : int or None
+        The manifold3d unions cover a seeded sample of this many hubs (None: the whole
+        lattice; see :func:`reference_boolean.compare`).
     stitch_options : dict, optional
         More keyword arguments of :func:`fast_stitch.stitch`.
     **reference_options
@@ -78,6 +82,7 @@ def validate(
         meshes=meshes,
         union_segments=union_segments,
         samples=samples,
+        union_hubs=union_hubs,
         **reference_options,
     )
     if notes:

@@ -56,6 +56,7 @@ __all__ = [
     "HubSolids",
     "hub_solids",
     "count_hubs",
+    "run_with_estimate",
 ]
 
 
@@ -347,30 +348,15 @@ def _run(
     done_count = 0
     while todo:
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
-        futs: dict[Future[Any], int] = {
-            pool.submit(_build_one, (specs[i], deflection, angular, keep)): i for i in todo
-        }
-        started: dict[Future[Any], float] = {}
-        pending = set(futs)
-        timed_out: int | None = None
-        while pending and timed_out is None:
-            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-            for f in done:
-                i = futs[f]
-                try:
-                    results[i] = f.result()
-                except Exception as exc:  # a worker died (e.g. an OCCT crash)
-                    results[i] = HubResult(status=f"worker failed: {type(exc).__name__}: {exc}")
-                done_count += 1
-                if progress:
-                    progress("build", done_count, len(specs))
-            now = time.monotonic()
-            for f in pending:
-                if f.running():
-                    started.setdefault(f, now)
-                    if now - started[f] > timeout:
-                        timed_out = futs[f]
-                        break
+        try:
+            timed_out = _run_pool(
+                pool, specs, todo, results, (deflection, angular, keep), timeout,
+                progress, done_count,
+            )  # fmt: skip
+        except BaseException:  # Ctrl-C (KeyboardInterrupt) or an error: no worker left behind
+            _kill(pool)
+            raise
+        done_count = sum(r is not None for r in results)
         if timed_out is not None:
             results[timed_out] = HubResult(
                 status=f"timeout: the hub build took more than {timeout:g} s (stopped)"
@@ -379,6 +365,153 @@ def _run(
         else:
             pool.shutdown(wait=True)
         todo = [i for i in todo if results[i] is None]
+    return results
+
+
+def _run_pool(
+    pool: ProcessPoolExecutor,
+    specs: list[Any],
+    todo: list[int],
+    results: list[Any],
+    opts: tuple[float, float, bool],
+    timeout: float,
+    progress: Any,
+    done_count: int,
+) -> int | None:
+    """Submit ``todo`` to ``pool`` and collect into ``results``; the first hub over time."""
+    from lattice_cad.occ_impl.truss import HubResult
+
+    deflection, angular, keep = opts
+    futs: dict[Future[Any], int] = {
+        pool.submit(_build_one, (specs[i], deflection, angular, keep)): i for i in todo
+    }
+    started: dict[Future[Any], float] = {}
+    pending = set(futs)
+    timed_out: int | None = None
+    while pending and timed_out is None:
+        done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+        for f in done:
+            i = futs[f]
+            try:
+                results[i] = f.result()
+            except Exception as exc:  # a worker died (e.g. an OCCT crash)
+                results[i] = HubResult(status=f"worker failed: {type(exc).__name__}: {exc}")
+            done_count += 1
+            if progress:
+                progress("build", done_count, len(specs))
+        now = time.monotonic()
+        for f in pending:
+            if f.running():
+                started.setdefault(f, now)
+                if now - started[f] > timeout:
+                    timed_out = futs[f]
+                    break
+    return timed_out
+
+
+def _clock(seconds: float) -> str:
+    """``"1 h 02 min"``, ``"4 min 05 s"`` or ``"12 s"``."""
+    s = int(round(seconds))
+    if s >= 3600:
+        return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    if s >= 60:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s} s"
+
+
+def run_with_estimate(
+    specs: list[Any],
+    template: NDArray[np.int64],
+    deflection: float,
+    angular: float,
+    keep: bool,
+    workers: int,
+    timeout: float,
+    *,
+    calibration: int = 2,
+    stream: Any = None,
+    estimate: dict[str, float] | None = None,
+) -> list[Any]:
+    """Build the distinct hubs with an up-front estimate and a tqdm bar over the hubs.
+
+    Prints to ``stream`` (default stderr), before the work: how many hubs the lattice has,
+    how many are built and how many reused; then builds ``calibration`` hubs of the median
+    degree in this process (their results are kept, not built twice) and prints the
+    estimated CPU and wall seconds of the rest, assuming the time of a hub grows with the
+    square of its degree (its stump pairs) and that ``workers`` cores are free. A tqdm bar
+    follows the rest. Ctrl-C stops the worker processes and re-raises
+    ``KeyboardInterrupt``.
+
+    Parameters
+    ----------
+    specs : list of HubSpec
+    template : (N,) int64
+        Index into ``specs`` of each node's hub (-1 for isolated nodes).
+    deflection, angular : float
+        Tessellation deflections (``deflection <= 0``: solids only).
+    keep : bool
+        Keep the BREP strings.
+    workers, timeout
+        As for :func:`build_reference`.
+    calibration : int
+        Hubs timed in this process before the estimate.
+    estimate : dict, optional
+        Filled with ``"estimate"`` (wall seconds), ``"estimate_cpu"`` and
+        ``"calibration_cpu"`` (CPU seconds of the calibration hubs).
+
+    Returns
+    -------
+    list of HubResult
+        One per spec, in order.
+    """
+    from tqdm.auto import tqdm
+
+    out = sys.stderr if stream is None else stream
+    d = len(specs)
+    n_hubs = int((template >= 0).sum())
+    results: list[Any] = [None] * d
+    if d == 0:
+        return results
+    deg = np.array([len(s.vecs) for s in specs], dtype=np.float64)
+    print(
+        f"reference: {n_hubs:,} hubs, {d:,} distinct to build ({n_hubs - d:,} reused), "
+        f"degree {int(deg.min())}-{int(deg.max())}, {max(workers, 1)} worker(s)",
+        file=out,
+        flush=True,
+    )
+    k = min(max(int(calibration), 1), d)
+    cal = np.argsort(np.abs(deg - np.median(deg)), kind="stable")[:k]
+    c0 = time.process_time()
+    for i in cal:
+        results[int(i)] = _build_one((specs[int(i)], deflection, angular, keep))
+    cpu = time.process_time() - c0
+    rest = [i for i in range(d) if results[i] is None]
+    per_d2 = cpu / float((deg[cal] ** 2).sum())
+    est_cpu = per_d2 * float((deg[rest] ** 2).sum())
+    est_wall = est_cpu / max(workers, 1)
+    print(
+        f"reference: calibration {k} hub(s) in {cpu:.2f} CPU s; estimate for the other "
+        f"{len(rest):,}: {est_cpu:,.0f} CPU s, about {_clock(est_wall)} with "
+        f"{max(workers, 1)} free core(s) (load average now {os.getloadavg()[0]:.1f})",
+        file=out,
+        flush=True,
+    )
+    if estimate is not None:
+        estimate.update(
+            {"estimate": est_wall, "estimate_cpu": est_cpu, "calibration_cpu": cpu}
+        )
+    bar = tqdm(total=d, initial=k, unit="hub", desc="reference hubs", file=out, smoothing=0.05)
+
+    def tick(stage: str, done: int, total: int) -> None:
+        bar.n = k + int(done)
+        bar.refresh()
+
+    try:
+        sub = _run([specs[i] for i in rest], deflection, angular, keep, workers, timeout, tick)
+    finally:
+        bar.close()
+    for i, r in zip(rest, sub, strict=True):
+        results[i] = r
     return results
 
 
@@ -491,8 +624,11 @@ def build_reference(
         Seconds after which one hub build is stopped and reported as failed.
     keep_solids : bool
         Keep the hub solids (binary BREP) for :meth:`Reference.save` to STEP.
-    progress : callable, optional
-        Called as ``progress(stage, done, total)``.
+    progress : callable or True, optional
+        Called as ``progress(stage, done, total)``. ``True``: print the number of hubs
+        to build and an estimate of the time from a short calibration (two hubs) to
+        stderr first, then show a tqdm bar over the hubs (see :func:`run_with_estimate`);
+        the estimate lands in ``timings["estimate"]``.
 
     Returns
     -------
@@ -529,9 +665,17 @@ def build_reference(
         )
     t_check = time.perf_counter()
     specs, template, slot_edges, members = _hub_specs(graph, cache)
-    results = _run(
-        specs, float(tolerance), float(angular), keep_solids, workers, float(hub_timeout), progress
-    )
+    estimate: dict[str, float] = {}
+    if progress is True:
+        results = run_with_estimate(
+            specs, template, float(tolerance), float(angular), keep_solids, workers,
+            float(hub_timeout), estimate=estimate,
+        )  # fmt: skip
+    else:
+        results = _run(
+            specs, float(tolerance), float(angular), keep_solids, workers, float(hub_timeout),
+            progress,
+        )  # fmt: skip
     t_build = time.perf_counter()
     mesh, face_node, hub_volume, failed = _stack(graph, results, template, slot_edges, members)
     attempts: dict[int, list[str]] = {}
@@ -558,6 +702,7 @@ def build_reference(
             "build": t_build - t_check,
             "stack": t_end - t_build,
             "total": t_end - t0,
+            **estimate,
         },
         node_template=template,
         breps=[r.brep for r in results],

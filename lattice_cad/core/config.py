@@ -202,6 +202,10 @@ DEFAULT_HUB_TIMEOUT = 300.0
 #: Quantum (relative to the longest strut) of the hub cache keys.
 CACHE_QUANTUM = 1e-9
 
+#: Hubs in the manifold3d convergence study of the report (a seeded sample of the unit
+#: trusses, each a union of its sphere and half-struts; None: the whole lattice, as before).
+DEFAULT_UNION_HUBS = 200
+
 #: Largest allowed move (relative to the hub size) when snapping circle vertices.
 SNAP_RTOL = 1e-7
 

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 from OCP.BRepAdaptor import BRepAdaptor_Surface
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
 from OCP.BRepPrimAPI import (
     BRepPrimAPI_MakeCone,
     BRepPrimAPI_MakeCylinder,
@@ -52,6 +53,7 @@ from OCP.GeomAbs import GeomAbs_Plane
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 from OCP.TopAbs import TopAbs_SOLID
 from OCP.TopoDS import TopoDS_Shape
+from OCP.TopTools import TopTools_ListOfShape
 
 from lattice_cad.core import config
 from lattice_cad.core.errors import OCCTFailure
@@ -76,6 +78,7 @@ __all__ = [
     "sphere_axis",
     "make_sphere",
     "build_hub_solid",
+    "general_fuse",
 ]
 
 
@@ -271,7 +274,7 @@ def make_hub_shape(
     """
     prims = make_primitives(spec, trim=trim)
     if construction == "fuse":
-        shape = fuse(prims[:1], prims[1:], fuzzy=fuzzy, parallel=False, check=False)
+        shape = general_fuse(prims, fuzzy=fuzzy)
     elif construction == "sequential":
         shape = prims[0]
         for j, s in enumerate(prims[1:]):
@@ -284,6 +287,44 @@ def make_hub_shape(
     if n_solids != 1:
         raise OCCTFailure(f"hub: the fuse gave {n_solids} solids instead of 1")
     return shape
+
+
+def general_fuse(prims: list[TopoDS_Shape], *, fuzzy: float = 0.0) -> TopoDS_Shape:
+    """One general fuse of all the hub's primitives (the sphere with every stump at once).
+
+    ``BRepAlgoAPI_Fuse`` with the sphere as the argument and the stumps as tools, the
+    intersection phase of all pairs in one ``BOPAlgo_PaveFiller``: oriented bounding boxes
+    (``SetUseOBB``) so that pairs that cannot touch are skipped without an intersection,
+    no history (nothing here asks which face came from which primitive), no inverted-solid
+    check (the primitives come from ``BRepPrimAPI`` and are checked), serial (hubs are
+    built in worker processes, one per core), non-destructive (the primitives stay
+    untouched for the retries). Measured on the GE bracket tet lattice (issue 14): the
+    same time as the plain fuse (6.4 vs 6.7 CPU s per hub, alternating runs), and 7 %
+    less than ``BOPAlgo_CellsBuilder``; the time is in the stump/stump and
+    sphere/stump intersections themselves.
+
+    Raises
+    ------
+    OCCTFailure
+        The fuse is not done.
+    """
+    args, tools = TopTools_ListOfShape(), TopTools_ListOfShape()
+    args.Append(prims[0])
+    for s in prims[1:]:
+        tools.Append(s)
+    op = BRepAlgoAPI_Fuse()
+    op.SetArguments(args)
+    op.SetTools(tools)
+    op.SetRunParallel(False)
+    op.SetNonDestructive(True)
+    op.SetUseOBB(True)
+    op.SetToFillHistory(False)
+    op.SetCheckInverted(False)
+    if fuzzy > 0.0:
+        op.SetFuzzyValue(float(fuzzy))
+    op.Build()
+    check_done(op, "general fuse")
+    return op.Shape()
 
 
 # ------------------------------------------------------------- tessellation
