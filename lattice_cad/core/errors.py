@@ -22,6 +22,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── PrintabilityError        invalid build direction, angle or diameter (conformal.printability)
     ├── ExportError              a mesh cannot be written faithfully (lattice_cad.io)
     ├── SelectionError           a selector picks no face or node (names the selector)
+    ├── ToleranceError           an accuracy-report tolerance is not a valid number
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
     ├── ExternalCrash            a C++ library crashed or hung in a child process
     ├── InsufficientMemoryError  the estimated peak memory exceeds what is available
@@ -56,6 +57,7 @@ __all__ = [
     "PrintabilityError",
     "ExportError",
     "SelectionError",
+    "ToleranceError",
     "OCCTFailure",
     "ExternalCrash",
     "ReferenceBuildError",
@@ -135,6 +137,10 @@ class ExportError(LatticeError, ValueError):
 class SelectionError(LatticeError, ValueError):
     """A selector (face, plane, box or node list) cannot be resolved or picks nothing; the
     message names the selector and says what is near (for example the closest node)."""
+
+
+class ToleranceError(LatticeError, ValueError):
+    """An accuracy-report tolerance is not a valid number (the message names the option)."""
 
 
 class OCCTFailure(LatticeError, RuntimeError):
