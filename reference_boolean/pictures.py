@@ -255,11 +255,12 @@ def closeup(
     png, _ = picture(
         layers,
         size=size,
-        colorbar=ColorBar("mesh - exact solid (mm)", (-lim, lim), SIGNED_COLORMAP),
+        colorbar=ColorBar(
+            "mesh inside (-) / outside (+) the exact solid, mm", (-lim, lim), SIGNED_COLORMAP
+        ),
         title=f"#{p.rank}: node {p.node}, {p.deviation:.3g} mm ({p.percent_of_radius:.0f} % r)",
-        caption=f"mesh within {data.crop:.3g} mm of ({p.position[0]:.4g}, "
-        f"{p.position[1]:.4g}, {p.position[2]:.4g}); blue: inside, red: outside the exact "
-        "solid (ghost)",
+        caption=f"at ({p.position[0]:.4g}, {p.position[1]:.4g}, {p.position[2]:.4g}); "
+        "ghost: exact solid",
         markers=[Marker(p.position, f"#{p.rank}", color=HIGHLIGHT)],
     )
     return png
