@@ -85,8 +85,7 @@ def check_tolerances(tolerance: float | None, tolerance_volume: float | None) ->
             tv = math.nan
         if not (math.isfinite(tv) and tv >= 0):
             raise ToleranceError(
-                "tolerance_volume must be a fraction >= 0 (0.01 = 1 %), "
-                f"got {tolerance_volume!r}"
+                f"tolerance_volume must be a fraction >= 0 (0.01 = 1 %), got {tolerance_volume!r}"
             )
 
 
