@@ -164,10 +164,19 @@ def test_default_tolerance_is_ten_percent_of_the_radius():
 
 
 @pytest.mark.slow
-def test_cli_validate_prints_the_verdict_and_fails_on_a_tiny_tolerance(capsys, tmp_path):
+def test_cli_validate_prints_the_verdict_and_fails_on_a_tiny_tolerance(
+    capsys, tmp_path, monkeypatch
+):
     from conformal import block
     from lattice_cad.cli import main
+    from lattice_cad.lattice import Lattice
 
+    validate = Lattice.validate
+
+    def light(self, report=None, **options):  # one union resolution, fewer samples: faster
+        return validate(self, report, union_segments=(16,), samples=3000, **options)
+
+    monkeypatch.setattr(Lattice, "validate", light)
     g = tmp_path / "g.json"
     block("bcc", 1, cell_size=5.0, radius=0.5).save(g)
     code = main(["validate", str(g), "--report", str(tmp_path / "a"), "--tolerance", "50",
