@@ -1,19 +1,31 @@
-"""Benchmarks of reference_boolean.build_reference (printed tables).
+"""Benchmarks of reference_boolean and the accuracy report (printed tables; issue 14's
+"Measured" section).
 
-1. A periodic lattice of ~10k hubs (cubic block, 21^3 cells): build time with the hub cache.
-2. An irregular lattice (jittered cubic grid, every hub distinct): hubs per second.
-   Seed anchor (Wang, Chen & Rosen, Table 1): 4,662 struts in 1,361 s on 2005 hardware.
-3. The seed's Table 2 box lattice (13 x 13 x 7 cubic cells of 1.5 mm, R = 0.25 mm):
-   fast_stitch's volume error against the exact reference at P = 3, 4, 6, 10, 18, 24,
-   with and without ``volume_preserving``.
+The script is a list of **sections**, each one function printing one table, selected by
+flags (:data:`SECTIONS`; no flag: the first three, as before):
 
-4. ``--ge {all,bcc,tet}`` (issue 14): the seed's GE bracket lattices, Box-BCC 5.5 mm
-   (inside fill) and tet 5 mm, r = 0.25: the whole report (reference with estimate and
-   bar, sampled unions, deviation) where the reference accepts the lattice, else the hub
-   build on a seeded sample of distinct hubs; ``--fuse-ab N``: alternating A/B of the
-   hub fuse on N tet hubs. Output kept in ``benchmarks/results/bench_reference_speed.txt``.
+``--periodic``
+    1. A periodic lattice of ~10k hubs (cubic block, 21^3 cells): build time with the cache.
+``--irregular``
+    2. An irregular lattice (jittered cubic grid, every hub distinct): hubs per second.
+    Seed anchor (Wang, Chen & Rosen, Table 1): 4,662 struts in 1,361 s on 2005 hardware.
+``--table2``
+    3. The seed's Table 2 box lattice (13 x 13 x 7 cubic cells of 1.5 mm, R = 0.25 mm):
+    fast_stitch's volume error against the exact reference at P = 3, 4, 6, 10, 18, 24,
+    with and without ``volume_preserving``.
+``--report``
+    4. The whole accuracy report (``Lattice.validate`` with its defaults, then the
+    first-screen pictures and the HTML/Markdown files) on the seed's GE bracket lattices
+    (:func:`ge_lattice`: Box-BCC 5.5 mm clip, tet 5 mm): time per stage, hubs/s, and the
+    verdict line at the default tolerance. With ``--quick``, a small smoke lattice.
 
-Usage: ``python benchmarks/bench_reference.py [--quick] [--ge all] [--fuse-ab 6]``
+Issue 14's other tables come as their own sections (one function each, one flag each,
+registered in :data:`SECTIONS`): the reference speed on the GE lattices (``--ge``), the
+volume error of each mesh option at P = 4, 6, 8, 12 (``--volume-table``) and the lattices
+refused over every fill mode on the shared parts (``--refused``). ``--all`` runs every
+section. Every timing prints the load average and CPU seconds next to wall seconds.
+
+Usage: ``python benchmarks/bench_reference.py [--quick] [--all | SECTION FLAGS ...]``
 """
 
 from __future__ import annotations
@@ -22,7 +34,10 @@ import argparse
 import inspect
 import os
 import resource
+import tempfile
 import time
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -162,17 +177,126 @@ def bench_table2(quick: bool) -> None:
     )
 
 
+# ------------------------------------------------------------- GE bracket lattices
+#: The seed's GE bracket (shared data).
+GE_BRACKET = (
+    Path(__file__).resolve().parents[2]
+    / "shared"
+    / "data"
+    / "step"
+    / "dolfiny_ge_bracket_rotated_nonds.step"
+)
+
+#: The seed's two GE bracket lattices (as in bench_conformal.py), and a small smoke one.
+GE_LATTICES = {
+    "voxel": "GE bracket Box-BCC 5.5 mm clip, r 0.25",
+    "tet": "GE bracket tet 5 mm, r 0.25",
+    "smoke": "GE bracket BCC 16 mm inside, r 0.6 (smoke)",
+}
+
+
+def ge_lattice(kind: str) -> LatticeGraph:
+    """One of :data:`GE_LATTICES` as a graph (``"voxel"``, ``"tet"`` or ``"smoke"``)."""
+    from conformal.part import load_part
+    from conformal.tet import tet_lattice
+    from conformal.voxel import voxel_lattice
+
+    part = load_part(GE_BRACKET)
+    if kind == "voxel":
+        return voxel_lattice(part, "box-bcc", 5.5, 0.25, fill="clip")
+    if kind == "tet":
+        return tet_lattice(part, 5.0, 0.25)
+    if kind == "smoke":
+        return voxel_lattice(part, "bcc", 16.0, 0.6, fill="inside")
+    raise ValueError(f"unknown GE lattice {kind!r}: {', '.join(GE_LATTICES)}")
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and its (finished) children."""
+    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
+
+
+def bench_report(quick: bool) -> None:
+    """4. The accuracy report as a user runs it: time per stage, hubs/s, the verdict."""
+    from lattice_cad.core.errors import LatticeError, LatticeWarning
+    from lattice_cad.validate import validate
+    from reference_boolean.report import first_screen_pictures
+
+    kinds = ["smoke"] if quick else ["voxel", "tet"]
+    rows, verdicts = [], []
+    for kind in kinds:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LatticeWarning)
+            g = ge_lattice(kind)
+        hubs = int((g.degree > 0).sum())
+        w0, c0 = time.perf_counter(), _cpu()
+        try:
+            # quick: one union resolution only (a smoke run); else the user's defaults
+            rep = validate(g, 6, None, **({"union_segments": (16,)} if quick else {}))
+        except LatticeError as exc:
+            rows.append([GE_LATTICES[kind], f"{hubs:,}", f"{g.num_edges:,}"] + ["-"] * 9)
+            verdicts.append(f"{GE_LATTICES[kind]}: refused: {exc}")
+            continue
+        t = time.perf_counter()
+        first_screen_pictures(rep)
+        pictures = time.perf_counter() - t
+        with tempfile.TemporaryDirectory() as d:
+            t = time.perf_counter()
+            rep.save(Path(d) / "report.html")
+            rep.save(Path(d) / "report.md")
+            files = time.perf_counter() - t
+        wall, cpu = time.perf_counter() - w0, _cpu() - c0
+        ref_s = rep.reference.timings.get("total", rep.timings["reference"])
+        v = rep.verdict()
+        rows.append(
+            [
+                GE_LATTICES[kind],
+                f"{hubs:,}",
+                f"{g.num_edges:,}",
+                f"{rep.reference.unique_hubs:,}",
+                f"{ref_s:.1f}",
+                f"{hubs / ref_s:.1f}" if ref_s > 0 else "-",
+                f"{rep.timings.get('unions', 0.0):.1f}",
+                f"{rep.timings.get('deviation', 0.0):.1f}",
+                f"{pictures + files:.1f}",
+                f"{wall:.1f}",
+                f"{cpu:.1f}",
+                v.status,
+            ]
+        )
+        verdicts.append(f"{GE_LATTICES[kind]}: {v.line}")
+    print(
+        table(
+            "4. Accuracy report (validate defaults + first-screen pictures + HTML/Markdown), "
+            f"{os.cpu_count()} cpus, load {os.getloadavg()[0]:.1f} "
+            "(goal: < 300 s per GE lattice)",
+            [
+                "lattice",
+                "hubs",
+                "struts",
+                "built",
+                "reference s",
+                "hubs/s",
+                "unions s",
+                "deviation s",
+                "pictures+files s",
+                "total s",
+                "CPU s",
+                "verdict",
+            ],
+            rows,
+        )
+    )
+    print("\n".join(verdicts) + "\n")
+
+
+#: The sections: flag name -> (function of ``quick``, one line of help). The default run
+#: (no flag) is the first three; ``--all`` runs every one.
 # ------------------------------------------------- GE bracket (issue 14, item 2: speed)
 GE = Path(__file__).resolve().parents[2] / "shared" / "data" / "step" / (
     "dolfiny_ge_bracket_rotated_nonds.step"
 )
-
-
-def _cpu() -> float:
-    """CPU seconds of this process and its finished children (the hub workers)."""
-    me = resource.getrusage(resource.RUSAGE_SELF)
-    ch = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return me.ru_utime + me.ru_stime + ch.ru_utime + ch.ru_stime
 
 
 def _ge_lattices(which: str) -> list[tuple[str, LatticeGraph]]:
@@ -303,10 +427,26 @@ def bench_fuse_ab(sample: int, rounds: int) -> None:
     ))  # fmt: skip
 
 
+SECTIONS: dict[str, tuple[Callable[[bool], None], str]] = {
+    "periodic": (bench_periodic, "1. periodic cubic lattice, hub cache"),
+    "irregular": (bench_irregular, "2. irregular lattice, hubs per second"),
+    "table2": (bench_table2, "3. seed Table 2 box lattice, volume error by P"),
+    "report": (bench_report, "4. the whole accuracy report on the GE bracket lattices"),
+}
+DEFAULT_SECTIONS = ("periodic", "irregular", "table2")
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--quick", action="store_true", help="small versions, < 1 min")
-    ap.add_argument("--only", choices=["periodic", "irregular", "table2"], default=None)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--quick", action="store_true", help="small versions, < 1 min each")
+    ap.add_argument("--all", action="store_true", help="every section")
+    for name, (_, what) in SECTIONS.items():
+        ap.add_argument(f"--{name.replace('_', '-')}", action="store_true", help=what)
+    ap.add_argument(
+        "--only", choices=list(SECTIONS), default=None, help="one section (same as its flag)"
+    )
     ap.add_argument(
         "--irregular-size", type=int, default=None, help="cells per side of the irregular grid"
     )
@@ -336,13 +476,14 @@ def main() -> None:
 
         config.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump (forked workers)
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
-    for name, fn in (
-        ("periodic", bench_periodic),
-        ("irregular", lambda q: bench_irregular(q, a.irregular_size)),
-        ("table2", bench_table2),
-    ):
-        if a.only in (None, name):
-            fn(a.quick)
+    chosen = [n for n in SECTIONS if getattr(a, n) or a.only == n]
+    if a.all:
+        chosen = list(SECTIONS)
+    for name in chosen or DEFAULT_SECTIONS:
+        if name == "irregular":
+            bench_irregular(a.quick, a.irregular_size)
+        else:
+            SECTIONS[name][0](a.quick)
 
 
 if __name__ == "__main__":

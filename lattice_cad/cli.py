@@ -10,13 +10,14 @@
                                   --max-brep-struts N]
     lattice-cad stitch GRAPH -o OUT [--segments --beam-lattice[=only]]
     lattice-cad reference GRAPH -o OUT
-    lattice-cad validate GRAPH_OR_PART --report DIR
+    lattice-cad validate GRAPH_OR_PART --report DIR [--tolerance MM --tolerance-volume PCT]
     lattice-cad cells
     lattice-cad check MESH
     lattice-cad preview FILE -o PNG [--section z[=MM]] [--part PART] [--color-by radius|overhang]
 
 Exit codes: 0 success, 1 error (one readable line on stderr; ``--debug`` shows
-the traceback) or an invalid mesh for ``check``, 2 wrong usage, 130 interrupted.
+the traceback), an invalid mesh for ``check``, or a FAIL verdict of ``validate``
+when ``--tolerance`` or ``--tolerance-volume`` is given, 2 wrong usage, 130 interrupted.
 """
 
 from __future__ import annotations
@@ -85,6 +86,16 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not value > 0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _percent(text: str) -> float:
+    try:
+        value = float(text.strip().rstrip("%"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a percentage, got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a percentage >= 0, got {text!r}")
     return value
 
 
@@ -217,11 +228,16 @@ def _check_output(out: Path) -> None:
 
 def _write_report(
     con: _Console, lat: Any, directory: str, args: argparse.Namespace | None = None
-) -> None:
+) -> Any:
+    """Preview, validate, write ``report.html`` and ``report.md`` (+ pictures) into
+    ``directory``, print the report's first screen; return the report."""
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     from lattice_cad.preview import save_png
+    from reference_boolean.report import to_text
 
+    tol = getattr(args, "tolerance", None)
+    tol_v = getattr(args, "tolerance_volume", None)
     with con.step("preview"):
         save_png(lat, d / "lattice.png", section="z" if lat.part is not None else None)
     # the reference prints its estimate and its own bar over the hubs (progress=True)
@@ -229,8 +245,18 @@ def _write_report(
     if getattr(args, "full_union_study", False):
         opts["union_hubs"] = None
     with con.step("validate"):
-        lat.validate(report=d / "report.html", **opts)
-    con.say(f"report: {d / 'report.html'}")
+        rep = lat.validate(
+            tolerance=tol, tolerance_volume=None if tol_v is None else tol_v / 100.0, **opts
+        )
+    with con.step("report"):
+        rep.save(d / "report.html")
+        rep.save(d / "report.md")
+    text = to_text(rep).splitlines()
+    print(text[0], flush=True)  # the verdict, even with --quiet
+    for line in text[1:]:
+        con.say(line)
+    con.say(f"report: {d / 'report.html'} (and report.md)")
+    return rep
 
 
 def _fe_options(args: argparse.Namespace, out: Path) -> dict[str, Any] | None:
@@ -408,8 +434,9 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
                 segments=args.segments,
                 **_print_kwargs(args),
             )
-    _write_report(con, lat, args.report, args)
-    return 0
+    rep = _write_report(con, lat, args.report, args)
+    strict = args.tolerance is not None or args.tolerance_volume is not None
+    return 1 if strict and not rep.verdict().passed else 0
 
 
 def _cmd_cells(args: argparse.Namespace, con: _Console) -> int:
@@ -743,7 +770,8 @@ def build_parser() -> argparse.ArgumentParser:
         "validate",
         parents=[common],
         help="accuracy report: fast mesh vs exact reference",
-        description="Stitch, build the exact reference, compare, and write an HTML report.",
+        description="Stitch, build the exact reference, compare, print the verdict (PASS / FAIL "
+        "against --tolerance) and write report.html and report.md with pictures.",
     )
     p.add_argument("input", metavar="GRAPH_OR_PART", help="graph (.json/.npz) or part file")
     p.add_argument("--report", required=True, metavar="DIR", help="directory for the report")
@@ -752,6 +780,23 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="manifold3d convergence study over the whole lattice (default: a sample of "
         "200 hubs, which shows the same trend in seconds)",
+    )
+    p.add_argument(
+        "--tolerance",
+        type=_positive_float,
+        default=None,
+        metavar="MM",
+        help="surface tolerance of the verdict: PASS needs 95 %% of the two-sided surface "
+        "deviation from the exact solid within +-MM (default: 10 %% of the median strut "
+        "radius); with this option a FAIL exits with code 1",
+    )
+    p.add_argument(
+        "--tolerance-volume",
+        type=_percent,
+        default=None,
+        metavar="PCT",
+        help="volume tolerance of the verdict in percent: PASS needs |V_mesh - V_exact| / "
+        "V_exact <= PCT %% (default 1); with this option a FAIL exits with code 1",
     )
     _add_lattice_options(p, skin=False)
     _add_print_options(p)

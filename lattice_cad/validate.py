@@ -22,6 +22,9 @@ def validate(
     samples: int = 50_000,
     union_hubs: int | None = config.DEFAULT_UNION_HUBS,
     stitch_options: dict[str, Any] | None = None,
+    tolerance: float | None = None,
+    tolerance_volume: float | None = None,
+    reference_tolerance: float | None = None,
     **reference_options: Any,
 ) -> Any:
     """Stitch ``graph`` with fast_stitch, compare it with the exact reference, write a report.
@@ -49,15 +52,40 @@ def validate(
         lattice; see :func:`reference_boolean.compare`).
     stitch_options : dict, optional
         More keyword arguments of :func:`fast_stitch.stitch`.
+    tolerance : float, optional
+        Surface tolerance of the report's verdict, in mm: the mesh passes only if 95 % of
+        its two-sided surface deviation from the exact solid is within +-``tolerance``
+        (default: 10 % of the median strut radius). See :mod:`reference_boolean.verdict`.
+    tolerance_volume : float, optional
+        Volume tolerance of the verdict, a fraction: ``|V_mesh - V_exact| / V_exact``
+        at most this (default 0.01, i.e. 1 %).
+    reference_tolerance : float, optional
+        Linear deflection (mm) of the reference's tessellation (``tolerance`` of
+        :func:`reference_boolean.build_reference`; default 1 % of the smallest radius).
     **reference_options
         Keyword arguments of :func:`reference_boolean.build_reference`.
 
     Returns
     -------
     reference_boolean.ValidationReport
+        Its :meth:`~reference_boolean.ValidationReport.verdict` is PASS / FAIL against
+        ``tolerance`` and ``tolerance_volume`` (never PASS on an incomplete reference).
+
+    Raises
+    ------
+    ToleranceError
+        ``tolerance`` is not a positive number, or ``tolerance_volume`` not a fraction >= 0
+        (checked before any work).
     """
+    import dataclasses
+
     import fast_stitch
     from reference_boolean import compare
+    from reference_boolean.verdict import check_tolerances
+
+    check_tolerances(tolerance, tolerance_volume)
+    if reference_tolerance is not None:
+        reference_options["tolerance"] = reference_tolerance
 
     if volume_preserving not in (True, False, "both"):
         raise ValueError(
@@ -85,6 +113,7 @@ def validate(
         union_hubs=union_hubs,
         **reference_options,
     )
+    rep = dataclasses.replace(rep, tolerance=tolerance, tolerance_volume=tolerance_volume)
     if notes:
         rep.extra.update(notes)
     if report is not None:

@@ -14,7 +14,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +23,9 @@ from lattice_cad.core import config
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh
 from reference_boolean.reference import Reference, build_reference
+
+if TYPE_CHECKING:
+    from reference_boolean.verdict import Verdict
 
 __all__ = [
     "ValidationReport",
@@ -311,6 +314,11 @@ class ValidationReport:
     union_reference_volume : float or None
         The exact volume the unions converge to (the sampled hubs' sum); None: the
         reference volume.
+    tolerance : float or None
+        Surface tolerance of the verdict, mm (None: 10 % of the median strut
+        radius); see :mod:`reference_boolean.verdict`.
+    tolerance_volume : float or None
+        Relative volume tolerance of the verdict (None: 0.01).
     """
 
     graph: LatticeGraph
@@ -332,6 +340,19 @@ class ValidationReport:
     comparisons: dict[str, MeshComparison] = field(default_factory=dict, repr=False)
     union_scope: str = "lattice"
     union_reference_volume: float | None = None
+    tolerance: float | None = None
+    tolerance_volume: float | None = None
+
+    def verdict(self, label: str | None = None) -> Verdict:
+        """PASS / FAIL of the first mesh (or ``label``) against the report's tolerances.
+
+        See :func:`reference_boolean.verdict.judge`; an incomplete reference never passes.
+        """
+        from reference_boolean.verdict import judge
+
+        return judge(
+            self, tolerance=self.tolerance, tolerance_volume=self.tolerance_volume, label=label
+        )
 
     def worst_nodes(self, k: int = 10) -> list[tuple[int, float]]:
         """The ``k`` nodes with the largest local deviation, as (node, deviation)."""
@@ -410,6 +431,8 @@ class ValidationReport:
             "reference_hubs": {"unique": ref.unique_hubs, "cache_hits": ref.cache_hits},
             "tessellation": {"tolerance": ref.tolerance, "angular": ref.angular},
             "worst_nodes": [{"node": n, "deviation": d} for n, d in self.worst_nodes()],
+            "verdict": self.verdict().to_dict(),
+            "verdicts": {lab: self.verdict(lab).to_dict() for lab in self.comparisons},
         }
         if self.extra:
             out["extra"] = self.extra

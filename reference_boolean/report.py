@@ -1,10 +1,21 @@
 """Writers of :class:`~reference_boolean.compare.ValidationReport`: JSON, Markdown, HTML.
 
-The HTML file is self-contained: its first screen is a shaded render of the
-lattice coloured by local deviation from the exact reference, with the worst
-nodes numbered (:mod:`lattice_cad.render`, offscreen); the plots below the
-tables (volume convergence, deviation histogram) are matplotlib PNGs rendered
-with the Agg backend. Every picture is embedded as base64.
+Every format opens with the same **first screen** (:func:`first_screen`): one
+verdict line (PASS / FAIL against the user's tolerance, see
+:mod:`reference_boolean.verdict`), the key figures (volume error, exact volume,
+two-sided surface deviation in mm and in % of the strut radius, the
+tolerances), a shaded render of the lattice coloured by local deviation with the
+worst places numbered and a colour bar in mm, and the worst places
+(:func:`reference_boolean.pictures.worst_places`) as a table with a close-up
+picture of each (the mesh near the hub coloured by signed deviation, the exact
+solid as a ghost, the hub ringed). The long tables (reference, unions, one
+table per mesh, failed hubs, timings) and the plots (volume convergence,
+deviation histogram) follow under "Details".
+
+The HTML file is self-contained (every picture embedded as base64). A Markdown
+report ``NAME.md`` is written with its pictures beside it in ``NAME_pictures/``.
+The pictures are rendered offscreen (:mod:`lattice_cad.render`) once per report
+and shared by every format written from it.
 """
 
 from __future__ import annotations
@@ -14,18 +25,33 @@ import html
 import io
 import json
 import os
+import weakref
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from lattice_cad.core import config
 from lattice_cad.core.atomic import atomic_write
 from lattice_cad.core.formats import Kind, format_for
 
 if TYPE_CHECKING:
     from reference_boolean.compare import ValidationReport
+    from reference_boolean.pictures import WorstPlace
+    from reference_boolean.verdict import Verdict
 
-__all__ = ["save", "to_markdown", "to_html", "plots", "lattice_render"]
+__all__ = [
+    "save",
+    "to_markdown",
+    "to_html",
+    "to_text",
+    "plots",
+    "lattice_render",
+    "first_screen",
+    "first_screen_pictures",
+    "FirstScreen",
+]
 
 
 def _json_default(o: Any) -> Any:
@@ -39,13 +65,27 @@ def _json_default(o: Any) -> Any:
 
 
 def save(rep: ValidationReport, path: str | os.PathLike[str]) -> Path:
-    """Write ``rep`` by suffix: ``.json``, ``.md`` or ``.html`` (atomically)."""
+    """Write ``rep`` by suffix: ``.json``, ``.md`` or ``.html`` (atomically).
+
+    A Markdown report also writes its first-screen pictures into ``<stem>_pictures/``
+    beside it (PNG), linked relatively from the text.
+    """
     p = Path(path)
     fmt = format_for(p, Kind.REPORT)
     if fmt.name == "json":
         text = json.dumps(rep.to_dict(), indent=2, default=_json_default)
     elif fmt.name == "md":
-        text = to_markdown(rep)
+        from lattice_cad.core.atomic import check_target
+
+        check_target(p)
+        folder = p.parent / f"{p.stem}_pictures"
+        folder.mkdir(exist_ok=True)
+        links = {}
+        for name, data in first_screen_pictures(rep).items():
+            with atomic_write(folder / f"{name}.png") as fh:
+                fh.write(data)
+            links[name] = f"{folder.name}/{name}.png"
+        text = to_markdown(rep, pictures=links)
     else:
         text = to_html(rep)
     with atomic_write(p, "w") as fh:
@@ -62,6 +102,185 @@ def _pct(x: float | None) -> str:
 
 
 _Table = tuple[str, list[str], list[list[str]]]
+
+
+# ------------------------------------------------------------------ first screen
+@dataclass(frozen=True)
+class FirstScreen:
+    """What a user reads first: the verdict, the key figures, the worst places.
+
+    Attributes
+    ----------
+    verdict : Verdict
+        PASS / FAIL of the report's first mesh (:meth:`ValidationReport.verdict`).
+    figures : list of (str, str)
+        Quantity and value, in reading order (mesh, volume error, exact volume,
+        deviation in mm and in % of the strut radius, tolerances, other meshes).
+    places : list of WorstPlace
+        The worst places, worst first (numbered ``#1``, ... on every picture).
+    unranked : int
+        Nodes next to failed hubs, left out of the ranking.
+    """
+
+    verdict: Verdict
+    figures: list[tuple[str, str]]
+    places: list[WorstPlace]
+    unranked: int
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.3g}"
+
+
+def first_screen(rep: ValidationReport, *, k: int = config.REPORT_WORST_HUBS) -> FirstScreen:
+    """The verdict, the key figures and the ``k`` worst places of ``rep``."""
+    from reference_boolean.pictures import worst_places
+    from reference_boolean.verdict import DEFINITION
+
+    v = rep.verdict()
+    ref = rep.reference
+    r = v.radius
+    figs: list[tuple[str, str]] = []
+    comp = rep.comparisons.get(v.label)
+    if comp is not None:
+        bad = [key for key, ok in comp.valid.items() if key != "valid" and not ok]
+        figs.append(
+            (
+                "mesh",
+                f"{comp.label}: {len(comp.mesh.faces):,} triangles, "
+                + ("valid (watertight, manifold)" if not bad else "INVALID: not " + ", ".join(bad)),
+            )
+        )
+        figs.append(
+            (
+                "volume error",
+                f"{100 * comp.relative_volume_error:+.2f} % (mesh {comp.volume:.6g} mm^3)",
+            )
+        )
+    state = (
+        f"complete, {v.hubs:,} hubs"
+        if ref.complete
+        else f"INCOMPLETE: {v.failed_hubs} of {v.hubs:,} hubs failed, so this is a partial volume"
+    )
+    figs.append(("exact volume", f"{ref.volume:.10g} mm^3 (OCCT, reference {state})"))
+    if comp is not None:
+        d = v.deviation
+        figs.append(
+            (
+                "surface deviation (two-sided)",
+                f"max {_fmt(d['max'])} mm, p95 {_fmt(d['p95'])} mm, mean {_fmt(d['mean'])} mm",
+            )
+        )
+        if r > 0:
+            figs.append(
+                (
+                    f"... in % of the strut radius ({_fmt(r)} mm"
+                    + ("" if np.ptp(rep.graph.radii) == 0 else ", median")
+                    + ")",
+                    f"max {100 * d['max'] / r:.0f} %, p95 {100 * d['p95'] / r:.0f} %, "
+                    f"mean {100 * d['mean'] / r:.0f} %",
+                )
+            )
+    figs.append(
+        (
+            "tolerance",
+            f"surface \u00b1{_fmt(v.tolerance)} mm on the deviation p95"
+            + (
+                f" (default: {100 * config.DEFAULT_DEVIATION_TOLERANCE_REL:g} % of the median "
+                "strut radius)"
+                if v.tolerance_default
+                else ""
+            )
+            + f"; volume \u00b1{100 * v.tolerance_volume:.3g} %",
+        )
+    )
+    figs.append(("verdict rule", DEFINITION))
+    for label in list(rep.comparisons)[1:]:
+        o = rep.verdict(label)
+        assert o.volume_error is not None
+        figs.append(
+            (
+                f"also compared: {label}",
+                f"{o.status}: volume error {100 * o.volume_error:+.2f} %, deviation p95 "
+                f"{_fmt(o.deviation['p95'])} mm, max {_fmt(o.deviation['max'])} mm",
+            )
+        )
+    places, unranked = worst_places(rep, k) if comp is not None else ([], 0)
+    return FirstScreen(verdict=v, figures=figs, places=places, unranked=unranked)
+
+
+_PICTURES: weakref.WeakKeyDictionary[Any, dict[str, bytes]] = weakref.WeakKeyDictionary()
+
+
+def first_screen_pictures(
+    rep: ValidationReport, *, k: int = config.REPORT_WORST_HUBS
+) -> dict[str, bytes]:
+    """PNG bytes of the first screen: ``"overview"`` (the lattice coloured by local deviation,
+    worst places numbered) and ``"worst1"``, ``"worst2"``, ... (one close-up per worst place,
+    all on one colour scale). Rendered once per report (cached)."""
+    cached = _PICTURES.get(rep)
+    if cached is not None:
+        return cached
+    from reference_boolean.pictures import closeup, closeup_data
+
+    screen = first_screen(rep, k=k)
+    out = {
+        "overview": lattice_render(rep, places=screen.places, tolerance=screen.verdict.tolerance)
+    }
+    if rep.mesh is not None and screen.places:
+        datas = [closeup_data(rep, p) for p in screen.places]
+        devs = [np.abs(d.deviation[np.isfinite(d.deviation)]) for d in datas]
+        limit = max((float(x.max()) for x in devs if len(x)), default=0.0)
+        limit = max(limit, screen.verdict.tolerance)
+        for d in datas:
+            out[f"worst{d.place.rank}"] = closeup(rep, d, limit=limit)
+    _PICTURES[rep] = out
+    return out
+
+
+def _place_rows(screen: FirstScreen) -> list[list[str]]:
+    return [
+        [
+            f"#{p.rank}",
+            str(p.node),
+            "(" + ", ".join(f"{c:.4g}" for c in p.position) + ")",
+            _fmt(p.deviation),
+            f"{p.percent_of_radius:.0f} %",
+        ]
+        for p in screen.places
+    ]
+
+
+_PLACE_COLS = ["#", "node", "position (mm)", "deviation (mm)", "% of strut radius"]
+
+
+def _unranked_note(screen: FirstScreen) -> str:
+    if not screen.unranked:
+        return ""
+    return (
+        f"{screen.unranked} node(s) at or next to failed hubs are not ranked: the exact "
+        "solid is missing there (marked 'failed' on the overview)."
+    )
+
+
+def to_text(rep: ValidationReport) -> str:
+    """The first screen as plain text (what ``lattice-cad validate`` prints)."""
+    screen = first_screen(rep)
+    w = max(len(q) for q, _ in screen.figures)
+    lines = [screen.verdict.line]
+    lines += [f"  {q:<{w}}  {val}" for q, val in screen.figures if q != "verdict rule"]
+    if screen.places:
+        lines.append("  worst places (node, position mm, deviation):")
+        for p in screen.places:
+            pos = ", ".join(f"{c:.4g}" for c in p.position)
+            lines.append(
+                f"    #{p.rank} node {p.node} at ({pos}): {_fmt(p.deviation)} mm "
+                f"({p.percent_of_radius:.0f} % of r)"
+            )
+    note = _unranked_note(screen)
+    if note:
+        lines.append("  " + note)
+    return "\n".join(lines)
 
 
 def _reference_table(d: dict[str, Any]) -> _Table:
@@ -190,9 +409,45 @@ def _tables(rep: ValidationReport) -> list[_Table]:
     return [_reference_table(d), *_union_table(d), *_mesh_tables(d), *_extra_tables(d)]
 
 
-def to_markdown(rep: ValidationReport) -> str:
-    """The report as Markdown tables."""
-    out = ["# Lattice accuracy report", ""]
+def _md_table(cols: list[str], rows: list[list[str]]) -> list[str]:
+    out = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    return out + ["| " + " | ".join(x.replace("|", "\\|") for x in r) + " |" for r in rows]
+
+
+def to_markdown(rep: ValidationReport, *, pictures: dict[str, str] | None = None) -> str:
+    """The report as Markdown: the first screen, then the tables.
+
+    Parameters
+    ----------
+    pictures : dict[str, str], optional
+        Links to the first-screen pictures by name (``"overview"``, ``"worst1"``, ...),
+        as :func:`save` writes them; without it the text has no pictures.
+    """
+    screen = first_screen(rep)
+    links = pictures or {}
+    out = ["# Lattice accuracy report", "", f"**{screen.verdict.line}**", ""]
+    out += _md_table(["quantity", "value"], [[q, v] for q, v in screen.figures])
+    out.append("")
+    if "overview" in links:
+        out += [
+            f"![local deviation from the exact solid, worst places numbered]({links['overview']})",
+            "",
+        ]
+    if screen.places:
+        out += ["## Worst places", ""]
+        out += _md_table(_PLACE_COLS, _place_rows(screen))
+        out.append("")
+        pics = [
+            f"![#{p.rank}: node {p.node}]({links[f'worst{p.rank}']})"
+            for p in screen.places
+            if f"worst{p.rank}" in links
+        ]
+        if pics:
+            out += [" ".join(pics), ""]
+    note = _unranked_note(screen)
+    if note:
+        out += [note, ""]
+    out += ["---", "", "# Details", ""]
     for title, cols, rows in _tables(rep):
         out += [f"## {title}", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         out += ["| " + " | ".join(r) + " |" for r in rows]
@@ -200,8 +455,9 @@ def to_markdown(rep: ValidationReport) -> str:
     return "\n".join(out)
 
 
-def plots(rep: ValidationReport) -> dict[str, bytes]:
-    """PNG bytes of the pictures: ``lattice`` (the render), ``convergence``, ``histogram``."""
+def plots(rep: ValidationReport, *, render: bool = True) -> dict[str, bytes]:
+    """PNG bytes of the pictures: ``lattice`` (the render; not with ``render=False``),
+    ``convergence``, ``histogram``."""
     # Figure + FigureCanvasAgg directly: no pyplot, no global backend switch, no window
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -248,19 +504,37 @@ def plots(rep: ValidationReport) -> dict[str, bytes]:
         ax.set_title("surface deviation" + ("" if many else f": {rep.label}"))
         ax.legend()
         out["histogram"] = png(fig)
-    return {"lattice": lattice_render(rep), **out}
+    if not render:
+        return out
+    return {"lattice": first_screen_pictures(rep)["overview"], **out}
 
 
-#: Worst nodes numbered on the report's render.
-WORST_MARKED = 5
+#: Worst places numbered on the report's render.
+WORST_MARKED = config.REPORT_WORST_HUBS
 
 
-def lattice_render(rep: ValidationReport, *, size: tuple[int, int] = (1100, 780)) -> bytes:
-    """PNG of the lattice as shaded tubes coloured by local deviation, worst nodes numbered.
+def lattice_render(
+    rep: ValidationReport,
+    *,
+    size: tuple[int, int] = (1100, 780),
+    places: list[WorstPlace] | None = None,
+    tolerance: float | None = None,
+) -> bytes:
+    """PNG of the lattice as shaded tubes coloured by local deviation, worst places numbered.
+
+    Parameters
+    ----------
+    rep : ValidationReport
+    size : (int, int)
+    places : list of WorstPlace, optional
+        The numbered places (default: :func:`~reference_boolean.pictures.worst_places`).
+    tolerance : float, optional
+        Marked on the colour bar (mm).
 
     Failed hubs (if any) are marked ``failed``.
     """
     from lattice_cad.render import ColorBar, Layer, Marker, picture, tubes
+    from reference_boolean.pictures import worst_places
 
     g = rep.graph
     dev = np.asarray(rep.node_deviation, dtype=np.float64)
@@ -275,17 +549,24 @@ def lattice_render(rep: ValidationReport, *, size: tuple[int, int] = (1100, 780)
         node_scalars=dev if has else None,
         balls=small,
     )
-    worst = rep.worst_nodes(WORST_MARKED)
-    markers = [Marker(tuple(map(float, g.nodes[i])), str(k)) for k, (i, _) in enumerate(worst, 1)]
+    if places is None:
+        places = worst_places(rep, WORST_MARKED)[0] if has else []
+    markers = [Marker(p.position, f"#{p.rank}") for p in places]
     markers += [Marker(tuple(map(float, g.nodes[int(i)])), "failed") for i in rep.reference.failed]
     colorbar = None
     if has:
         lo, hi = float(np.nanmin(dev)), float(np.nanmax(dev))
-        colorbar = ColorBar("local deviation from the exact reference (mm)", (lo, hi), "plasma")
+        colorbar = ColorBar(
+            "local deviation from the exact solid (mm)"
+            + ("; | = tolerance" if tolerance is not None and lo < tolerance < hi else ""),
+            (lo, hi),
+            "plasma",
+            threshold=tolerance,
+        )
     caption = f"{g.num_edges:,} struts ({rep.label})"
-    if worst:
-        caption += "; worst nodes: " + ", ".join(
-            f"{k}: node {i} ({d:.3g} mm)" for k, (i, d) in enumerate(worst, 1)
+    if places:
+        caption += "; worst places: " + ", ".join(
+            f"#{p.rank} node {p.node} ({p.deviation:.3g} mm)" for p in places
         )
     png, _ = picture(
         [Layer(v, f, n, sc, color=(0.80, 0.62, 0.25), closed=True)],
@@ -299,24 +580,63 @@ def lattice_render(rep: ValidationReport, *, size: tuple[int, int] = (1100, 780)
 
 
 def to_html(rep: ValidationReport) -> str:
-    """One self-contained HTML page (tables and base64 PNG plots)."""
+    """One self-contained HTML page: the first screen, then the tables and plots (base64 PNG)."""
+    screen = first_screen(rep)
+    ok = screen.verdict.passed
     parts = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'><title>Lattice accuracy report</title>",
-        "<style>body{font-family:sans-serif;max-width:1000px;margin:auto}"
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
         "table{border-collapse:collapse;margin-bottom:1em}td,th{border:1px solid #999;"
-        "padding:2px 8px;text-align:left}</style></head><body>",
+        "padding:2px 8px;text-align:left}"
+        ".verdict{font-size:1.25em;font-weight:bold;padding:10px 14px;border-radius:4px}"
+        ".pass{background:#e3f4e6;color:#14532d;border:2px solid #2e7d32}"
+        ".fail{background:#fde8e8;color:#7f1d1d;border:2px solid #c62828}"
+        ".closeups{display:flex;flex-wrap:wrap;gap:6px}"
+        ".closeups figure{margin:0}</style></head><body>",
         "<h1>Lattice accuracy report</h1>",
+        f"<p class='verdict {'pass' if ok else 'fail'}' id='verdict'>"
+        f"{html.escape(screen.verdict.line)}</p>",
+        "<table id='figures'>",
     ]
-    figures = plots(rep)
+    parts += [
+        f"<tr><th>{html.escape(q)}</th><td>{html.escape(v)}</td></tr>" for q, v in screen.figures
+    ]
+    parts.append("</table>")
+    first = first_screen_pictures(rep)
+    figures = plots(rep, render=False)
 
-    def figure(name: str, data: bytes) -> str:
+    def figure(name: str, data: bytes, caption: str | None = None) -> str:
         b64 = base64.b64encode(data).decode("ascii")
         return (
-            f"<figure><img alt='{name}' src='data:image/png;base64,{b64}' style='max-width:100%'>"
-            f"<figcaption>{name}</figcaption></figure>"
+            f"<figure><img alt='{html.escape(name)}' src='data:image/png;base64,{b64}' "
+            f"style='max-width:100%'><figcaption>{html.escape(caption or name)}"
+            "</figcaption></figure>"
         )
 
-    parts.append(figure("lattice", figures.pop("lattice")))
+    parts.append(
+        figure(
+            "overview",
+            first["overview"],
+            "local deviation from the exact solid (mm), worst places numbered",
+        )
+    )
+    if screen.places:
+        parts.append("<h2>Worst places</h2><table id='worst'><tr>")
+        parts += [f"<th>{html.escape(c)}</th>" for c in _PLACE_COLS]
+        parts.append("</tr>")
+        for r in _place_rows(screen):
+            parts.append("<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in r) + "</tr>")
+        parts.append("</table><div class='closeups'>")
+        parts += [
+            figure(f"worst{p.rank}", first[f"worst{p.rank}"], f"#{p.rank}: node {p.node}")
+            for p in screen.places
+            if f"worst{p.rank}" in first
+        ]
+        parts.append("</div>")
+    note = _unranked_note(screen)
+    if note:
+        parts.append(f"<p>{html.escape(note)}</p>")
+    parts.append("<hr><h1>Details</h1>")
     for title, cols, rows in _tables(rep):
         parts.append(f"<h2>{html.escape(title)}</h2><table><tr>")
         parts += [f"<th>{html.escape(c)}</th>" for c in cols]

@@ -74,7 +74,13 @@ def test_mesh_deviation_and_reports(star, star_ref, tmp_path):
     assert "| segments |" in md and "fast_stitch P=8" in md
     page = rep.save(tmp_path / "r.html").read_text()
     pngs = re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)", page)
-    assert len(pngs) == 3
+    from reference_boolean.report import first_screen
+
+    places = first_screen(rep).places
+    # the star's worst place is a leaf (flat cap vs sphere); its centre and the other
+    # leaves are its neighbours or distinct places: at least one, at most 4 close-ups
+    assert 1 <= len(places) <= 4
+    assert len(pngs) == 3 + len(places)  # overview, close-ups, convergence, histogram
     assert all(base64.b64decode(p)[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
     with pytest.raises(ValueError, match="use .json"):
         rep.save(tmp_path / "r.txt")
@@ -154,7 +160,11 @@ def test_compare_several_meshes(star, star_ref, tmp_path):
     assert d["valid"]["mesh"]["exact"]["valid"]
     page = rep.save(tmp_path / "r.html").read_text()
     assert page.count("<td>P=12</td>") == 1 and "Mesh under test: exact" in page
-    assert len(re.findall(r"data:image/png;base64,", page)) == 2  # no unions: no convergence
+    from reference_boolean.report import first_screen
+
+    closeups = len(first_screen(rep).places)
+    # overview, close-ups, histogram; no unions: no convergence plot
+    assert len(re.findall(r"data:image/png;base64,", page)) == 2 + closeups
     # meshes= alone, and label clashes
     only = compare(star, meshes={"a": m6}, reference=star_ref, union_segments=(), samples=500)
     assert only.label == "a" and isinstance(only.to_dict()["volume_mesh"], float)

@@ -231,6 +231,17 @@ TRIM_MIN_REL = 0.05
 #: Default number of surface samples per mesh for the deviation measures.
 DEFAULT_SAMPLES = 50_000
 
+#: Default surface tolerance of the accuracy report's verdict, as a fraction of the median
+#: strut radius: the mesh passes when 95 % of its two-sided surface deviation from the exact
+#: solid is within +-(this x radius) mm (issue 14: p95 under 10 % of the radius).
+DEFAULT_DEVIATION_TOLERANCE_REL = 0.1
+
+#: Default volume tolerance of the verdict: |V_mesh - V_exact| / V_exact at most this.
+DEFAULT_VOLUME_TOLERANCE = 0.01
+
+#: Worst hubs shown (with a close-up picture each) on the report's first screen.
+REPORT_WORST_HUBS = 4
+
 
 # ---------------------------------------------------------- Beam FE export (lattice_cad.io.fe)
 

@@ -24,6 +24,7 @@ example ``conformal.PartError``), but they are defined here only.
     ├── ShardingError            an option the sharded (Dask) path refuses, a halo too small
     ├── DistributedUnavailableError  (ImportError) Dask distributed is not installed
     ├── SelectionError           a selector picks no face or node (names the selector)
+    ├── ToleranceError           an accuracy-report tolerance is not a valid number
     ├── OCCTFailure              an OpenCascade step failed (lattice_cad.occ_impl)
     ├── ExternalCrash            a C++ library crashed or hung in a child process
     ├── InsufficientMemoryError  the estimated peak memory exceeds what is available
@@ -60,6 +61,7 @@ __all__ = [
     "SelectionError",
     "ShardingError",
     "DistributedUnavailableError",
+    "ToleranceError",
     "OCCTFailure",
     "ExternalCrash",
     "ReferenceBuildError",
@@ -148,6 +150,8 @@ class ShardingError(LatticeError, ValueError):
 
 class DistributedUnavailableError(LatticeError, ImportError):
     """The sharded path needs Dask distributed: ``pip install 'lattice-cad[distributed]'``."""
+class ToleranceError(LatticeError, ValueError):
+    """An accuracy-report tolerance is not a valid number (the message names the option)."""
 
 
 class OCCTFailure(LatticeError, RuntimeError):

@@ -39,10 +39,14 @@ class ColorBar:
 
 @dataclass(frozen=True)
 class Marker:
-    """A numbered mark at a world point (e.g. a worst place), drawn on every panel."""
+    """A numbered mark at a world point (e.g. a worst place), drawn on every panel.
+
+    ``color`` is the ring's and the label's colour (default red).
+    """
 
     point: tuple[float, float, float]
     label: str
+    color: str = "#d62728"
 
 
 @dataclass(frozen=True)
@@ -176,7 +180,13 @@ def _draw_markers(ax: Any, cam: Camera, markers: Sequence[Marker]) -> None:
         return
     p = cam.project(np.array([m.point for m in markers], dtype=np.float64))
     ax.scatter(
-        p[:, 0], p[:, 1], s=150, facecolors="none", edgecolors="#d62728", linewidths=2.0, zorder=3
+        p[:, 0],
+        p[:, 1],
+        s=150,
+        facecolors="none",
+        edgecolors=[m.color for m in markers],
+        linewidths=2.0,
+        zorder=3,
     )
     for (x, y, _), m in zip(p, markers, strict=True):
         ax.annotate(
@@ -184,7 +194,7 @@ def _draw_markers(ax: Any, cam: Camera, markers: Sequence[Marker]) -> None:
             (x, y),
             xytext=(9, -9),
             textcoords="offset points",
-            color="#b01010",
+            color="#b01010" if m.color == "#d62728" else m.color,
             fontsize=10,
             fontweight="bold",
             zorder=4,
