@@ -209,15 +209,25 @@ def surface_deviation(
     points : (S, 3) float64
         ``samples`` area-weighted random points on ``source`` and all its vertices.
     distance : (S,) float64
-        Exact point-to-triangle distance to ``target`` (trimesh, R-tree).
+        Exact point-to-triangle distance to ``target`` (libigl's AABB tree,
+        ``igl.AABB.squared_distance``), queried in chunks of
+        ``config.DEVIATION_CHUNK`` points so memory stays bounded (trimesh's
+        ``closest_point`` needed 16 GB for 20,000 points near an 82K-triangle sphere).
     """
-    import trimesh
+    import igl
 
     rng = np.random.default_rng(seed)
     pts = _sample(source, samples, rng)
-    tm = trimesh.Trimesh(vertices=target.vertices, faces=target.faces, process=False)
-    _, dist, _ = trimesh.proximity.closest_point(tm, pts)
-    return pts, np.asarray(dist, dtype=np.float64)
+    v = np.ascontiguousarray(target.vertices, dtype=np.float64)
+    f = np.ascontiguousarray(target.faces, dtype=np.int64)
+    tree = igl.AABB()
+    tree.init(v, f)
+    dist = np.empty(len(pts), dtype=np.float64)
+    step = config.DEVIATION_CHUNK
+    for i in range(0, len(pts), step):
+        d2, _, _ = tree.squared_distance(v, f, np.ascontiguousarray(pts[i : i + step]))
+        dist[i : i + step] = np.sqrt(np.maximum(d2, 0.0))
+    return pts, dist
 
 
 def _stats(d: NDArray[np.float64]) -> dict[str, float]:
