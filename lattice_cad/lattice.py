@@ -145,6 +145,12 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
     from lattice_cad.core.mesh import Mesh, weld
 
     out, _ = io.single_precision(mesh, name=name)
+    # readers that merge vertices closer than config.NEAR_VERTEX (trimesh, and the tools
+    # built on it) must find the same closed solid: merged before the (costly) full check,
+    # so that a mesh needing no repair is checked once
+    v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
+    if len(v2) != len(out.vertices):
+        out = Mesh(vertices=v2, faces=f2)
     for attempt in range(2):
         report = fast_stitch.check(out)
         for _ in range(20):  # tiny folds where the booleans left needles: collapse them
