@@ -59,9 +59,9 @@ def tet_mesh(
     surface_angle : float
         For mesh parts (and B-rep parts whose B-rep gmsh cannot mesh): dihedral angle
         (degrees) above which a mesh edge is a feature edge that the re-meshed surface
-        keeps. When the surface cannot be re-parametrised at that angle, a resampled surface (the zero level of the signed
-        distance, spacing ``size / 1.5``) is tried, then 20 and 10 degrees, then the part's
-        own triangles as the boundary.
+        keeps. When the surface cannot be re-parametrised at that angle, a resampled
+        surface (the zero level of the signed distance, spacing ``size / 1.5``) is tried,
+        then 20 and 10 degrees, then the part's own triangles as the boundary.
     timeout : float
         Seconds one gmsh attempt may take. Each runs in a child process: a crash or a
         hang of gmsh moves on to the next attempt instead of ending the caller.
