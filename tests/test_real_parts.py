@@ -116,6 +116,7 @@ def test_tet_lattice_of_a_part_gmsh_cannot_reparametrise():
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # several gmsh attempts in child processes (~3 min unloaded)
 def test_tet_lattice_of_nist_ctc02_falls_back_to_its_triangulation():
     """NIST CTC-02: gmsh cannot mesh the B-rep (overlapping surface meshes of close faces;
     HXT crashes), so the tetrahedra come from the part's closed triangulation, with a
