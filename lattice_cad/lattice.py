@@ -241,6 +241,8 @@ class Lattice:
         self.graph = graph
         self.part = part
         self.skin = skin
+        #: Skin built as (part - inset) + (lattice & mid-wall inset) (a float32 fallback).
+        self._mid_wall = False
         #: How the skin was made and its measured wall (set when the mesh is built).
         self.skin_report: Any = None
         #: What the lattice builder did (``conformal.BuildReport``; set by :meth:`fill`).
@@ -532,7 +534,9 @@ class Lattice:
             return Mesh(vertices=v, faces=f)
 
         # checked below, after rounding to float32 (what the files hold)
-        result = _skin.build_skin(self._kept_mesh, self.part, self.skin, check=False)
+        result = _skin.build_skin(
+            self._kept_mesh, self.part, self.skin, check=False, mid_wall=getattr(self, "_mid_wall", False)
+        )
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
@@ -551,6 +555,11 @@ class Lattice:
             try:
                 mesh = _checked_single_precision(solid, "the lattice")
             except ExportError as exc:
+                if self.skin is not None and not getattr(self, "_mid_wall", False):
+                    # the rare skin that float32 cannot hold: the same solid the older way
+                    self._mid_wall = True
+                    del self.__dict__["_solid_mesh"]
+                    return self._printable_mesh
                 if self.skin is not None or self.keep or self.trim_report is None:
                     raise
                 # the cut by the part's surface left slivers that float32 cannot hold (tiny
