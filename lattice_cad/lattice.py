@@ -534,8 +534,9 @@ class Lattice:
             return Mesh(vertices=v, faces=f)
 
         # checked below, after rounding to float32 (what the files hold)
+        mid_wall = getattr(self, "_mid_wall", False)
         result = _skin.build_skin(
-            self._kept_mesh, self.part, self.skin, check=False, mid_wall=getattr(self, "_mid_wall", False)
+            self._kept_mesh, self.part, self.skin, check=False, mid_wall=mid_wall
         )
         self.skin_report = result.report
         solid = result.solid
