@@ -1,25 +1,26 @@
 """Skins: hollow a part to a wall thickness and unite the wall with a lattice.
 
 The printable result of ``Lattice.fill(part, skin=t)`` is one watertight solid per solid of
-the part: the part minus its inset by ``t`` (the skin), united with the lattice clipped to
-the mid-wall surface (the inset by ``t / 2``), so every strut that reaches the boundary ends
-inside the wall and no strut end is flush with the outer surface. All booleans are done by
+the part: the part minus its inset by ``t`` (the skin), united with the lattice inside it, so
+every strut that reaches the boundary runs into the wall and no strut end is flush with the
+outer surface. Since the inset lies inside the part, that union is computed as two
+differences, ``part - (inset - lattice)``: the lattice (by far the largest mesh) takes part
+in one boolean only, and no two surfaces of the operands coincide. All booleans are done by
 manifold3d, whose results are guaranteed manifold.
 
 The inner surfaces come from one of two methods, and the :class:`SkinReport` says which,
 with the wall thickness measured on the result:
 
 ``"occt"`` (B-rep parts: STEP, CadQuery, build123d)
-    OpenCascade's offset of each solid by ``-t`` and ``-t/2`` (arc joins), checked with
+    OpenCascade's offset of each solid by ``-t`` (arc joins), checked with
     ``IsDone`` and BRepCheck, and tessellated with a chord error of 1 % of ``t``. The outer
     surface is tessellated just as finely, so the wall is exact up to the tessellation.
 ``"voxel"`` (meshes, and B-rep parts where OCCT's offset fails)
     The inside of the part on a grid (exact winding numbers), a Euclidean distance
-    transform, refined to exact point-to-triangle distances in a band around the two
-    levels, and a marching-tetrahedra pass (a Freudenthal split of every voxel, so each
-    surface is closed and 2-manifold by construction) that extracts ``d = t`` and
-    ``d = t / 2``. The grid spacing is ``t / 3`` unless the grid would exceed
-    ``config.MAX_VOXELS`` voxels.
+    transform, refined to exact point-to-triangle distances in a band around the
+    level, and a marching-tetrahedra pass (a Freudenthal split of every voxel, so the
+    surface is closed and 2-manifold by construction) that extracts ``d = t``. The grid
+    spacing is ``t / 3`` unless the grid would exceed ``config.MAX_VOXELS`` voxels.
 
 The wall is measured from the inner surface to the outer one (the definition of an offset):
 for every inner vertex, its distance to the outer surface should be ``t``.
@@ -256,8 +257,8 @@ def _as_part(part: Any) -> Any:
 
 
 # ---------------------------------------------------------------- OCCT offsets
-def _occt_surfaces(part: Any, thickness: float) -> tuple[Any, Any, Any]:
-    """Outer, mid-wall and inner surfaces of a B-rep part from OCCT offsets (Manifolds).
+def _occt_surfaces(part: Any, thickness: float, mid_wall: bool = False) -> tuple[Any, ...]:
+    """Outer and inner surfaces of a B-rep part from OCCT's offset (Manifolds).
 
     Raises
     ------
@@ -270,12 +271,13 @@ def _occt_surfaces(part: Any, thickness: float) -> tuple[Any, Any, Any]:
 
     defl = 0.01 * thickness
     tol = max(WALL_RTOL * thickness, WALL_ATOL)
-    outer, mid, inner = manifold3d.Manifold(), manifold3d.Manifold(), manifold3d.Manifold()
+    dists = (thickness, 0.5 * thickness) if mid_wall else (thickness,)
+    out = [manifold3d.Manifold() for _ in range(1 + len(dists))]
     for k, solid in enumerate(part.shape):
         vol = occ.volume(solid)
-        shapes = [solid, *occ.offset_solid_isolated(solid, (-0.5 * thickness, -thickness))]
+        shapes = [solid, *occ.offset_solid_isolated(solid, tuple(-d for d in dists))]
         meshes = []
-        for shape, dist in zip(shapes, (0.0, 0.5 * thickness, thickness), strict=True):
+        for shape, dist in zip(shapes, (0.0, *dists), strict=True):
             if dist and not 0.0 < occ.volume(shape) < vol:
                 raise OCCTFailure(f"solid {k}: the offset by {-dist:g} is not inside the solid")
             v, f = occ.tessellate(shape, defl, 0.1)
@@ -286,7 +288,7 @@ def _occt_surfaces(part: Any, thickness: float) -> tuple[Any, Any, Any]:
         from conformal.part import Part
 
         surface = Part(*meshes[0], name=f"solid {k}")
-        for (v, _), dist in zip(meshes[1:], (0.5 * thickness, thickness), strict=True):
+        for (v, _), dist in zip(meshes[1:], dists, strict=True):
             depth = surface.distance(v)
             worst = float(np.abs(depth - dist).max())
             if worst > tol:
@@ -295,8 +297,8 @@ def _occt_surfaces(part: Any, thickness: float) -> tuple[Any, Any, Any]:
                     "thickness asked for"
                 )
         pieces = [_manifold(v, f, f"solid {k} (offset)") for v, f in meshes]
-        outer, mid, inner = outer + pieces[0], mid + pieces[1], inner + pieces[2]
-    return outer, mid, inner
+        out = [a + b for a, b in zip(out, pieces, strict=True)]
+    return tuple(out)
 
 
 # ---------------------------------------------------------------- voxel field
@@ -309,9 +311,9 @@ def _grid_spacing(extent: NDArray[np.float64], thickness: float) -> float:
 
 
 def _distance_field(
-    part: Any, thickness: float, h: float
+    part: Any, thickness: float, h: float, low: float | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Depth below the surface at grid points (negative outside), exact near the levels.
+    """Depth below the surface at grid points (negative outside), exact near the level.
 
     Returns
     -------
@@ -330,9 +332,10 @@ def _distance_field(
     inside = part.grid_contains(origin, np.full(3, h), dims)
     depth = distance_transform_edt(inside, sampling=h) - 0.5 * h
     depth[~inside] = -thickness
-    # exact distances where the levels t and t/2 are extracted (the transform is off by up
-    # to half a voxel there)
-    band = inside & (depth > 0.5 * thickness - 2 * h) & (depth < thickness + 2 * h)
+    # exact distances where the level t is extracted (the transform is off by up to half a
+    # voxel there)
+    low = thickness if low is None else low  # the lowest level extracted
+    band = inside & (depth > low - 2 * h) & (depth < thickness + 2 * h)
     idx = np.argwhere(band)
     if len(idx):
         pts = origin + idx * h
@@ -341,11 +344,13 @@ def _distance_field(
     return depth, origin
 
 
-def _voxel_surfaces(part: Any, thickness: float, h: float) -> tuple[Any, Any, Any]:
-    """Outer, mid-wall and inner surfaces of a part from its distance field (Manifolds)."""
+def _voxel_surfaces(
+    part: Any, thickness: float, h: float, mid_wall: bool = False
+) -> tuple[Any, ...]:
+    """Outer and inner (and mid-wall) surfaces of a part from its distance field (Manifolds)."""
     import manifold3d
 
-    depth, origin = _distance_field(part, thickness, h)
+    depth, origin = _distance_field(part, thickness, h, 0.5 * thickness if mid_wall else None)
     out = [part_solid(part)]  # touching solids of an assembly united
     # marching tetrahedra give about 20 triangles per voxel face of the surface, mostly on
     # flat walls: manifold3d's simplification (no surface moves by more than the tolerance,
@@ -353,13 +358,13 @@ def _voxel_surfaces(part: Any, thickness: float, h: float) -> tuple[Any, Any, An
     # booleans. Relative only: on a small part the absolute bound (0.02 mm) is a large
     # fraction of the wall, and so coarse a surface folds when rounded to float32.
     tol = SIMPLIFY_FRACTION * WALL_RTOL * thickness
-    for level in (0.5 * thickness, thickness):
+    for level in (thickness, 0.5 * thickness) if mid_wall else (thickness,):
         v, f = marching_tets(depth - level, origin, h)  # depth is sampled at the grid points
         if len(f) == 0:
             out.append(manifold3d.Manifold())
             continue
         out.append(_manifold(v, f, f"the inset by {level:g}").simplify(tol))
-    return out[0], out[1], out[2]
+    return tuple(out)
 
 
 def wall_thickness(inner: Any, outer: Any) -> NDArray[np.float64]:
@@ -412,7 +417,7 @@ def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
     _check_thickness(thickness)
     p = _as_part(part)
     h = float(voxel) if voxel is not None else _grid_spacing(p.size, thickness)
-    return checked(_voxel_surfaces(p, thickness, h)[2], f"the inset by {thickness:g}")
+    return checked(_voxel_surfaces(p, thickness, h)[1], f"the inset by {thickness:g}")
 
 
 def hollow(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
@@ -439,13 +444,13 @@ def _check_thickness(thickness: Any) -> None:
 
 
 def _surfaces(
-    part: Any, thickness: float, method: str, voxel: float | None
-) -> tuple[tuple[Any, Any, Any], str, str, float]:
-    """(outer, mid, inner), the method used, why OCCT was not used, the voxel size."""
+    part: Any, thickness: float, method: str, voxel: float | None, mid_wall: bool = False
+) -> tuple[tuple[Any, ...], str, str, float]:
+    """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size."""
     fallback = ""
     if method in ("auto", "occt") and part.shape is not None:
         try:
-            return _occt_surfaces(part, thickness), "occt", "", float("nan")
+            return _occt_surfaces(part, thickness, mid_wall), "occt", "", float("nan")
         except (OCCTFailure, SkinError) as exc:
             if method == "occt":
                 raise SkinError(f"OpenCascade's offset failed: {exc}") from exc
@@ -457,7 +462,7 @@ def _surfaces(
     elif method == "occt":
         raise SkinError("method='occt' needs a B-rep part (STEP, CadQuery or build123d)")
     h = float(voxel) if voxel is not None else _grid_spacing(part.size, thickness)
-    return _voxel_surfaces(part, thickness, h), "voxel", fallback, h
+    return _voxel_surfaces(part, thickness, h, mid_wall), "voxel", fallback, h
 
 
 def _keep_attached(solid: Any, outer: Any) -> tuple[Any, int, int]:
@@ -503,14 +508,16 @@ def build_skin(
     method: str = "auto",
     voxel: float | None = None,
     check: bool = True,
+    mid_wall: bool = False,
 ) -> SkinResult:
-    """One solid per solid of the part: its skin united with the lattice clipped mid-wall.
+    """One solid per solid of the part: its skin united with the lattice inside it.
 
     Parameters
     ----------
     lattice : Mesh, Manifold or mesh-like
-        The stitched lattice (struts may cross the part's boundary: they are cut at the
-        mid-wall surface, so every strut reaching the boundary ends inside the wall).
+        The stitched lattice (struts may cross the part's boundary: what lies outside the
+        inset by ``thickness`` is wall or is cut away, so every strut reaching the
+        boundary ends inside the wall).
     part : conformal.Part, path or CAD shape
     thickness : float
         Wall thickness (mm).
@@ -522,6 +529,10 @@ def build_skin(
     check : bool
         Check the solid in full (:func:`checked`; a :class:`SkinError` names where it
         fails). ``Lattice`` passes False: it checks the mesh after rounding it to float32.
+    mid_wall : bool
+        Build the same solid the older way, ``(part - inset) + (lattice & mid-wall inset)``
+        (one more surface and boolean, slower): a fallback for the rare result of the
+        default ``part - (inset - lattice)`` that cannot be rounded to float32.
 
     Returns
     -------
@@ -533,7 +544,8 @@ def build_skin(
         raise ValueError(f"method must be 'auto', 'occt' or 'voxel', got {method!r}")
     t0 = time.perf_counter()
     p = _as_part(part)
-    (outer, mid, inner), used, fallback, h = _surfaces(p, thickness, method, voxel)
+    surfaces, used, fallback, h = _surfaces(p, thickness, method, voxel, mid_wall)
+    outer, inner = surfaces[0], surfaces[1]
     if inner.is_empty():
         thick = 2.0 * p.inscribed_radius()
         raise SkinError(
@@ -543,7 +555,8 @@ def build_skin(
         )
     t1 = time.perf_counter()
     lat = as_manifold(lattice, name="lattice mesh")
-    solid = (outer - inner) + (lat ^ mid)
+    # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
+    solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     solid, bodies, islands = _keep_attached(solid, surface)
     t2 = time.perf_counter()

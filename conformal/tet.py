@@ -4,7 +4,9 @@ As in Verma, Rankouhi & Suresh (2019), Fig. 6.
 
 The part is meshed with gmsh (target edge length ``size``): a CAD part
 through its exact B-rep (OCCT kernel; several solids are fused first), a mesh
-part by re-meshing its surface (``classifySurfaces`` / ``createGeometry``).
+part by re-meshing its surface (``classifySurfaces`` / ``createGeometry``). When gmsh
+cannot mesh a B-rep (NIST CTC-02: overlapping surface meshes of close faces), the
+part's closed triangulation is meshed as a mesh part's, with a warning.
 Every tetrahedron vertex becomes a node and every distinct tetrahedron edge a
 strut, so surface nodes lie on the part's surface and the lattice conforms to
 it.
@@ -55,11 +57,11 @@ def tet_mesh(
         gmsh's 3-D algorithm tried first (HXT is parallel and fast); when it fails, the
         others are tried.
     surface_angle : float
-        For mesh parts: dihedral angle (degrees) above which a mesh edge is a
-        feature edge that the re-meshed surface keeps. When the surface cannot be
-        re-parametrised at that angle, a resampled surface (the zero level of the signed
-        distance, spacing ``size / 1.5``) is tried, then 20 and 10 degrees, then the part's
-        own triangles as the boundary.
+        For mesh parts (and B-rep parts whose B-rep gmsh cannot mesh): dihedral angle
+        (degrees) above which a mesh edge is a feature edge that the re-meshed surface
+        keeps. When the surface cannot be re-parametrised at that angle, a resampled
+        surface (the zero level of the signed distance, spacing ``size / 1.5``) is tried,
+        then 20 and 10 degrees, then the part's own triangles as the boundary.
     timeout : float
         Seconds one gmsh attempt may take. Each runs in a child process: a crash or a
         hang of gmsh moves on to the next attempt instead of ending the caller.
@@ -88,7 +90,9 @@ def tet_mesh(
     surfaces = [("reparametrized", surface_angle), ("resampled", 0.0)]
     surfaces += [("reparametrized", a) for a in (20.0, 10.0)] + [("discrete", 0.0)]
     if part.shape is not None:
-        surfaces = [("brep", 0.0)]
+        # the exact B-rep first; when gmsh cannot mesh it (e.g. overlapping surface meshes of
+        # close faces, NIST CTC-02), the part's own closed triangulation as for a mesh part
+        surfaces = [("brep", 0.0), *surfaces]
     failures: list[str] = []
     with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
         for how, angle in surfaces:
@@ -112,6 +116,14 @@ def tet_mesh(
                     if exc.stage == "surface":
                         break  # the next surface strategy, not the next 3-D algorithm
                     continue
+                if how != "brep" and part.shape is not None:
+                    warnings.warn(
+                        f"{part.name}: gmsh could not mesh the B-rep ({failures[0]}); the "
+                        f"tetrahedra come from its triangulated surface ({how}"
+                        f"{f', {angle:g} deg' if angle else ''}, {algo})",
+                        LatticeWarning,
+                        stacklevel=2,
+                    )
                 return _compact(tags, xyz, tet_tags)
     raise PartError(f"{part.name}: gmsh could not mesh the part: " + "; ".join(failures))
 

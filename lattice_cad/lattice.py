@@ -145,6 +145,12 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
     from lattice_cad.core.mesh import Mesh, weld
 
     out, _ = io.single_precision(mesh, name=name)
+    # readers that merge vertices closer than config.NEAR_VERTEX (trimesh, and the tools
+    # built on it) must find the same closed solid: merged before the (costly) full check,
+    # so that a mesh needing no repair is checked once
+    v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
+    if len(v2) != len(out.vertices):
+        out = Mesh(vertices=v2, faces=f2)
     for attempt in range(2):
         report = fast_stitch.check(out)
         for _ in range(20):  # tiny folds where the booleans left needles: collapse them
@@ -527,10 +533,12 @@ class Lattice:
 
         return self._skinned()
 
-    def _skinned(self, *, shift: float = 0.0) -> Mesh:
+    def _skinned(self, *, shift: float = 0.0, mid_wall: bool = False) -> Mesh:
         """The lattice (with its keep zones) inside its skin, not yet checked; ``shift``
         moves the lattice by that many trim tolerances (``config.TRIM_RTOL`` r) in a
-        generic direction, for the retry when float32 cannot hold the exact result."""
+        generic direction, and ``mid_wall`` builds the skin the older way (see
+        ``conformal.skin.build_skin``), for the retries when float32 cannot hold the exact
+        result."""
         from conformal import skin as _skin
         from conformal.trim import SHIFT_DIRECTION
         from lattice_cad.core.mesh import Mesh
@@ -541,7 +549,7 @@ class Lattice:
             moved = lattice.vertices + SHIFT_DIRECTION * step
             lattice = Mesh(vertices=moved, faces=lattice.faces)
         # checked after rounding to float32 (what the files hold)
-        result = _skin.build_skin(lattice, self.part, self.skin, check=False)
+        result = _skin.build_skin(lattice, self.part, self.skin, check=False, mid_wall=mid_wall)
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
@@ -562,12 +570,19 @@ class Lattice:
             except ExportError as exc:
                 if self.skin is not None:
                     # the booleans left surfaces a float32 step apart (a strut grazing the
-                    # skin's inner wall): build the skin once more with the lattice moved
-                    # a quarter of the trim tolerance in a generic direction
-                    mesh = _checked_single_precision(self._skinned(shift=0.25), "the lattice")
-                    if self.escape_holes is not None:
-                        self._verify_escape(mesh)
-                    return mesh
+                    # skin's inner wall): the same solid the older way (with the mid-wall
+                    # surface), then with the lattice moved a quarter of the trim tolerance
+                    for shift, mid_wall in ((0.0, True), (0.25, False), (0.25, True)):
+                        try:
+                            mesh = _checked_single_precision(
+                                self._skinned(shift=shift, mid_wall=mid_wall), "the lattice"
+                            )
+                        except ExportError:
+                            continue
+                        if self.escape_holes is not None:
+                            self._verify_escape(mesh)
+                        return mesh
+                    raise
                 if self.keep or self.trim_report is None:
                     raise
                 # the cut by the part's surface left slivers that float32 cannot hold (tiny
