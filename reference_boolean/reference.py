@@ -85,7 +85,9 @@ class Reference:
     face_node : (F,) int64
         Node whose hub each triangle belongs to.
     hub_volume : (N,) float64
-        Volume of each node's hub (NaN for isolated or failed nodes).
+        Volume of each node's hub (NaN for isolated or failed nodes). A cluster's volume
+        is given to its first member (its anchor), 0 to the others, so the sum is
+        :attr:`volume`.
     failed : dict[int, str]
         Node index -> reason, for every hub that could not be built or stacked.
     attempts : dict[int, list[str]]
@@ -93,11 +95,18 @@ class Reference:
     tolerance, angular : float
         Linear (absolute) and angular deflection of the tessellation.
     unique_hubs : int
-        Hubs actually built (distinct up to translation when cached).
+        Hubs and clusters actually built (distinct up to translation when cached).
     cache_hits : int
-        Hubs reused from another node's build.
+        Hubs and clusters reused from another build.
     timings : dict[str, float]
-        Seconds spent in ``"check"``, ``"build"``, ``"stack"`` and ``"total"``.
+        Seconds spent in ``"check"`` (clustering), ``"build"``, ``"stack"`` and ``"total"``.
+    node_template : (N,) int64
+        Index into :attr:`breps` of the solid (hub or cluster) each node belongs to.
+    breps : list of bytes
+        Binary BREP of each distinct hub or cluster (its anchor node at the origin).
+    clusters : list of (c,) int64
+        Member nodes of every cluster of two or more nodes (hubs that would overlap,
+        built as one fused solid; see :mod:`reference_boolean.clusters`).
     """
 
     graph: LatticeGraph
@@ -114,6 +123,8 @@ class Reference:
     timings: dict[str, float]
     node_template: NDArray[np.int64] = field(repr=False)
     breps: list[bytes] = field(repr=False)
+    clusters: list[NDArray[np.int64]] = field(default_factory=list, repr=False)
+    units: Any = field(default=None, repr=False)
 
     @property
     def complete(self) -> bool:
@@ -149,18 +160,24 @@ class Reference:
         from lattice_cad.occ_impl.step import write_step
 
         g = self.graph
-        offsets, inc_edge, inc_side = g.incidence
-        mids: list[NDArray[np.float64]] = [np.zeros((0, 3))] * len(self.breps)
-        for n in np.flatnonzero(self.node_template >= 0):
-            es = inc_edge[offsets[n] : offsets[n + 1]]
-            sd = inc_side[offsets[n] : offsets[n + 1]]
-            mids[self.node_template[n]] = 0.5 * (g.nodes[g.edges[es, 1 - sd]] - g.nodes[n])
-        failed = {int(self.node_template[n]): why for n, why in self.failed.items()}
+        u = self.units
+        mids: list[NDArray[np.float64]] = []
+        axes: list[NDArray[np.float64]] = []
+        for spec in u.specs:
+            if hasattr(spec, "centres"):  # a cluster (or a leaf)
+                mids.append(spec.centres)
+                axes.append(spec.axes)
+            else:
+                mids.append(np.asarray(spec.vecs, dtype=np.float64))
+                axes.append(spec.vecs / np.linalg.norm(spec.vecs, axis=1)[:, None])
+        inst_of = {int(n): i for i, mem in enumerate(u.members) for n in mem}
+        failed = {int(u.template[inst_of[n]]): why for n, why in self.failed.items()}
         shapes = sew_hubs(
             self.breps,
-            self.node_template,
-            g.nodes,
+            u.template,
+            g.nodes[u.anchor],
             mids,
+            axes=axes,
             tolerance=config.BREP_SEW_RTOL * float(g.radii.min()),
             failed=failed,
         )
@@ -305,11 +322,157 @@ def _hub_specs(
     return specs, template, slot_edges, [np.asarray(m, dtype=np.int64) for m in members]
 
 
+# ------------------------------------------------------------------ units
+@dataclass(frozen=True, eq=False)
+class _Units:
+    """How the reference is cut into solids: single hubs and clusters (see ``clusters``).
+
+    ``specs[t]`` is a ``HubSpec`` (one node of degree >= 2 whose hub overlaps no other) or a
+    ``ClusterSpec`` (several nodes, or one leaf); each *instance* ``i`` is one placed copy:
+    ``template[i]``, its ``anchor[i]`` node (the spec's origin), its ``members[i]`` (nodes, in
+    the spec's member order) and ``slots[i]`` (the struts leaving it, in circle order).
+    """
+
+    specs: list[Any]
+    template: NDArray[np.int64]
+    anchor: NDArray[np.int64]
+    members: list[NDArray[np.int64]]
+    slots: list[NDArray[np.int64]]
+    node_instance: NDArray[np.int64]
+    reasons: list[str]
+
+    def instances_of(self) -> list[NDArray[np.int64]]:
+        """Instances of each template."""
+        order = np.argsort(self.template, kind="stable")
+        cuts = np.searchsorted(self.template[order], np.arange(len(self.specs) + 1))
+        return [order[cuts[t] : cuts[t + 1]] for t in range(len(self.specs))]
+
+
+def _unit_specs(graph: LatticeGraph, cache: bool) -> _Units:
+    """Cluster the nodes and describe every distinct hub or cluster (cached by translation)."""
+    from lattice_cad.occ_impl.cluster import ClusterSpec
+    from lattice_cad.occ_impl.truss import HubSpec
+    from reference_boolean.clusters import find_clusters, hub_radius
+
+    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    offsets, inc_edge, inc_side = graph.incidence
+    R = hub_radius(graph)
+    _, X, Y = strut_frames(graph)
+    rmid = radii.mean(axis=1)
+    q = config.CACHE_QUANTUM * float(np.max(graph.edge_lengths))
+    label, reasons = find_clusters(graph)
+    used = np.flatnonzero(label >= 0)
+    order = used[np.argsort(label[used], kind="stable")]
+    cuts = np.searchsorted(label[order], np.arange(int(label.max()) + 2))
+
+    def node_spec(n: int) -> tuple[Any, NDArray[np.int64], NDArray[np.int64], bytes]:
+        es = inc_edge[offsets[n] : offsets[n + 1]]
+        sd = inc_side[offsets[n] : offsets[n + 1]]
+        vec = 0.5 * (nodes[edges[es, 1 - sd]] - nodes[n])
+        rows = np.column_stack([vec, radii[es, sd], rmid[es]])
+        qrows = np.rint(rows / q).astype(np.int64)
+        o = np.lexsort(qrows.T[::-1])
+        es, sd, vec = es[o], sd[o], vec[o]
+        spec = HubSpec(
+            radius=float(R[n]), vecs=vec, r_node=radii[es, sd], r_mid=rmid[es],
+            xdirs=X[es], ydirs=Y[es],
+        )  # fmt: skip
+        key = qrows[o].tobytes() + np.int64(np.rint(R[n] / q)).tobytes()
+        return spec, es, sd, key
+
+    specs: list[Any] = []
+    keys: dict[bytes, int] = {}
+    template, anchor, members, slots = [], [], [], []
+    node_instance = np.full(graph.num_nodes, -1, dtype=np.int64)
+    for c in range(len(cuts) - 1):
+        group = order[cuts[c] : cuts[c + 1]]
+        if len(group) == 1 and R[group[0]] > 0:  # a single hub
+            n = int(group[0])
+            spec, es, _, key = node_spec(n)
+            key = b"H" + key
+            mem, slot = np.array([n], np.int64), es
+        else:  # a cluster (or one leaf)
+            pos = np.rint((nodes[group] - nodes[group].min(axis=0)) / q).astype(np.int64)
+            mem = group[np.lexsort(pos.T[::-1])].astype(np.int64)
+            where = {int(n): i for i, n in enumerate(mem)}
+            base = nodes[mem[0]]
+            hubs, inner, inner_r, inner_x = [], [], [], []
+            lv_m, lv_e, lv_sd = [], [], []
+            for i, n in enumerate(mem):
+                hs, es, sd, _ = node_spec(int(n))
+                hubs.append(hs)
+                for e, s_ in zip(es, sd, strict=True):
+                    other = int(edges[e, 1 - s_])
+                    if other in where:
+                        if where[other] > i:
+                            inner.append((i, where[other]))
+                            inner_r.append((radii[e, s_], radii[e, 1 - s_]))
+                            inner_x.append(X[e])
+                    else:
+                        lv_m.append(i)
+                        lv_e.append(int(e))
+                        lv_sd.append(int(s_))
+            lv_e_a = np.asarray(lv_e, dtype=np.int64)
+            lv_sd_a = np.asarray(lv_sd, dtype=np.int64)
+            lv_m_a = np.asarray(lv_m, dtype=np.int64)
+            vec = 0.5 * (nodes[edges[lv_e_a, 1 - lv_sd_a]] - nodes[mem[lv_m_a]]).reshape(-1, 3)
+            offs = nodes[mem] - base
+            spec = ClusterSpec(
+                offsets=offs,
+                hubs=hubs,
+                inner=np.asarray(inner, dtype=np.int64).reshape(-1, 2),
+                inner_radii=np.asarray(inner_r, dtype=np.float64).reshape(-1, 2),
+                inner_xdirs=np.asarray(inner_x, dtype=np.float64).reshape(-1, 3),
+                member=lv_m_a,
+                vecs=vec,
+                r_node=radii[lv_e_a, lv_sd_a],
+                r_mid=rmid[lv_e_a],
+                xdirs=X[lv_e_a].reshape(-1, 3),
+                ydirs=Y[lv_e_a].reshape(-1, 3),
+            )
+            key = b"C" + b"|".join(
+                [
+                    np.rint(offs / q).astype(np.int64).tobytes(),
+                    np.rint(np.array([h.radius for h in hubs]) / q).astype(np.int64).tobytes(),
+                    spec.inner.tobytes(),
+                    np.rint(spec.inner_radii / q).astype(np.int64).tobytes(),
+                    lv_m_a.tobytes(),
+                    np.rint(np.column_stack([vec, spec.r_node, spec.r_mid]) / q)
+                    .astype(np.int64)
+                    .tobytes(),
+                ]
+            )
+            slot = lv_e_a
+        t = keys.get(key, -1) if cache else -1
+        if t < 0:
+            t = len(specs)
+            specs.append(spec)
+            if cache:
+                keys[key] = t
+        node_instance[mem] = len(template)
+        template.append(t)
+        anchor.append(int(mem[0]))
+        members.append(mem)
+        slots.append(np.asarray(slot, dtype=np.int64))
+    return _Units(
+        specs=specs,
+        template=np.asarray(template, dtype=np.int64),
+        anchor=np.asarray(anchor, dtype=np.int64),
+        members=members,
+        slots=slots,
+        node_instance=node_instance,
+        reasons=reasons,
+    )
+
+
 # ---------------------------------------------------------------- workers
 def _build_one(args: tuple[Any, float, float, bool]) -> Any:
     from lattice_cad.occ_impl import truss as _occ
+    from lattice_cad.occ_impl.cluster import ClusterSpec, build_cluster
 
     spec, deflection, angular, keep = args
+    if isinstance(spec, ClusterSpec):
+        return build_cluster(spec, deflection=deflection, angular=angular, keep_brep=keep)
     if deflection <= 0.0:  # the solid only (hub_solids)
         return _occ.build_hub_solid(spec)
     return _occ.build_hub(spec, deflection=deflection, angular=angular, keep_brep=keep)
@@ -519,26 +682,21 @@ def build_reference(
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if not (0 < angular < math.pi):
         raise ValueError(f"angular must be in (0, pi), got {angular!r}")
-    problems = find_overlaps(graph)
-    if problems:
-        shown = "\n  ".join(problems[:10])
-        more = f"\n  ... and {len(problems) - 10} more" if len(problems) > 10 else ""
-        raise DirtyLatticeError(
-            f"the lattice is not clean: {len(problems)} place(s) where hubs would overlap, "
-            f"so stacked hubs would not be its exact geometry:\n  {shown}{more}"
-        )
+    units = _unit_specs(graph, cache)
     t_check = time.perf_counter()
-    specs, template, slot_edges, members = _hub_specs(graph, cache)
+    specs = units.specs
     results = _run(
         specs, float(tolerance), float(angular), keep_solids, workers, float(hub_timeout), progress
     )
     t_build = time.perf_counter()
-    mesh, face_node, hub_volume, failed = _stack(graph, results, template, slot_edges, members)
+    mesh, face_node, hub_volume, failed = _stack(graph, results, units)
     attempts: dict[int, list[str]] = {}
+    by_template = units.instances_of()
     for t, res in enumerate(results):
         if res.status != "ok" or len(res.attempts) > 1:
-            for n in members[t]:
-                attempts[int(n)] = list(res.attempts)
+            for i in by_template[t]:
+                for n in units.members[i]:
+                    attempts[int(n)] = list(res.attempts)
     volume = float(np.nansum(hub_volume))
     t_end = time.perf_counter()
     return Reference(
@@ -552,52 +710,62 @@ def build_reference(
         tolerance=float(tolerance),
         angular=float(angular),
         unique_hubs=len(specs),
-        cache_hits=int((template >= 0).sum()) - len(specs),
+        cache_hits=len(units.template) - len(specs),
         timings={
             "check": t_check - t0,
             "build": t_build - t_check,
             "stack": t_end - t_build,
             "total": t_end - t0,
         },
-        node_template=template,
+        node_template=np.where(
+            units.node_instance >= 0, units.template[np.maximum(units.node_instance, 0)], -1
+        ),
         breps=[r.brep for r in results],
+        clusters=[mem for mem in units.members if len(mem) > 1],
+        units=units,
     )
 
 
 def _stack(
-    graph: LatticeGraph,
-    results: list[Any],
-    template: NDArray[np.int64],
-    slot_edges: list[NDArray[np.int64]],
-    members: list[NDArray[np.int64]],
+    graph: LatticeGraph, results: list[Any], units: _Units
 ) -> tuple[Mesh, NDArray[np.int64], NDArray[np.float64], dict[int, str]]:
-    """Stack the hub tessellations; shared circle vertices become one canonical point."""
+    """Stack the hub and cluster tessellations; shared circle vertices become one point."""
     m = graph.num_edges
     failed: dict[int, str] = {}
     K = np.zeros(m, dtype=np.int64)
     K_node = np.full(m, -1, dtype=np.int64)
     hub_volume = np.full(graph.num_nodes, np.nan)
-    ok_nodes: list[int] = []
-    # 1. circle sizes: both hubs of a strut must agree
+    n_inst = len(units.template)
+    inst_ok = np.zeros(n_inst, dtype=bool)
+
+    def fail(i: int, why: str) -> None:
+        mem = units.members[i]
+        pre = "" if len(mem) == 1 else f"cluster of nodes {mem.tolist()}: "
+        for n in mem:
+            failed[int(n)] = pre + why
+
+    by_template = units.instances_of()
+    # 1. circle sizes: both sides of a strut must agree
     for t, res in enumerate(results):
         if res.status != "ok":
-            for n in members[t]:
-                failed[int(n)] = res.status
+            for i in by_template[t]:
+                fail(int(i), res.status)
             continue
         ks = np.array([len(c) for c in res.circles], dtype=np.int64)
-        for n in members[t]:
-            es = slot_edges[n]
+        for i in by_template[t]:
+            es = units.slots[i]
             clash = (K[es] != 0) & (K[es] != ks)
             if clash.any():
                 j = int(np.flatnonzero(clash)[0])
-                failed[int(n)] = (
+                fail(
+                    int(i),
                     f"midpoint circle of strut {int(es[j])} has {int(ks[j])} vertices here but "
-                    f"{int(K[es[j]])} at node {int(K_node[es[j]])}"
+                    f"{int(K[es[j]])} at node {int(K_node[es[j]])}",
                 )
                 continue
             K[es] = ks
-            K_node[es] = n
-            ok_nodes.append(int(n))
+            K_node[es] = units.anchor[i]
+            inst_ok[i] = True
     base = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(K, out=base[1:])
     _, X, Y = strut_frames(graph)
@@ -613,9 +781,7 @@ def _stack(
         )
         idx = base[es][:, None] + np.arange(k_val)[None, :]
         circ[idx.ravel()] = pts.reshape(-1, 3)
-    ok = np.zeros(graph.num_nodes, dtype=bool)
-    ok[ok_nodes] = True
-    # 2. per template, all its nodes at once
+    # 2. per template, all its instances at once
     verts = [circ]
     faces: list[NDArray[np.int64]] = []
     fnode: list[NDArray[np.int64]] = []
@@ -624,36 +790,45 @@ def _stack(
     for t, res in enumerate(results):
         if res.status != "ok":
             continue
-        ns = members[t]
-        ns = ns[ok[ns]]
-        if len(ns) == 0:
+        inst = by_template[t]
+        inst = inst[inst_ok[inst]]
+        if len(inst) == 0:
             continue
         nc = sum(len(c) for c in res.circles)
         nv = len(res.vertices)
         ni = nv - nc
-        E = np.stack([slot_edges[n] for n in ns])  # (c, d)
-        vmap = np.empty((len(ns), nv), dtype=np.int64)
-        col = 0
-        for j, c in enumerate(res.circles):
-            vmap[:, col : col + len(c)] = base[E[:, j]][:, None] + np.arange(len(c))[None, :]
-            col += len(c)
-        vmap[:, nc:] = offset + np.arange(len(ns) * ni).reshape(len(ns), ni)
-        offset += len(ns) * ni
-        placed = res.vertices[None, :, :] + graph.nodes[ns][:, None, :]
-        # snapping check: the circle vertices must already be where the canonical points are
-        move = np.abs(placed[:, :nc, :] - circ[vmap[:, :nc]]).max(axis=(1, 2)) if nc else None
-        if move is not None:
+        vmap = np.empty((len(inst), nv), dtype=np.int64)
+        if nc:
+            E = np.stack([units.slots[i] for i in inst])  # (c, d)
+            col = 0
+            for j, c in enumerate(res.circles):
+                vmap[:, col : col + len(c)] = base[E[:, j]][:, None] + np.arange(len(c))[None, :]
+                col += len(c)
+        vmap[:, nc:] = offset + np.arange(len(inst) * ni).reshape(len(inst), ni)
+        offset += len(inst) * ni
+        anchors = units.anchor[inst]
+        placed = res.vertices[None, :, :] + graph.nodes[anchors][:, None, :]
+        bad = np.zeros(len(inst), dtype=bool)
+        if nc:  # snapping check: circle vertices must already be at their canonical points
+            move = np.abs(placed[:, :nc, :] - circ[vmap[:, :nc]]).max(axis=(1, 2))
             bad = move > config.SNAP_RTOL * scale
-            for n, mv in zip(ns[bad], move[bad], strict=True):
-                failed[int(n)] = (
-                    f"a midpoint circle vertex is {mv:.3g} away from its canonical point"
-                )
+            for i, mv in zip(inst[bad], move[bad], strict=True):
+                fail(int(i), f"a midpoint circle vertex is {mv:.3g} away from its canonical point")
         verts.append(placed[:, nc:, :].reshape(-1, 3))
-        if move is not None and bad.any():  # their vertices stay (unused, compacted below)
-            ns, vmap = ns[~bad], vmap[~bad]
+        inst, vmap = inst[~bad], vmap[~bad]  # their vertices stay (unused, compacted below)
+        if len(inst) == 0:
+            continue
         faces.append(vmap[:, res.faces].reshape(-1, 3))
-        fnode.append(np.repeat(ns, len(res.faces)))
-        hub_volume[ns] = res.volume
+        mem = np.stack([units.members[i] for i in inst])  # (c, members)
+        if mem.shape[1] == 1:
+            fnode.append(np.repeat(mem[:, 0], len(res.faces)))
+        else:  # each triangle to the nearest member node
+            local = graph.nodes[mem[0]] - graph.nodes[mem[0, 0]]
+            cen = res.vertices[res.faces].mean(axis=1)
+            near = np.argmin(np.linalg.norm(cen[:, None, :] - local[None, :, :], axis=2), axis=1)
+            fnode.append(mem[:, near].reshape(-1))
+        hub_volume[mem.ravel()] = 0.0
+        hub_volume[units.anchor[inst]] = res.volume
     V = np.concatenate(verts) if verts else np.zeros((0, 3))
     F = np.concatenate(faces) if faces else np.zeros((0, 3), dtype=np.int64)
     FN = np.concatenate(fnode) if fnode else np.zeros(0, dtype=np.int64)
@@ -663,6 +838,8 @@ def _stack(
     if not used.all():
         new = np.cumsum(used) - 1
         V, F = V[used], new[F]
+    for n in failed:
+        hub_volume[n] = np.nan
     return (
         Mesh(vertices=np.ascontiguousarray(V), faces=np.ascontiguousarray(F)),
         FN,
