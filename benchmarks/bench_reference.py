@@ -7,7 +7,14 @@
    fast_stitch's volume error against the exact reference at P = 3, 4, 6, 10, 18, 24,
    with and without ``volume_preserving``.
 
-Usage: ``python benchmarks/bench_reference.py [--quick]``
+4. ``--refused`` (issue 14): how many lattices the reference refuses, over every fill mode
+   (bcc inside, bcc clip, kelvin conform, tet) on the parts in ``../shared/data``: cell =
+   largest extent / 8, radius = cell / 12, lattices of at most ``--max-struts`` struts.
+   For each: the places the former per-hub check (``find_overlaps``) refused, the clusters
+   now built as one solid, whether the reference is complete and watertight (trimesh and
+   manifold3d), and its time.
+
+Usage: ``python benchmarks/bench_reference.py [--quick] [--refused [--max-struts N]]``
 """
 
 from __future__ import annotations
@@ -154,6 +161,119 @@ def bench_table2(quick: bool) -> None:
     )
 
 
+REFUSED_SETTINGS: dict[str, dict[str, object]] = {
+    "bcc": {"cell": "bcc", "fill": "inside"},
+    "clip": {"cell": "bcc", "fill": "clip"},
+    "conform": {"cell": "kelvin", "fill": "conform"},
+    "tet": {"method": "tet"},
+}
+
+
+def bench_refused(
+    max_struts: int = 1500,
+    parts: list[str] | None = None,
+    settings: list[str] | None = None,
+    budget: float = 3600.0,
+    build_max_struts: int = 600,
+) -> list[list[str]]:
+    """Issue 14: count the lattices the exact reference refuses, over every fill mode."""
+    import resource
+    import warnings
+    from pathlib import Path
+
+    from lattice_cad import Lattice
+    from reference_boolean import find_overlaps
+    from reference_boolean.compare import mesh_validity
+    from reference_boolean.reference import _unit_specs
+
+    data = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    files = sorted((data / "step").glob("*")) + sorted((data / "meshes").glob("*"))
+    if parts:
+        files = [f for f in files if any(p in f.name for p in parts)]
+    rows: list[list[str]] = []
+    t_start = time.perf_counter()
+    counts = {"refused": 0, "refused before": 0, "built": 0, "skipped": 0}
+    for f in files:
+        for name, opts in REFUSED_SETTINGS.items():
+            if settings and name not in settings:
+                continue
+            row = [f.name[:34], name]
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    from conformal import load_part
+
+                    part = load_part(f)
+                    cell = float(np.max(part.size)) / 8.0
+                    lat = Lattice.fill(part, cell_size=cell, radius=cell / 12.0, **opts)
+                g = lat.graph
+            except Exception as exc:
+                rows.append(row + ["-", "-", "-", "-", "-", f"no lattice: {type(exc).__name__}"])
+                print("  ".join(rows[-1]), flush=True)
+                continue
+            old = find_overlaps(g)
+            counts["refused before"] += bool(old)
+            row += [f"{g.num_edges:,}", str(int((g.degree == 1).sum()))]
+            row.append(f"refused ({len(old)})" if old else "clean")
+            if g.num_edges > max_struts:
+                counts["skipped"] += 1
+                rows.append(row + ["-", f"skipped: {g.num_edges:,} > {max_struts:,} struts"])
+                print("  ".join(rows[-1]), flush=True)
+                continue
+            units = _unit_specs(g, True)  # the clustering alone (cheap): never refuses
+            multi = [len(m) for m in units.members if len(m) > 1]
+            plan = f"{len(multi)} (max {max(multi, default=1)}), {len(units.specs)} solids"
+            why = ""
+            if g.num_edges > build_max_struts:
+                why = f"not built: {g.num_edges:,} > {build_max_struts:,} struts"
+            elif time.perf_counter() - t_start > budget:
+                why = "not built: time budget spent"
+            if why:
+                counts["skipped"] += 1
+                rows.append(row + [plan, why])
+                print("  ".join(rows[-1]), flush=True)
+                continue
+            t = time.perf_counter()
+            c0 = time.process_time()
+            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            try:
+                ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
+            except Exception as exc:
+                counts["refused"] += 1
+                rows.append(row + ["-", f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}"])
+                print("  ".join(rows[-1]), flush=True)
+                continue
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
+            wall = time.perf_counter() - t
+            counts["built"] += 1
+            row.append(plan)
+            if not ref.complete:
+                counts["refused"] += 1
+                n, why = next(iter(ref.failed.items()))
+                verdict = f"INCOMPLETE {len(ref.failed)} nodes, e.g. {n}: {why[:50]}"
+            else:
+                v = mesh_validity(ref.mesh)
+                verdict = "ok, watertight" if v["valid"] else f"ok, mesh {v}"
+            load = os.getloadavg()[0]
+            rows.append(row + [f"{verdict}; {wall:.0f} s wall, {cpu:.0f} s cpu, load {load:.1f}"])
+            print("  ".join(rows[-1]), flush=True)
+    print(
+        table(
+            "4. Lattices refused by the exact reference (issue 14; cell = extent / 8, "
+            f"r = cell / 12, at most {max_struts:,} struts built)",
+            ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
+            [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
+        )
+    )
+    print(
+        f"refused now: {counts['refused']} of {counts['built']} built; refused by the former "
+        f"per-hub check: {counts['refused before']} of {len(rows)} lattices; "
+        f"skipped: {counts['skipped']}"
+    )
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="small versions, < 1 min")
@@ -166,7 +286,19 @@ def main() -> None:
         action="store_true",
         help="stumps start at the node (the construction before trimming, for comparison)",
     )
+    ap.add_argument("--refused", action="store_true", help="issue 14: lattices refused (only)")
+    ap.add_argument("--max-struts", type=int, default=1500, help="with --refused")
+    ap.add_argument("--parts", nargs="+", default=None, help="with --refused: name filters")
+    ap.add_argument("--settings", nargs="+", default=None, choices=list(REFUSED_SETTINGS))
+    ap.add_argument("--budget", type=float, default=3600.0, help="with --refused: seconds")
+    ap.add_argument(
+        "--build-max-struts", type=int, default=600, help="with --refused: build up to this"
+    )
     a = ap.parse_args()
+    if a.refused:
+        print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
+        bench_refused(a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts)
+        return
     if a.no_trim:
         from lattice_cad.core import config
 

@@ -50,7 +50,9 @@ def hub_radius(graph: LatticeGraph) -> NDArray[np.float64]:
     return np.where(graph.degree >= 2, config.SPHERE_FACTOR * rmax, 0.0)
 
 
-def _adjacent_pairs(graph: LatticeGraph, R: NDArray[np.float64]) -> tuple[list[NDArray[np.int64]], list[str]]:
+def _adjacent_pairs(
+    graph: LatticeGraph, R: NDArray[np.float64]
+) -> tuple[list[NDArray[np.int64]], list[str]]:
     """Pairs of strut-joined nodes whose hubs cross the strut's midpoint plane."""
     L = np.asarray(graph.edge_lengths)
     edges = graph.edges
@@ -101,7 +103,10 @@ def _adjacent_pairs(graph: LatticeGraph, R: NDArray[np.float64]) -> tuple[list[N
 
 
 def _segment_distance(
-    p0: NDArray[np.float64], p1: NDArray[np.float64], q0: NDArray[np.float64], q1: NDArray[np.float64]
+    p0: NDArray[np.float64],
+    p1: NDArray[np.float64],
+    q0: NDArray[np.float64],
+    q1: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """(K,) float64: distance between segments ``p0 p1`` and ``q0 q1`` (each (K, 3)).
 
@@ -131,7 +136,9 @@ def _segment_distance(
     return np.linalg.norm(cp - cq, axis=1)
 
 
-def _distant_pairs(graph: LatticeGraph, R: NDArray[np.float64]) -> tuple[NDArray[np.int64], list[str]]:
+def _distant_pairs(
+    graph: LatticeGraph, R: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], list[str]]:
     """Pairs of nodes not joined by a strut whose hub enclosures intersect."""
     from scipy.spatial import cKDTree
 
@@ -142,9 +149,7 @@ def _distant_pairs(graph: LatticeGraph, R: NDArray[np.float64]) -> tuple[NDArray
     # primitives: stump (e, side) = capsule node..mid, radius max(r_node, r_mid); spheres
     p0 = np.concatenate([nodes[edges[:, 0]], nodes[edges[:, 1]]])
     p1 = np.concatenate([mid, mid])
-    rad = np.concatenate(
-        [np.maximum(graph.radii[:, 0], rmid), np.maximum(graph.radii[:, 1], rmid)]
-    )
+    rad = np.concatenate([np.maximum(graph.radii[:, 0], rmid), np.maximum(graph.radii[:, 1], rmid)])
     owner = np.concatenate([edges[:, 0], edges[:, 1]])
     sph = np.flatnonzero(R > 0)
     p0 = np.concatenate([p0, nodes[sph]])
@@ -176,8 +181,10 @@ def _distant_pairs(graph: LatticeGraph, R: NDArray[np.float64]) -> tuple[NDArray
     i, j = i[hit], j[hit]
 
     def name(k: int) -> str:
-        return f"sphere of node {int(owner[k])}" if k >= 2 * m else (
-            f"stump of strut {int(k % m)} at node {int(owner[k])}"
+        return (
+            f"sphere of node {int(owner[k])}"
+            if k >= 2 * m
+            else (f"stump of strut {int(k % m)} at node {int(owner[k])}")
         )
 
     why = [

@@ -165,9 +165,7 @@ def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
         h1 = stump_start(spec.hubs[b].radius, rb, rm, 0.5 * L) if trim else 0.0
         r0 = ra + (rb - ra) * h0 / L
         r1 = rb + (ra - rb) * h1 / L
-        out.append(
-            _frustum(pa + h0 * u, u, spec.inner_xdirs[k], r0, r1, L - h0 - h1, f"strut {k}")
-        )
+        out.append(_frustum(pa + h0 * u, u, spec.inner_xdirs[k], r0, r1, L - h0 - h1, f"strut {k}"))
     for j, v in enumerate(spec.vecs):
         m = int(spec.member[j])
         h = float(np.linalg.norm(v))
