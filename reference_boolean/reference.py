@@ -65,6 +65,15 @@ __all__ = [
 # strut is nearly parallel to _FRAME_REF). Both depend on the strut's line only, so the two
 # hubs of a strut, and translated copies of a hub, get the same frame.
 _SIGN_REF = np.array([0.5773502691896258, 0.2113248654051871, 0.7886751345948129])
+# _SIGN_REF is exactly perpendicular to (-1, -1, 1), a BCC strut direction: there the sign
+# came from rounding noise, so translated struts could get opposite frames (and a cached hub
+# the frames of another node: circles 2.98 mm off on a clipped GE bracket). Directions
+# nearly perpendicular to it take their sign from the next vectors instead.
+_SIGN_REFS_ALT = (
+    np.array([0.8211, -0.3119, 0.4781]) / np.linalg.norm([0.8211, -0.3119, 0.4781]),
+    np.array([-0.2713, 0.6523, 0.7079]) / np.linalg.norm([-0.2713, 0.6523, 0.7079]),
+)
+_SIGN_TOL = 1e-6
 _FRAME_REF = np.array([0.3119, 0.8211, -0.4781]) / np.linalg.norm([0.3119, 0.8211, -0.4781])
 _FRAME_REF_ALT = np.array([-0.6124, 0.3536, 0.7071]) / np.linalg.norm([-0.6124, 0.3536, 0.7071])
 
@@ -189,7 +198,11 @@ class Reference:
 def _canonical_dir(d: NDArray[np.float64]) -> NDArray[np.float64]:
     """(M, 3) unit directions with a sign that depends on the line only."""
     u = d / np.linalg.norm(d, axis=1)[:, None]
-    s = np.sign(u @ _SIGN_REF)
+    dot = u @ _SIGN_REF
+    for ref in _SIGN_REFS_ALT:
+        weak = np.abs(dot) < _SIGN_TOL
+        dot[weak] = u[weak] @ ref
+    s = np.sign(dot)
     s[s == 0] = 1.0
     return u * s[:, None]
 
