@@ -1,14 +1,21 @@
 """The exact per-hub B-rep reference of a lattice (Wang, Chen & Rosen's unit trusses).
 
+The design (docs/REFERENCE.md): struts are cylinders (cone frustums when tapered), every
+node of degree >= 2 has a ball of radius ``R_n = 1.00001 * max incident radius``, and a
+leaf (degree 1: a free end, or where a strut meets the part's surface) has no ball: the
+strut ends flat at the node, as in the fast mesh.
+
 For every node with struts, its *hub* (unit truss) is built as an OCCT solid:
-a sphere of radius ``R_n = 1.00001 * max incident radius`` fused with the
-half-struts ("stumps") from the node to each strut's midpoint (cylinders, or
-cone frustums from ``r_node`` to ``r_mid = (r_a + r_b) / 2`` for tapered
-struts). In a *clean* lattice the hubs only touch on the shared midpoint
-discs, so the lattice volume is the sum of the hub volumes (exact, from
-OCCT's GProp) and the lattice surface is the union of the hub surfaces
-without the discs: the tessellations are stacked without any boolean between
-hubs.
+its sphere fused with the half-struts ("stumps") from the node to each strut's midpoint
+(cylinders, or cone frustums from ``r_node`` to ``r_mid = (r_a + r_b) / 2`` for tapered
+struts). Where hubs only touch on the shared midpoint discs, the lattice volume is the sum
+of the hub volumes (exact, from OCCT's GProp) and the lattice surface is the union of the
+hub surfaces without the discs: the tessellations are stacked without any boolean between
+hubs. Nodes whose hubs would overlap (short struts, struts at small angles, clipped ends)
+are grouped into clusters (:mod:`reference_boolean.clusters`), each built as one fused
+solid whose struts to other nodes end on midpoint discs as well
+(:mod:`lattice_cad.occ_impl.cluster`); a leaf is a cluster of its own (its half-strut).
+So every lattice gets an exact, watertight reference.
 
 Shared midpoint circles: both hubs of a strut build its stump with the same
 canonical frame (a function of the strut's line only) and are tessellated
@@ -237,7 +244,10 @@ def _node_radius(graph: LatticeGraph) -> NDArray[np.float64]:
 
 
 def find_overlaps(graph: LatticeGraph) -> list[str]:
-    """Why hubs of the lattice would overlap (empty list for a clean lattice).
+    """Why per-node hubs with a ball at *every* node would overlap (empty: a clean lattice).
+
+    The check of the STEP path (:mod:`lattice_cad.brep`: sew or fuse); the reference
+    builds such nodes as clusters instead (:func:`reference_boolean.clusters.find_clusters`).
 
     Two cases are detected, each named by node and strut:
 
@@ -651,7 +661,7 @@ def build_reference(
     Parameters
     ----------
     graph : LatticeGraph
-        Must be clean (see :func:`find_overlaps`).
+        Any lattice: nodes whose hubs would overlap are built as clusters.
     tolerance : float, optional
         Absolute linear deflection of the tessellation (chordal error bound);
         default ``0.01 * smallest strut radius``. Does not affect :attr:`Reference.volume`,
@@ -662,7 +672,7 @@ def build_reference(
         Worker processes (default ``min(2, cpu_count)``); 0 builds in this
         process, without the time bound.
     cache : bool
-        Build hubs that are equal up to translation once.
+        Build hubs and clusters that are equal up to translation once.
     hub_timeout : float
         Seconds after which one hub build is stopped and reported as failed.
     keep_solids : bool
@@ -676,10 +686,9 @@ def build_reference(
 
     Raises
     ------
-    DirtyLatticeError
-        Hubs would overlap (the message names the nodes and struts).
     ReferenceBuildError
-        The graph has no struts, or the options are invalid.
+        The graph has no struts, or the options are invalid. (Overlapping hubs are no
+        longer refused: see :attr:`Reference.clusters`.)
     """
     t0 = time.perf_counter()
     if not isinstance(graph, LatticeGraph):
