@@ -23,9 +23,8 @@ in worker processes, stacks the results and compares meshes with them.
 OCCT (OCP) is only imported when a reference is built.
 """
 
-from reference_boolean.clusters import find_clusters
-
 from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
+from reference_boolean.clusters import find_clusters
 from reference_boolean.compare import MeshComparison, ValidationReport, compare, union_mesh
 from reference_boolean.reference import (
     HubSolids,

@@ -154,3 +154,20 @@ def test_real_part_clip_lattice():
     assert mesh_validity(ref.mesh)["valid"]
     v = {n: union_mesh(g, n).volume for n in (32, 64)}
     assert (4 * v[64] - v[32]) / 3 == pytest.approx(ref.volume, rel=1e-3)
+
+
+def test_strut_frames_of_bcc_diagonals_do_not_depend_on_rounding():
+    # (-1, -1, 1) is exactly perpendicular to the first sign reference: translated struts
+    # along it must still get the same frame (a cached hub takes another node's frames)
+    from reference_boolean import strut_frames
+
+    rng = np.random.default_rng(5)
+    base = rng.uniform(-50, 50, size=(40, 3))
+    d = np.array([-1.0, -1.0, 1.0]) * 4.3
+    nodes = np.concatenate([base, base + d])
+    edges = np.column_stack([np.arange(40), np.arange(40) + 40])
+    edges[::2] = edges[::2, ::-1]  # half of them the other way round
+    g = LatticeGraph(nodes, edges, 0.3)
+    axis, x, y = strut_frames(g)
+    for a in (axis, x, y):
+        assert np.abs(a - a[0]).max() < 1e-12
