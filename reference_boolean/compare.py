@@ -317,7 +317,12 @@ class ValidationReport:
                 "reference": dict(ref.timings),
                 "union": {int(n): float(t) for n, t in self.union_seconds.items()},
             },
-            "reference_hubs": {"unique": ref.unique_hubs, "cache_hits": ref.cache_hits},
+            "reference_hubs": {
+                "unique": ref.unique_hubs,
+                "cache_hits": ref.cache_hits,
+                "clusters": len(ref.clusters),
+                "largest_cluster": max((len(c) for c in ref.clusters), default=1),
+            },
             "tessellation": {"tolerance": ref.tolerance, "angular": ref.angular},
             "worst_nodes": [{"node": n, "deviation": d} for n, d in self.worst_nodes()],
         }

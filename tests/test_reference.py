@@ -91,19 +91,18 @@ def test_star_and_tapered():
 
 
 def test_tapered_strut_volume():
-    # one tapered strut; its two hubs: spheres R_a, R_b and frustums meeting at r_mid
+    # two tapered struts in line through a hub (sphere R_b); the leaves end flat
     ra, rb, L = 0.1, 0.2, 2.0
-    g = LatticeGraph([[0, 0, 0], [0, 0, L]], [[0, 1]], [[ra, rb]])
+    g = LatticeGraph([[0, 0, 0], [0, 0, L], [0, 0, 2 * L]], [[0, 1], [1, 2]], [[ra, rb], [rb, ra]])
     ref = build_reference(g, workers=1)
     assert ref.complete
     check_watertight(ref.mesh)
-    # volume of the union of two spheres and a cone frustum, by numerical integration
-    Ra, Rb = config.SPHERE_FACTOR * ra, config.SPHERE_FACTOR * rb
-    z = np.linspace(-Ra, L + Rb, 400_001)
-    rc = np.where((z >= 0) & (z <= L), ra + (rb - ra) * z / L, 0.0)
-    rsa = np.sqrt(np.clip(Ra**2 - z**2, 0, None))
+    # volume of the union of the sphere and the two frustums, by numerical integration
+    Rb = config.SPHERE_FACTOR * rb
+    z = np.linspace(0.0, 2 * L, 800_001)
+    rc = ra + (rb - ra) * (1.0 - np.abs(z - L) / L)
     rsb = np.sqrt(np.clip(Rb**2 - (z - L) ** 2, 0, None))
-    rr = np.maximum(rc, np.maximum(rsa, rsb))
+    rr = np.maximum(rc, rsb)
     y = np.pi * rr**2
     vol = float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(z)))
     assert ref.volume == pytest.approx(vol, rel=1e-6)
