@@ -177,15 +177,9 @@ class Reference:
 
         g = self.graph
         u = self.units
-        mids: list[NDArray[np.float64]] = []
-        axes: list[NDArray[np.float64]] = []
-        for spec in u.specs:
-            if hasattr(spec, "centres"):  # a cluster (or a leaf)
-                mids.append(spec.centres)
-                axes.append(spec.axes)
-            else:
-                mids.append(np.asarray(spec.vecs, dtype=np.float64))
-                axes.append(spec.vecs / np.linalg.norm(spec.vecs, axis=1)[:, None])
+        discs = [_discs(spec) for spec in u.specs]
+        mids = [d[0] for d in discs]
+        axes = [d[1] for d in discs]
         inst_of = {int(n): i for i, mem in enumerate(u.members) for n in mem}
         failed = {int(u.template[inst_of[n]]): why for n, why in self.failed.items()}
         shapes = sew_hubs(
@@ -571,20 +565,30 @@ def _run(
 # ------------------------------------------------------------- hub solids
 @dataclass(frozen=True, eq=False)
 class HubSolids:
-    """The hub solids of a lattice, for fusing or sewing into its exact B-rep.
+    """The hub and cluster solids of a lattice, for sewing into its exact B-rep.
+
+    The same solids as the reference (:func:`build_reference`): a hub per node, a fused
+    solid per cluster of nodes whose hubs would overlap, a half-strut (flat at the node)
+    per leaf. They meet only on midpoint discs, so sewing them along the midpoint
+    circles gives the lattice (:func:`lattice_cad.occ_impl.lattice_brep.sew_hubs`).
 
     Attributes
     ----------
     breps : list of bytes
-        Binary BREP of each distinct hub (empty for a failed one), node at the origin.
+        Binary BREP of each distinct solid (empty for a failed one), its anchor at the origin.
     template : (N,) int64
-        Index into ``breps`` of each node's hub (-1 for isolated nodes).
+        Index into ``breps`` of the solid each node belongs to (-1 for isolated nodes).
     mid_vectors : list of (d, 3) float64
-        Node -> strut midpoint vector of each stump of each distinct hub (where its
-        midpoint discs lie).
+        Per distinct solid, anchor -> midpoint vector of each disc it ends on.
     failed : dict[int, str]
-        Distinct hub index -> why it could not be built.
+        Distinct solid index -> why it could not be built.
     seconds : float
+    instance_template : (I,) int64
+        Index into ``breps`` of each placed solid.
+    anchors : (I,) int64
+        The node each placed solid's origin is at.
+    axes : list of (d, 3) float64
+        Per distinct solid, the strut axis of each midpoint disc.
     """
 
     breps: list[bytes]
@@ -592,6 +596,17 @@ class HubSolids:
     mid_vectors: list[NDArray[np.float64]]
     failed: dict[int, str]
     seconds: float
+    instance_template: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    anchors: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    axes: list[NDArray[np.float64]] = field(default_factory=list)
+
+
+def _discs(spec: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(d, 3) disc centres (from the anchor) and (d, 3) axes of a hub or cluster spec."""
+    if hasattr(spec, "centres"):
+        return spec.centres, spec.axes
+    vecs = np.asarray(spec.vecs, dtype=np.float64)
+    return vecs, vecs / np.linalg.norm(vecs, axis=1)[:, None]
 
 
 def hub_solids(
@@ -601,10 +616,9 @@ def hub_solids(
     hub_timeout: float = config.DEFAULT_HUB_TIMEOUT,
     progress: Any = None,
 ) -> HubSolids:
-    """Build the hub solid of every distinct hub (equal up to translation: built once).
+    """Build every distinct hub and cluster solid (equal up to translation: built once).
 
-    Unlike :func:`build_reference` the lattice need not be clean and nothing is
-    tessellated: where hubs overlap, their fuse is still the exact lattice.
+    Nothing is tessellated; any lattice (clusters where hubs would overlap).
 
     Parameters
     ----------
@@ -612,7 +626,7 @@ def hub_solids(
     workers : int, optional
         Worker processes (default ``min(2, cpu_count)``); 0 builds in this process.
     hub_timeout : float
-        Seconds after which one hub build is stopped and reported as failed.
+        Seconds after which one build is stopped and reported as failed.
     progress : callable, optional
         Called as ``progress("build", done, total)``.
 
@@ -626,22 +640,27 @@ def hub_solids(
     workers = check_workers(workers, minimum=0)
     if workers is None:
         workers = min(2, os.cpu_count() or 1)
-    specs, template, _, _ = _hub_specs(graph, True)
-    results = _run(specs, 0.0, 0.0, True, workers, float(hub_timeout), progress)
+    units = _unit_specs(graph, True)
+    results = _run(units.specs, 0.0, 0.0, True, workers, float(hub_timeout), progress)
     failed = {t: r.status for t, r in enumerate(results) if r.status != "ok"}
+    discs = [_discs(s) for s in units.specs]
     return HubSolids(
         breps=[r.brep for r in results],
-        template=template,
-        mid_vectors=[np.asarray(s.vecs, dtype=np.float64) for s in specs],
+        template=np.where(
+            units.node_instance >= 0, units.template[np.maximum(units.node_instance, 0)], -1
+        ),
+        mid_vectors=[d[0] for d in discs],
         failed=failed,
         seconds=time.perf_counter() - t0,
+        instance_template=units.template,
+        anchors=units.anchor,
+        axes=[d[1] for d in discs],
     )
 
 
 def count_hubs(graph: LatticeGraph) -> int:
-    """Number of distinct hubs (up to translation) that :func:`hub_solids` would build."""
-    specs, _, _, _ = _hub_specs(graph, True)
-    return len(specs)
+    """Number of distinct hubs and clusters (up to translation) :func:`hub_solids` builds."""
+    return len(_unit_specs(graph, True).specs)
 
 
 # ----------------------------------------------------------------- driver
