@@ -21,14 +21,16 @@ by the part's surface there anyway. Every node of degree >= 2 has a sphere of ra
 
 The relation (:func:`overlap_pairs`)
 ------------------------------------
-* Nodes ``a``, ``b`` joined by strut ``e``: their hubs are separated by the midpoint plane
-  of ``e`` unless ``a``'s sphere reaches it (``R_a >= L_e / 2``) or one of ``a``'s other
-  stumps reaches it (its far disc or node disc, projected on ``e``'s axis, at or past
-  ``L_e / 2``), or the same from ``b``'s side. Either makes ``(a, b)`` a pair.
-* Nodes not joined by a strut: each stump is enclosed in the capsule of its axis segment
-  (node to midpoint) with its larger radius, each sphere in its own ball; two hubs whose
-  enclosures intersect make a pair (conservative: the cluster may be larger than needed,
-  never too small).
+* A ball that reaches the midpoint plane of one of its struts (``R_a >= L_e / 2``) makes
+  the strut's two nodes a pair.
+* Otherwise each stump is enclosed in the capsule of its axis segment (node to midpoint)
+  with its larger radius, each ball is its own enclosure; two hubs with intersecting
+  enclosures make a pair (conservative: a cluster may be larger than needed, never too
+  small). Not compared: the two stumps of one strut (they meet on its midpoint disc by
+  design) and a ball with the other node's stump of the same strut (the exact test
+  above). A stump that would cut another strut's midpoint disc of its own hub touches the
+  neighbour's stump behind that disc, so the two nodes are one cluster and the disc is
+  never needed.
 """
 
 from __future__ import annotations
@@ -53,10 +55,9 @@ def hub_radius(graph: LatticeGraph) -> NDArray[np.float64]:
 def _adjacent_pairs(
     graph: LatticeGraph, R: NDArray[np.float64]
 ) -> tuple[list[NDArray[np.int64]], list[str]]:
-    """Pairs of strut-joined nodes whose hubs cross the strut's midpoint plane."""
+    """Pairs of strut-joined nodes where a ball reaches past the strut's midpoint plane."""
     L = np.asarray(graph.edge_lengths)
     edges = graph.edges
-    offsets, inc_edge, inc_side = graph.incidence
     pairs: list[NDArray[np.int64]] = []
     why: list[str] = []
     for side in (0, 1):
@@ -69,36 +70,6 @@ def _adjacent_pairs(
                     f"node {int(n[e])}: sphere radius {R[n[e]]:.6g} reaches past the midpoint "
                     f"of strut {int(e)} (half length {0.5 * L[e]:.6g})"
                 )
-    rmid = graph.radii.mean(axis=1)
-    u = np.asarray(graph.edge_vectors) / L[:, None]
-    deg = graph.degree
-    # group nodes by degree so each group is one vectorised (k, d, d) computation
-    for d in np.unique(deg[deg >= 2]):
-        ns = np.flatnonzero(deg == d)
-        idx = offsets[ns][:, None] + np.arange(d)[None, :]
-        es = inc_edge[idx]  # (k, d)
-        sd = inc_side[idx]
-        dirs = u[es] * np.where(sd == 0, 1.0, -1.0)[..., None]  # (k, d, 3) away from node
-        cos = np.clip(np.einsum("kid,kjd->kij", dirs, dirs), -1.0, 1.0)
-        sin = np.sqrt(1.0 - cos**2)
-        h = 0.5 * L[es]  # (k, d)
-        rn = graph.radii[es, sd]
-        reach = np.maximum(
-            h[:, None, :] * cos + rmid[es][:, None, :] * sin, rn[:, None, :] * sin
-        )  # reach[k, i, j]: farthest point of stump j along strut i's axis
-        diag = np.arange(d)
-        reach[:, diag, diag] = -np.inf
-        kk, ii, jj = np.nonzero(reach >= h[:, :, None])
-        if len(kk) == 0:
-            continue
-        other = edges[es[kk, ii], 1 - sd[kk, ii]]
-        pairs.append(np.column_stack([ns[kk], other]))
-        for k, i, j in zip(kk[:20], ii[:20], jj[:20], strict=True):
-            why.append(
-                f"node {int(ns[k])}: the stump of strut {int(es[k, j])} reaches the cut plane "
-                f"of strut {int(es[k, i])} "
-                f"(angle {np.degrees(np.arccos(cos[k, i, j])):.3g} deg)"
-            )
     return pairs, why
 
 
@@ -136,10 +107,10 @@ def _segment_distance(
     return np.linalg.norm(cp - cq, axis=1)
 
 
-def _distant_pairs(
+def _capsule_pairs(
     graph: LatticeGraph, R: NDArray[np.float64]
 ) -> tuple[NDArray[np.int64], list[str]]:
-    """Pairs of nodes not joined by a strut whose hub enclosures intersect."""
+    """Pairs of nodes whose hubs' enclosing capsules intersect (beyond a shared disc)."""
     from scipy.spatial import cKDTree
 
     nodes, edges = graph.nodes, graph.edges
@@ -168,11 +139,14 @@ def _distant_pairs(
     keep = owner[i] != owner[j]
     keep &= np.linalg.norm(centre[i] - centre[j], axis=1) < bound[i] + bound[j]
     i, j = i[keep], j[keep]
-    # joined by a strut: handled by the midpoint plane test
-    n = np.int64(graph.num_nodes)
-    lo, hi = np.minimum(owner[i], owner[j]), np.maximum(owner[i], owner[j])
-    ekey = np.minimum(edges[:, 0], edges[:, 1]) * n + np.maximum(edges[:, 0], edges[:, 1])
-    keep = ~np.isin(lo * n + hi, ekey)
+    # the two stumps of one strut meet on its disc, by design
+    stump_i, stump_j = i < 2 * m, j < 2 * m
+    keep = ~(stump_i & stump_j & (i % m == j % m))
+    # a ball and the other end's stump of a strut at its node: the exact test R >= L / 2
+    for sph_, stp in ((i, j), (j, i)):
+        is_pair = (sph_ >= 2 * m) & (stp < 2 * m)
+        e = stp % m
+        keep &= ~(is_pair & ((edges[e, 0] == owner[sph_]) | (edges[e, 1] == owner[sph_])))
     i, j = i[keep], j[keep]
     if len(i) == 0:
         return np.zeros((0, 2), np.int64), []
@@ -187,8 +161,17 @@ def _distant_pairs(
             else (f"stump of strut {int(k % m)} at node {int(owner[k])}")
         )
 
+    n = np.int64(graph.num_nodes)
+    ekey = set(
+        (np.minimum(edges[:, 0], edges[:, 1]) * n + np.maximum(edges[:, 0], edges[:, 1])).tolist()
+    )
+
+    def joined(a: int, b: int) -> str:
+        k = min(owner[a], owner[b]) * n + max(owner[a], owner[b])
+        return "joined by a strut" if int(k) in ekey else "no strut between them"
+
     why = [
-        f"nodes {int(owner[a])} and {int(owner[b])} (no strut between them): the {name(a)} "
+        f"nodes {int(owner[a])} and {int(owner[b])} ({joined(a, b)}): the {name(a)} "
         f"and the {name(b)} may touch"
         for a, b in zip(i[:20], j[:20], strict=True)
     ]
@@ -207,7 +190,7 @@ def overlap_pairs(graph: LatticeGraph) -> tuple[NDArray[np.int64], list[str]]:
     """
     R = hub_radius(graph)
     adj, why = _adjacent_pairs(graph, R)
-    far, why_far = _distant_pairs(graph, R)
+    far, why_far = _capsule_pairs(graph, R)
     pairs = np.concatenate([*adj, far]) if adj else far
     return pairs.reshape(-1, 2).astype(np.int64), why + why_far
 
