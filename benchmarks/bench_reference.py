@@ -23,6 +23,7 @@ import argparse
 import inspect
 import os
 import time
+from typing import Any
 
 import numpy as np
 
@@ -177,14 +178,7 @@ def bench_refused(
     build_max_struts: int = 600,
 ) -> list[list[str]]:
     """Issue 14: count the lattices the exact reference refuses, over every fill mode."""
-    import resource
-    import warnings
     from pathlib import Path
-
-    from lattice_cad import Lattice
-    from reference_boolean import find_overlaps
-    from reference_boolean.compare import mesh_validity
-    from reference_boolean.reference import _unit_specs
 
     data = Path(__file__).resolve().parents[1].parent / "shared" / "data"
     files = sorted((data / "step").glob("*")) + sorted((data / "meshes").glob("*"))
@@ -193,6 +187,45 @@ def bench_refused(
     rows: list[list[str]] = []
     t_start = time.perf_counter()
     counts = {"refused": 0, "refused before": 0, "built": 0, "skipped": 0}
+    try:
+        _refused_rows(files, settings, max_struts, build_max_struts, budget, t_start, rows, counts)
+    except KeyboardInterrupt:  # Ctrl-C: print the partial table
+        print("interrupted: partial table", flush=True)
+    print(
+        table(
+            "4. Lattices refused by the exact reference (issue 14; cell = extent / 8, "
+            f"r = cell / 12, at most {max_struts:,} struts, built up to {build_max_struts:,})",
+            ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
+            [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
+        )
+    )
+    print(
+        f"refused now: {counts['refused']} of {counts['built']} built; refused by the former "
+        f"per-hub check: {counts['refused before']} of {len(rows)} lattices; "
+        f"not built: {counts['skipped']}"
+    )
+    return rows
+
+
+def _refused_rows(
+    files: list[Any],
+    settings: list[str] | None,
+    max_struts: int,
+    build_max_struts: int,
+    budget: float,
+    t_start: float,
+    rows: list[list[str]],
+    counts: dict[str, int],
+) -> None:
+    import resource
+    import warnings
+
+    from conformal import load_part
+    from lattice_cad import Lattice
+    from reference_boolean import find_overlaps
+    from reference_boolean.compare import mesh_validity
+    from reference_boolean.reference import _unit_specs
+
     for f in files:
         for name, opts in REFUSED_SETTINGS.items():
             if settings and name not in settings:
@@ -201,8 +234,6 @@ def bench_refused(
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    from conformal import load_part
-
                     part = load_part(f)
                     cell = float(np.max(part.size)) / 8.0
                     lat = Lattice.fill(part, cell_size=cell, radius=cell / 12.0, **opts)
@@ -215,16 +246,13 @@ def bench_refused(
             counts["refused before"] += bool(old)
             row += [f"{g.num_edges:,}", str(int((g.degree == 1).sum()))]
             row.append(f"refused ({len(old)})" if old else "clean")
-            if g.num_edges > max_struts:
-                counts["skipped"] += 1
-                rows.append(row + ["-", f"skipped: {g.num_edges:,} > {max_struts:,} struts"])
-                print("  ".join(rows[-1]), flush=True)
-                continue
             units = _unit_specs(g, True)  # the clustering alone (cheap): never refuses
             multi = [len(m) for m in units.members if len(m) > 1]
             plan = f"{len(multi)} (max {max(multi, default=1)}), {len(units.specs)} solids"
             why = ""
-            if g.num_edges > build_max_struts:
+            if g.num_edges > max_struts:
+                why = f"skipped: {g.num_edges:,} > {max_struts:,} struts"
+            elif g.num_edges > build_max_struts:
                 why = f"not built: {g.num_edges:,} > {build_max_struts:,} struts"
             elif time.perf_counter() - t_start > budget:
                 why = "not built: time budget spent"
@@ -258,20 +286,6 @@ def bench_refused(
             load = os.getloadavg()[0]
             rows.append(row + [f"{verdict}; {wall:.0f} s wall, {cpu:.0f} s cpu, load {load:.1f}"])
             print("  ".join(rows[-1]), flush=True)
-    print(
-        table(
-            "4. Lattices refused by the exact reference (issue 14; cell = extent / 8, "
-            f"r = cell / 12, at most {max_struts:,} struts built)",
-            ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
-            [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
-        )
-    )
-    print(
-        f"refused now: {counts['refused']} of {counts['built']} built; refused by the former "
-        f"per-hub check: {counts['refused before']} of {len(rows)} lattices; "
-        f"skipped: {counts['skipped']}"
-    )
-    return rows
 
 
 def main() -> None:
