@@ -39,6 +39,7 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -427,6 +428,132 @@ def bench_fuse_ab(sample: int, rounds: int) -> None:
     ))  # fmt: skip
 
 
+REFUSED_SETTINGS: dict[str, dict[str, object]] = {
+    "bcc": {"cell": "bcc", "fill": "inside"},
+    "clip": {"cell": "bcc", "fill": "clip"},
+    "conform": {"cell": "kelvin", "fill": "conform"},
+    "tet": {"method": "tet"},
+}
+
+
+def bench_refused(
+    max_struts: int = 1500,
+    parts: list[str] | None = None,
+    settings: list[str] | None = None,
+    budget: float = 3600.0,
+    build_max_struts: int = 600,
+) -> list[list[str]]:
+    """Issue 14: count the lattices the exact reference refuses, over every fill mode."""
+    from pathlib import Path
+
+    data = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    files = sorted((data / "step").glob("*")) + sorted((data / "meshes").glob("*"))
+    if parts:
+        files = [f for f in files if any(p in f.name for p in parts)]
+    rows: list[list[str]] = []
+    t_start = time.perf_counter()
+    counts = {"refused": 0, "refused before": 0, "built": 0, "skipped": 0}
+    try:
+        _refused_rows(files, settings, max_struts, build_max_struts, budget, t_start, rows, counts)
+    except KeyboardInterrupt:  # Ctrl-C: print the partial table
+        print("interrupted: partial table", flush=True)
+    print(
+        table(
+            "4. Lattices refused by the exact reference (issue 14; cell = extent / 8, "
+            f"r = cell / 12, at most {max_struts:,} struts, built up to {build_max_struts:,})",
+            ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
+            [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
+        )
+    )
+    print(
+        f"refused now: {counts['refused']} of {counts['built']} built; refused by the former "
+        f"per-hub check: {counts['refused before']} of {len(rows)} lattices; "
+        f"not built: {counts['skipped']}"
+    )
+    return rows
+
+
+def _refused_rows(
+    files: list[Any],
+    settings: list[str] | None,
+    max_struts: int,
+    build_max_struts: int,
+    budget: float,
+    t_start: float,
+    rows: list[list[str]],
+    counts: dict[str, int],
+) -> None:
+    import resource
+    import warnings
+
+    from conformal import load_part
+    from lattice_cad import Lattice
+    from reference_boolean import find_overlaps
+    from reference_boolean.compare import mesh_validity
+    from reference_boolean.reference import _unit_specs
+
+    for f in files:
+        for name, opts in REFUSED_SETTINGS.items():
+            if settings and name not in settings:
+                continue
+            row = [f.name[:34], name]
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    part = load_part(f)
+                    cell = float(np.max(part.size)) / 8.0
+                    lat = Lattice.fill(part, cell_size=cell, radius=cell / 12.0, **opts)
+                g = lat.graph
+            except Exception as exc:
+                rows.append(row + ["-", "-", "-", "-", "-", f"no lattice: {type(exc).__name__}"])
+                print("  ".join(rows[-1]), flush=True)
+                continue
+            old = find_overlaps(g)
+            counts["refused before"] += bool(old)
+            row += [f"{g.num_edges:,}", str(int((g.degree == 1).sum()))]
+            row.append(f"refused ({len(old)})" if old else "clean")
+            units = _unit_specs(g, True)  # the clustering alone (cheap): never refuses
+            multi = [len(m) for m in units.members if len(m) > 1]
+            plan = f"{len(multi)} (max {max(multi, default=1)}), {len(units.specs)} solids"
+            why = ""
+            if g.num_edges > max_struts:
+                why = f"skipped: {g.num_edges:,} > {max_struts:,} struts"
+            elif g.num_edges > build_max_struts:
+                why = f"not built: {g.num_edges:,} > {build_max_struts:,} struts"
+            elif time.perf_counter() - t_start > budget:
+                why = "not built: time budget spent"
+            if why:
+                counts["skipped"] += 1
+                rows.append(row + [plan, why])
+                print("  ".join(rows[-1]), flush=True)
+                continue
+            t = time.perf_counter()
+            c0 = time.process_time()
+            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            try:
+                ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
+            except Exception as exc:
+                counts["refused"] += 1
+                rows.append(row + ["-", f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}"])
+                print("  ".join(rows[-1]), flush=True)
+                continue
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
+            wall = time.perf_counter() - t
+            counts["built"] += 1
+            row.append(plan)
+            if not ref.complete:
+                counts["refused"] += 1
+                n, why = next(iter(ref.failed.items()))
+                verdict = f"INCOMPLETE {len(ref.failed)} nodes, e.g. {n}: {why[:50]}"
+            else:
+                v = mesh_validity(ref.mesh)
+                verdict = "ok, watertight" if v["valid"] else f"ok, mesh {v}"
+            load = os.getloadavg()[0]
+            rows.append(row + [f"{verdict}; {wall:.0f} s wall, {cpu:.0f} s cpu, load {load:.1f}"])
+            print("  ".join(rows[-1]), flush=True)
+
+
 SECTIONS: dict[str, tuple[Callable[[bool], None], str]] = {
     "periodic": (bench_periodic, "1. periodic cubic lattice, hub cache"),
     "irregular": (bench_irregular, "2. irregular lattice, hubs per second"),
@@ -463,7 +590,19 @@ def main() -> None:
                     help="with --ge: manifold3d unions of the whole lattice")
     ap.add_argument("--fuse-ab", type=int, default=0, metavar="HUBS",
                     help="A/B of the hub fuse on this many tet hubs (2 rounds)")
+    ap.add_argument("--refused", action="store_true", help="issue 14: lattices refused (only)")
+    ap.add_argument("--max-struts", type=int, default=1500, help="with --refused")
+    ap.add_argument("--parts", nargs="+", default=None, help="with --refused: name filters")
+    ap.add_argument("--settings", nargs="+", default=None, choices=list(REFUSED_SETTINGS))
+    ap.add_argument("--budget", type=float, default=3600.0, help="with --refused: seconds")
+    ap.add_argument(
+        "--build-max-struts", type=int, default=600, help="with --refused: build up to this"
+    )
     a = ap.parse_args()
+    if a.refused:
+        print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
+        bench_refused(a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts)
+        return
     if a.ge or a.fuse_ab:
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
         if a.fuse_ab:

@@ -7,9 +7,10 @@ One path serves ``Lattice.save("x.step")``, ``Lattice.to_workplane()`` and
    large its STEP file will be (rates measured on the development machine, see
    ``config.BREP_*``), and :func:`check_size` refuses a lattice with more than
    ``max_struts`` struts with that estimate and the alternatives;
-2. the distinct hubs are built (``reference_boolean.hub_solids``), then sewn into one
-   solid per connected body (a clean lattice) or fused (a lattice whose hubs overlap,
-   as clipped and conforming fills have at the boundary);
+2. the distinct hubs are built (``reference_boolean.hub_solids``: the reference's design,
+   flat at leaves; nodes whose hubs would overlap, as clipped and conforming fills have at
+   the boundary, fused into one solid per cluster), then sewn into one solid per
+   connected body;
 3. with a B-rep part, the lattice is intersected with it (``trim``), so the STEP part
    keeps the part's size, as the printable mesh does; a mesh part cannot trim it (the
    STEP then holds the untrimmed exact lattice, with a warning);
@@ -63,7 +64,7 @@ class BrepEstimate:
     bytes: int
 
     def __str__(self) -> str:
-        how = "sewn" if self.clean else "fused (hubs overlap)"
+        how = "sewn" if self.clean else "sewn (overlapping hubs fused in clusters)"
         return (
             f"{self.struts:,} struts, {self.hubs:,} distinct hubs, {how}"
             + (", trimmed to the part" if self.trim else "")
@@ -270,13 +271,17 @@ def build(
     t0 = time.perf_counter()
     hs = hub_solids(graph, progress=progress)
     t1 = time.perf_counter()
-    if est.clean:
-        tol = config.BREP_SEW_RTOL * float(graph.radii.min())
-        shapes = lb.sew_hubs(
-            hs.breps, hs.template, graph.nodes, hs.mid_vectors, tolerance=tol, failed=hs.failed
-        )
-    else:
-        shapes = lb.fuse_hubs(hs.breps, hs.template, graph.nodes, failed=hs.failed)
+    # hubs, clusters of overlapping hubs and leaves meet only on midpoint discs: sewn
+    tol = config.BREP_SEW_RTOL * float(graph.radii.min())
+    shapes = lb.sew_hubs(
+        hs.breps,
+        hs.instance_template,
+        graph.nodes[hs.anchors],
+        hs.mid_vectors,
+        axes=hs.axes,
+        tolerance=tol,
+        failed=hs.failed,
+    )
     t2 = time.perf_counter()
     if not trim and len(shapes) > rep.bodies:
         raise OCCTFailure(

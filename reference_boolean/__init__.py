@@ -1,9 +1,10 @@
 """reference_boolean: exact per-hub B-rep reference of a lattice, and accuracy reports.
 
 The reference follows Wang, Chen & Rosen's unit trusses: one OCCT solid per
-node (a sphere fused with the half-struts up to the strut midpoints),
-tessellated so that neighbouring hubs share their midpoint circles exactly,
-and stacked without any boolean between hubs.
+node (a sphere fused with the half-struts up to the strut midpoints; a leaf is its
+half-strut, flat at the node), or per cluster of nodes whose hubs would overlap (fused
+once), tessellated so that neighbouring solids share their midpoint circles exactly,
+and stacked without any boolean between them (docs/REFERENCE.md).
 
 The name: the reference is "boolean" in the sense of exact solid modelling (each hub is an
 OCCT boolean union of a sphere and half-struts), not because hubs are fused with each other;
@@ -23,6 +24,7 @@ OCCT (OCP) is only imported when a reference is built.
 """
 
 from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
+from reference_boolean.clusters import find_clusters
 from reference_boolean.compare import MeshComparison, ValidationReport, compare, union_mesh
 from reference_boolean.reference import (
     HubSolids,
@@ -40,6 +42,7 @@ __all__ = [
     "ReferenceBuildError",
     "DirtyLatticeError",
     "find_overlaps",
+    "find_clusters",
     "strut_frames",
     "compare",
     "ValidationReport",

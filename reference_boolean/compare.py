@@ -43,9 +43,10 @@ __all__ = [
 def union_mesh(graph: LatticeGraph, segments: int) -> Mesh:
     """manifold3d union of the hub spheres and the full struts, ``segments`` per circle.
 
-    Spheres have the reference's radius ``1.00001 * max incident radius``;
-    struts are cylinders (cones for tapered struts) from node to node, so the
-    union converges to the reference as ``segments`` grows (error ~ 1/n^2).
+    The same design as the reference: a sphere of radius ``1.00001 * max incident
+    radius`` at every node of degree >= 2, none at leaves (degree 1), where the strut
+    ends flat at the node; struts are cylinders (cones for tapered struts) from node
+    to node. The union converges to the reference as ``segments`` grows (error ~ 1/n^2).
 
     Returns
     -------
@@ -62,7 +63,7 @@ def union_mesh(graph: LatticeGraph, segments: int) -> Mesh:
     np.maximum.at(rmax, graph.edges[:, 1], graph.radii[:, 1])
     parts = []
     unit = m3.Manifold.sphere(1.0, n)
-    for i in np.flatnonzero(rmax > 0):
+    for i in np.flatnonzero((rmax > 0) & (graph.degree >= 2)):
         R = config.SPHERE_FACTOR * rmax[i]
         parts.append(unit.scale([R, R, R]).translate(graph.nodes[i].tolist()))
     z = np.array([0.0, 0.0, 1.0])
@@ -438,7 +439,12 @@ class ValidationReport:
                 "reference": dict(ref.timings),
                 "union": {int(n): float(t) for n, t in self.union_seconds.items()},
             },
-            "reference_hubs": {"unique": ref.unique_hubs, "cache_hits": ref.cache_hits},
+            "reference_hubs": {
+                "unique": ref.unique_hubs,
+                "cache_hits": ref.cache_hits,
+                "clusters": len(ref.clusters),
+                "largest_cluster": max((len(c) for c in ref.clusters), default=1),
+            },
             "tessellation": {"tolerance": ref.tolerance, "angular": ref.angular},
             "worst_nodes": [{"node": n, "deviation": d} for n, d in self.worst_nodes()],
             "verdict": self.verdict().to_dict(),

@@ -1,14 +1,21 @@
 """The exact per-hub B-rep reference of a lattice (Wang, Chen & Rosen's unit trusses).
 
+The design (docs/REFERENCE.md): struts are cylinders (cone frustums when tapered), every
+node of degree >= 2 has a ball of radius ``R_n = 1.00001 * max incident radius``, and a
+leaf (degree 1: a free end, or where a strut meets the part's surface) has no ball: the
+strut ends flat at the node, as in the fast mesh.
+
 For every node with struts, its *hub* (unit truss) is built as an OCCT solid:
-a sphere of radius ``R_n = 1.00001 * max incident radius`` fused with the
-half-struts ("stumps") from the node to each strut's midpoint (cylinders, or
-cone frustums from ``r_node`` to ``r_mid = (r_a + r_b) / 2`` for tapered
-struts). In a *clean* lattice the hubs only touch on the shared midpoint
-discs, so the lattice volume is the sum of the hub volumes (exact, from
-OCCT's GProp) and the lattice surface is the union of the hub surfaces
-without the discs: the tessellations are stacked without any boolean between
-hubs.
+its sphere fused with the half-struts ("stumps") from the node to each strut's midpoint
+(cylinders, or cone frustums from ``r_node`` to ``r_mid = (r_a + r_b) / 2`` for tapered
+struts). Where hubs only touch on the shared midpoint discs, the lattice volume is the sum
+of the hub volumes (exact, from OCCT's GProp) and the lattice surface is the union of the
+hub surfaces without the discs: the tessellations are stacked without any boolean between
+hubs. Nodes whose hubs would overlap (short struts, struts at small angles, clipped ends)
+are grouped into clusters (:mod:`reference_boolean.clusters`), each built as one fused
+solid whose struts to other nodes end on midpoint discs as well
+(:mod:`lattice_cad.occ_impl.cluster`); a leaf is a cluster of its own (its half-strut).
+So every lattice gets an exact, watertight reference.
 
 Shared midpoint circles: both hubs of a strut build its stump with the same
 canonical frame (a function of the strut's line only) and are tessellated
@@ -66,6 +73,15 @@ __all__ = [
 # strut is nearly parallel to _FRAME_REF). Both depend on the strut's line only, so the two
 # hubs of a strut, and translated copies of a hub, get the same frame.
 _SIGN_REF = np.array([0.5773502691896258, 0.2113248654051871, 0.7886751345948129])
+# _SIGN_REF is exactly perpendicular to (-1, -1, 1), a BCC strut direction: there the sign
+# came from rounding noise, so translated struts could get opposite frames (and a cached hub
+# the frames of another node: circles 2.98 mm off on a clipped GE bracket). Directions
+# nearly perpendicular to it take their sign from the next vectors instead.
+_SIGN_REFS_ALT = (
+    np.array([0.8211, -0.3119, 0.4781]) / np.linalg.norm([0.8211, -0.3119, 0.4781]),
+    np.array([-0.2713, 0.6523, 0.7079]) / np.linalg.norm([-0.2713, 0.6523, 0.7079]),
+)
+_SIGN_TOL = 1e-6
 _FRAME_REF = np.array([0.3119, 0.8211, -0.4781]) / np.linalg.norm([0.3119, 0.8211, -0.4781])
 _FRAME_REF_ALT = np.array([-0.6124, 0.3536, 0.7071]) / np.linalg.norm([-0.6124, 0.3536, 0.7071])
 
@@ -86,7 +102,9 @@ class Reference:
     face_node : (F,) int64
         Node whose hub each triangle belongs to.
     hub_volume : (N,) float64
-        Volume of each node's hub (NaN for isolated or failed nodes).
+        Volume of each node's hub (NaN for isolated or failed nodes). A cluster's volume
+        is given to its first member (its anchor), 0 to the others, so the sum is
+        :attr:`volume`.
     failed : dict[int, str]
         Node index -> reason, for every hub that could not be built or stacked.
     attempts : dict[int, list[str]]
@@ -94,11 +112,18 @@ class Reference:
     tolerance, angular : float
         Linear (absolute) and angular deflection of the tessellation.
     unique_hubs : int
-        Hubs actually built (distinct up to translation when cached).
+        Hubs and clusters actually built (distinct up to translation when cached).
     cache_hits : int
-        Hubs reused from another node's build.
+        Hubs and clusters reused from another build.
     timings : dict[str, float]
-        Seconds spent in ``"check"``, ``"build"``, ``"stack"`` and ``"total"``.
+        Seconds spent in ``"check"`` (clustering), ``"build"``, ``"stack"`` and ``"total"``.
+    node_template : (N,) int64
+        Index into :attr:`breps` of the solid (hub or cluster) each node belongs to.
+    breps : list of bytes
+        Binary BREP of each distinct hub or cluster (its anchor node at the origin).
+    clusters : list of (c,) int64
+        Member nodes of every cluster of two or more nodes (hubs that would overlap,
+        built as one fused solid; see :mod:`reference_boolean.clusters`).
     """
 
     graph: LatticeGraph
@@ -115,6 +140,8 @@ class Reference:
     timings: dict[str, float]
     node_template: NDArray[np.int64] = field(repr=False)
     breps: list[bytes] = field(repr=False)
+    clusters: list[NDArray[np.int64]] = field(default_factory=list, repr=False)
+    units: Any = field(default=None, repr=False)
 
     @property
     def complete(self) -> bool:
@@ -150,18 +177,18 @@ class Reference:
         from lattice_cad.occ_impl.step import write_step
 
         g = self.graph
-        offsets, inc_edge, inc_side = g.incidence
-        mids: list[NDArray[np.float64]] = [np.zeros((0, 3))] * len(self.breps)
-        for n in np.flatnonzero(self.node_template >= 0):
-            es = inc_edge[offsets[n] : offsets[n + 1]]
-            sd = inc_side[offsets[n] : offsets[n + 1]]
-            mids[self.node_template[n]] = 0.5 * (g.nodes[g.edges[es, 1 - sd]] - g.nodes[n])
-        failed = {int(self.node_template[n]): why for n, why in self.failed.items()}
+        u = self.units
+        discs = [_discs(spec) for spec in u.specs]
+        mids = [d[0] for d in discs]
+        axes = [d[1] for d in discs]
+        inst_of = {int(n): i for i, mem in enumerate(u.members) for n in mem}
+        failed = {int(u.template[inst_of[n]]): why for n, why in self.failed.items()}
         shapes = sew_hubs(
             self.breps,
-            self.node_template,
-            g.nodes,
+            u.template,
+            g.nodes[u.anchor],
             mids,
+            axes=axes,
             tolerance=config.BREP_SEW_RTOL * float(g.radii.min()),
             failed=failed,
         )
@@ -173,7 +200,11 @@ class Reference:
 def _canonical_dir(d: NDArray[np.float64]) -> NDArray[np.float64]:
     """(M, 3) unit directions with a sign that depends on the line only."""
     u = d / np.linalg.norm(d, axis=1)[:, None]
-    s = np.sign(u @ _SIGN_REF)
+    dot = u @ _SIGN_REF
+    for ref in _SIGN_REFS_ALT:
+        weak = np.abs(dot) < _SIGN_TOL
+        dot[weak] = u[weak] @ ref
+    s = np.sign(dot)
     s[s == 0] = 1.0
     return u * s[:, None]
 
@@ -208,7 +239,10 @@ def _node_radius(graph: LatticeGraph) -> NDArray[np.float64]:
 
 
 def find_overlaps(graph: LatticeGraph) -> list[str]:
-    """Why hubs of the lattice would overlap (empty list for a clean lattice).
+    """Why per-node hubs with a ball at *every* node would overlap (empty: a clean lattice).
+
+    The check of the STEP path (:mod:`lattice_cad.brep`: sew or fuse); the reference
+    builds such nodes as clusters instead (:func:`reference_boolean.clusters.find_clusters`).
 
     Two cases are detected, each named by node and strut:
 
@@ -306,11 +340,157 @@ def _hub_specs(
     return specs, template, slot_edges, [np.asarray(m, dtype=np.int64) for m in members]
 
 
+# ------------------------------------------------------------------ units
+@dataclass(frozen=True, eq=False)
+class _Units:
+    """How the reference is cut into solids: single hubs and clusters (see ``clusters``).
+
+    ``specs[t]`` is a ``HubSpec`` (one node of degree >= 2 whose hub overlaps no other) or a
+    ``ClusterSpec`` (several nodes, or one leaf); each *instance* ``i`` is one placed copy:
+    ``template[i]``, its ``anchor[i]`` node (the spec's origin), its ``members[i]`` (nodes, in
+    the spec's member order) and ``slots[i]`` (the struts leaving it, in circle order).
+    """
+
+    specs: list[Any]
+    template: NDArray[np.int64]
+    anchor: NDArray[np.int64]
+    members: list[NDArray[np.int64]]
+    slots: list[NDArray[np.int64]]
+    node_instance: NDArray[np.int64]
+    reasons: list[str]
+
+    def instances_of(self) -> list[NDArray[np.int64]]:
+        """Instances of each template."""
+        order = np.argsort(self.template, kind="stable")
+        cuts = np.searchsorted(self.template[order], np.arange(len(self.specs) + 1))
+        return [order[cuts[t] : cuts[t + 1]] for t in range(len(self.specs))]
+
+
+def _unit_specs(graph: LatticeGraph, cache: bool) -> _Units:
+    """Cluster the nodes and describe every distinct hub or cluster (cached by translation)."""
+    from lattice_cad.occ_impl.cluster import ClusterSpec
+    from lattice_cad.occ_impl.truss import HubSpec
+    from reference_boolean.clusters import find_clusters, hub_radius
+
+    nodes, edges, radii = graph.nodes, graph.edges, graph.radii
+    offsets, inc_edge, inc_side = graph.incidence
+    R = hub_radius(graph)
+    _, X, Y = strut_frames(graph)
+    rmid = radii.mean(axis=1)
+    q = config.CACHE_QUANTUM * float(np.max(graph.edge_lengths))
+    label, reasons = find_clusters(graph)
+    used = np.flatnonzero(label >= 0)
+    order = used[np.argsort(label[used], kind="stable")]
+    cuts = np.searchsorted(label[order], np.arange(int(label.max()) + 2))
+
+    def node_spec(n: int) -> tuple[Any, NDArray[np.int64], NDArray[np.int64], bytes]:
+        es = inc_edge[offsets[n] : offsets[n + 1]]
+        sd = inc_side[offsets[n] : offsets[n + 1]]
+        vec = 0.5 * (nodes[edges[es, 1 - sd]] - nodes[n])
+        rows = np.column_stack([vec, radii[es, sd], rmid[es]])
+        qrows = np.rint(rows / q).astype(np.int64)
+        o = np.lexsort(qrows.T[::-1])
+        es, sd, vec = es[o], sd[o], vec[o]
+        spec = HubSpec(
+            radius=float(R[n]), vecs=vec, r_node=radii[es, sd], r_mid=rmid[es],
+            xdirs=X[es], ydirs=Y[es],
+        )  # fmt: skip
+        key = qrows[o].tobytes() + np.int64(np.rint(R[n] / q)).tobytes()
+        return spec, es, sd, key
+
+    specs: list[Any] = []
+    keys: dict[bytes, int] = {}
+    template, anchor, members, slots = [], [], [], []
+    node_instance = np.full(graph.num_nodes, -1, dtype=np.int64)
+    for c in range(len(cuts) - 1):
+        group = order[cuts[c] : cuts[c + 1]]
+        if len(group) == 1 and R[group[0]] > 0:  # a single hub
+            n = int(group[0])
+            spec, es, _, key = node_spec(n)
+            key = b"H" + key
+            mem, slot = np.array([n], np.int64), es
+        else:  # a cluster (or one leaf)
+            pos = np.rint((nodes[group] - nodes[group].min(axis=0)) / q).astype(np.int64)
+            mem = group[np.lexsort(pos.T[::-1])].astype(np.int64)
+            where = {int(n): i for i, n in enumerate(mem)}
+            base = nodes[mem[0]]
+            hubs, inner, inner_r, inner_x = [], [], [], []
+            lv_m, lv_e, lv_sd = [], [], []
+            for i, n in enumerate(mem):
+                hs, es, sd, _ = node_spec(int(n))
+                hubs.append(hs)
+                for e, s_ in zip(es, sd, strict=True):
+                    other = int(edges[e, 1 - s_])
+                    if other in where:
+                        if where[other] > i:
+                            inner.append((i, where[other]))
+                            inner_r.append((radii[e, s_], radii[e, 1 - s_]))
+                            inner_x.append(X[e])
+                    else:
+                        lv_m.append(i)
+                        lv_e.append(int(e))
+                        lv_sd.append(int(s_))
+            lv_e_a = np.asarray(lv_e, dtype=np.int64)
+            lv_sd_a = np.asarray(lv_sd, dtype=np.int64)
+            lv_m_a = np.asarray(lv_m, dtype=np.int64)
+            vec = 0.5 * (nodes[edges[lv_e_a, 1 - lv_sd_a]] - nodes[mem[lv_m_a]]).reshape(-1, 3)
+            offs = nodes[mem] - base
+            spec = ClusterSpec(
+                offsets=offs,
+                hubs=hubs,
+                inner=np.asarray(inner, dtype=np.int64).reshape(-1, 2),
+                inner_radii=np.asarray(inner_r, dtype=np.float64).reshape(-1, 2),
+                inner_xdirs=np.asarray(inner_x, dtype=np.float64).reshape(-1, 3),
+                member=lv_m_a,
+                vecs=vec,
+                r_node=radii[lv_e_a, lv_sd_a],
+                r_mid=rmid[lv_e_a],
+                xdirs=X[lv_e_a].reshape(-1, 3),
+                ydirs=Y[lv_e_a].reshape(-1, 3),
+            )
+            key = b"C" + b"|".join(
+                [
+                    np.rint(offs / q).astype(np.int64).tobytes(),
+                    np.rint(np.array([h.radius for h in hubs]) / q).astype(np.int64).tobytes(),
+                    spec.inner.tobytes(),
+                    np.rint(spec.inner_radii / q).astype(np.int64).tobytes(),
+                    lv_m_a.tobytes(),
+                    np.rint(np.column_stack([vec, spec.r_node, spec.r_mid]) / q)
+                    .astype(np.int64)
+                    .tobytes(),
+                ]
+            )
+            slot = lv_e_a
+        t = keys.get(key, -1) if cache else -1
+        if t < 0:
+            t = len(specs)
+            specs.append(spec)
+            if cache:
+                keys[key] = t
+        node_instance[mem] = len(template)
+        template.append(t)
+        anchor.append(int(mem[0]))
+        members.append(mem)
+        slots.append(np.asarray(slot, dtype=np.int64))
+    return _Units(
+        specs=specs,
+        template=np.asarray(template, dtype=np.int64),
+        anchor=np.asarray(anchor, dtype=np.int64),
+        members=members,
+        slots=slots,
+        node_instance=node_instance,
+        reasons=reasons,
+    )
+
+
 # ---------------------------------------------------------------- workers
 def _build_one(args: tuple[Any, float, float, bool]) -> Any:
     from lattice_cad.occ_impl import truss as _occ
+    from lattice_cad.occ_impl.cluster import ClusterSpec, build_cluster
 
     spec, deflection, angular, keep = args
+    if isinstance(spec, ClusterSpec):
+        return build_cluster(spec, deflection=deflection, angular=angular, keep_brep=keep)
     if deflection <= 0.0:  # the solid only (hub_solids)
         return _occ.build_hub_solid(spec)
     return _occ.build_hub(spec, deflection=deflection, angular=angular, keep_brep=keep)
@@ -444,9 +624,9 @@ def run_with_estimate(
 
     Parameters
     ----------
-    specs : list of HubSpec
-    template : (N,) int64
-        Index into ``specs`` of each node's hub (-1 for isolated nodes).
+    specs : list of HubSpec or ClusterSpec
+    template : (I,) int64
+        Index into ``specs`` of each placed hub or cluster (-1 entries are ignored).
     deflection, angular : float
         Tessellation deflections (``deflection <= 0``: solids only).
     keep : bool
@@ -472,9 +652,13 @@ def run_with_estimate(
     results: list[Any] = [None] * d
     if d == 0:
         return results
-    deg = np.array([len(s.vecs) for s in specs], dtype=np.float64)
+    # stumps per solid: a cluster's inner struts count at both ends
+    deg = np.array(
+        [len(s.vecs) + 2 * len(getattr(s, "inner", ())) for s in specs], dtype=np.float64
+    )
     print(
-        f"reference: {n_hubs:,} hubs, {d:,} distinct to build ({n_hubs - d:,} reused), "
+        f"reference: {n_hubs:,} hubs and clusters, {d:,} distinct to build "
+        f"({n_hubs - d:,} reused), "
         f"degree {int(deg.min())}-{int(deg.max())}, {max(workers, 1)} worker(s)",
         file=out,
         flush=True,
@@ -518,20 +702,30 @@ def run_with_estimate(
 # ------------------------------------------------------------- hub solids
 @dataclass(frozen=True, eq=False)
 class HubSolids:
-    """The hub solids of a lattice, for fusing or sewing into its exact B-rep.
+    """The hub and cluster solids of a lattice, for sewing into its exact B-rep.
+
+    The same solids as the reference (:func:`build_reference`): a hub per node, a fused
+    solid per cluster of nodes whose hubs would overlap, a half-strut (flat at the node)
+    per leaf. They meet only on midpoint discs, so sewing them along the midpoint
+    circles gives the lattice (:func:`lattice_cad.occ_impl.lattice_brep.sew_hubs`).
 
     Attributes
     ----------
     breps : list of bytes
-        Binary BREP of each distinct hub (empty for a failed one), node at the origin.
+        Binary BREP of each distinct solid (empty for a failed one), its anchor at the origin.
     template : (N,) int64
-        Index into ``breps`` of each node's hub (-1 for isolated nodes).
+        Index into ``breps`` of the solid each node belongs to (-1 for isolated nodes).
     mid_vectors : list of (d, 3) float64
-        Node -> strut midpoint vector of each stump of each distinct hub (where its
-        midpoint discs lie).
+        Per distinct solid, anchor -> midpoint vector of each disc it ends on.
     failed : dict[int, str]
-        Distinct hub index -> why it could not be built.
+        Distinct solid index -> why it could not be built.
     seconds : float
+    instance_template : (I,) int64
+        Index into ``breps`` of each placed solid.
+    anchors : (I,) int64
+        The node each placed solid's origin is at.
+    axes : list of (d, 3) float64
+        Per distinct solid, the strut axis of each midpoint disc.
     """
 
     breps: list[bytes]
@@ -539,6 +733,17 @@ class HubSolids:
     mid_vectors: list[NDArray[np.float64]]
     failed: dict[int, str]
     seconds: float
+    instance_template: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    anchors: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    axes: list[NDArray[np.float64]] = field(default_factory=list)
+
+
+def _discs(spec: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(d, 3) disc centres (from the anchor) and (d, 3) axes of a hub or cluster spec."""
+    if hasattr(spec, "centres"):
+        return spec.centres, spec.axes
+    vecs = np.asarray(spec.vecs, dtype=np.float64)
+    return vecs, vecs / np.linalg.norm(vecs, axis=1)[:, None]
 
 
 def hub_solids(
@@ -548,10 +753,9 @@ def hub_solids(
     hub_timeout: float = config.DEFAULT_HUB_TIMEOUT,
     progress: Any = None,
 ) -> HubSolids:
-    """Build the hub solid of every distinct hub (equal up to translation: built once).
+    """Build every distinct hub and cluster solid (equal up to translation: built once).
 
-    Unlike :func:`build_reference` the lattice need not be clean and nothing is
-    tessellated: where hubs overlap, their fuse is still the exact lattice.
+    Nothing is tessellated; any lattice (clusters where hubs would overlap).
 
     Parameters
     ----------
@@ -559,7 +763,7 @@ def hub_solids(
     workers : int, optional
         Worker processes (default ``min(2, cpu_count)``); 0 builds in this process.
     hub_timeout : float
-        Seconds after which one hub build is stopped and reported as failed.
+        Seconds after which one build is stopped and reported as failed.
     progress : callable, optional
         Called as ``progress("build", done, total)``.
 
@@ -573,22 +777,27 @@ def hub_solids(
     workers = check_workers(workers, minimum=0)
     if workers is None:
         workers = min(2, os.cpu_count() or 1)
-    specs, template, _, _ = _hub_specs(graph, True)
-    results = _run(specs, 0.0, 0.0, True, workers, float(hub_timeout), progress)
+    units = _unit_specs(graph, True)
+    results = _run(units.specs, 0.0, 0.0, True, workers, float(hub_timeout), progress)
     failed = {t: r.status for t, r in enumerate(results) if r.status != "ok"}
+    discs = [_discs(s) for s in units.specs]
     return HubSolids(
         breps=[r.brep for r in results],
-        template=template,
-        mid_vectors=[np.asarray(s.vecs, dtype=np.float64) for s in specs],
+        template=np.where(
+            units.node_instance >= 0, units.template[np.maximum(units.node_instance, 0)], -1
+        ),
+        mid_vectors=[d[0] for d in discs],
         failed=failed,
         seconds=time.perf_counter() - t0,
+        instance_template=units.template,
+        anchors=units.anchor,
+        axes=[d[1] for d in discs],
     )
 
 
 def count_hubs(graph: LatticeGraph) -> int:
-    """Number of distinct hubs (up to translation) that :func:`hub_solids` would build."""
-    specs, _, _, _ = _hub_specs(graph, True)
-    return len(specs)
+    """Number of distinct hubs and clusters (up to translation) :func:`hub_solids` builds."""
+    return len(_unit_specs(graph, True).specs)
 
 
 # ----------------------------------------------------------------- driver
@@ -608,7 +817,7 @@ def build_reference(
     Parameters
     ----------
     graph : LatticeGraph
-        Must be clean (see :func:`find_overlaps`).
+        Any lattice: nodes whose hubs would overlap are built as clusters.
     tolerance : float, optional
         Absolute linear deflection of the tessellation (chordal error bound);
         default ``0.01 * smallest strut radius``. Does not affect :attr:`Reference.volume`,
@@ -619,7 +828,7 @@ def build_reference(
         Worker processes (default ``min(2, cpu_count)``); 0 builds in this
         process, without the time bound.
     cache : bool
-        Build hubs that are equal up to translation once.
+        Build hubs and clusters that are equal up to translation once.
     hub_timeout : float
         Seconds after which one hub build is stopped and reported as failed.
     keep_solids : bool
@@ -636,10 +845,9 @@ def build_reference(
 
     Raises
     ------
-    DirtyLatticeError
-        Hubs would overlap (the message names the nodes and struts).
     ReferenceBuildError
-        The graph has no struts, or the options are invalid.
+        The graph has no struts, or the options are invalid. (Overlapping hubs are no
+        longer refused: see :attr:`Reference.clusters`.)
     """
     t0 = time.perf_counter()
     if not isinstance(graph, LatticeGraph):
@@ -655,20 +863,13 @@ def build_reference(
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if not (0 < angular < math.pi):
         raise ValueError(f"angular must be in (0, pi), got {angular!r}")
-    problems = find_overlaps(graph)
-    if problems:
-        shown = "\n  ".join(problems[:10])
-        more = f"\n  ... and {len(problems) - 10} more" if len(problems) > 10 else ""
-        raise DirtyLatticeError(
-            f"the lattice is not clean: {len(problems)} place(s) where hubs would overlap, "
-            f"so stacked hubs would not be its exact geometry:\n  {shown}{more}"
-        )
+    units = _unit_specs(graph, cache)
     t_check = time.perf_counter()
-    specs, template, slot_edges, members = _hub_specs(graph, cache)
+    specs = units.specs
     estimate: dict[str, float] = {}
     if progress is True:
         results = run_with_estimate(
-            specs, template, float(tolerance), float(angular), keep_solids, workers,
+            specs, units.template, float(tolerance), float(angular), keep_solids, workers,
             float(hub_timeout), estimate=estimate,
         )  # fmt: skip
     else:
@@ -677,12 +878,14 @@ def build_reference(
             progress,
         )  # fmt: skip
     t_build = time.perf_counter()
-    mesh, face_node, hub_volume, failed = _stack(graph, results, template, slot_edges, members)
+    mesh, face_node, hub_volume, failed = _stack(graph, results, units)
     attempts: dict[int, list[str]] = {}
+    by_template = units.instances_of()
     for t, res in enumerate(results):
         if res.status != "ok" or len(res.attempts) > 1:
-            for n in members[t]:
-                attempts[int(n)] = list(res.attempts)
+            for i in by_template[t]:
+                for n in units.members[i]:
+                    attempts[int(n)] = list(res.attempts)
     volume = float(np.nansum(hub_volume))
     t_end = time.perf_counter()
     return Reference(
@@ -696,7 +899,7 @@ def build_reference(
         tolerance=float(tolerance),
         angular=float(angular),
         unique_hubs=len(specs),
-        cache_hits=int((template >= 0).sum()) - len(specs),
+        cache_hits=len(units.template) - len(specs),
         timings={
             "check": t_check - t0,
             "build": t_build - t_check,
@@ -704,45 +907,55 @@ def build_reference(
             "total": t_end - t0,
             **estimate,
         },
-        node_template=template,
+        node_template=np.where(
+            units.node_instance >= 0, units.template[np.maximum(units.node_instance, 0)], -1
+        ),
         breps=[r.brep for r in results],
+        clusters=[mem for mem in units.members if len(mem) > 1],
+        units=units,
     )
 
 
 def _stack(
-    graph: LatticeGraph,
-    results: list[Any],
-    template: NDArray[np.int64],
-    slot_edges: list[NDArray[np.int64]],
-    members: list[NDArray[np.int64]],
+    graph: LatticeGraph, results: list[Any], units: _Units
 ) -> tuple[Mesh, NDArray[np.int64], NDArray[np.float64], dict[int, str]]:
-    """Stack the hub tessellations; shared circle vertices become one canonical point."""
+    """Stack the hub and cluster tessellations; shared circle vertices become one point."""
     m = graph.num_edges
     failed: dict[int, str] = {}
     K = np.zeros(m, dtype=np.int64)
     K_node = np.full(m, -1, dtype=np.int64)
     hub_volume = np.full(graph.num_nodes, np.nan)
-    ok_nodes: list[int] = []
-    # 1. circle sizes: both hubs of a strut must agree
+    n_inst = len(units.template)
+    inst_ok = np.zeros(n_inst, dtype=bool)
+
+    def fail(i: int, why: str) -> None:
+        mem = units.members[i]
+        pre = "" if len(mem) == 1 else f"cluster of nodes {mem.tolist()}: "
+        for n in mem:
+            failed[int(n)] = pre + why
+
+    by_template = units.instances_of()
+    # 1. circle sizes: both sides of a strut must agree
     for t, res in enumerate(results):
         if res.status != "ok":
-            for n in members[t]:
-                failed[int(n)] = res.status
+            for i in by_template[t]:
+                fail(int(i), res.status)
             continue
         ks = np.array([len(c) for c in res.circles], dtype=np.int64)
-        for n in members[t]:
-            es = slot_edges[n]
+        for i in by_template[t]:
+            es = units.slots[i]
             clash = (K[es] != 0) & (K[es] != ks)
             if clash.any():
                 j = int(np.flatnonzero(clash)[0])
-                failed[int(n)] = (
+                fail(
+                    int(i),
                     f"midpoint circle of strut {int(es[j])} has {int(ks[j])} vertices here but "
-                    f"{int(K[es[j]])} at node {int(K_node[es[j]])}"
+                    f"{int(K[es[j]])} at node {int(K_node[es[j]])}",
                 )
                 continue
             K[es] = ks
-            K_node[es] = n
-            ok_nodes.append(int(n))
+            K_node[es] = units.anchor[i]
+            inst_ok[i] = True
     base = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(K, out=base[1:])
     _, X, Y = strut_frames(graph)
@@ -758,9 +971,7 @@ def _stack(
         )
         idx = base[es][:, None] + np.arange(k_val)[None, :]
         circ[idx.ravel()] = pts.reshape(-1, 3)
-    ok = np.zeros(graph.num_nodes, dtype=bool)
-    ok[ok_nodes] = True
-    # 2. per template, all its nodes at once
+    # 2. per template, all its instances at once
     verts = [circ]
     faces: list[NDArray[np.int64]] = []
     fnode: list[NDArray[np.int64]] = []
@@ -769,36 +980,45 @@ def _stack(
     for t, res in enumerate(results):
         if res.status != "ok":
             continue
-        ns = members[t]
-        ns = ns[ok[ns]]
-        if len(ns) == 0:
+        inst = by_template[t]
+        inst = inst[inst_ok[inst]]
+        if len(inst) == 0:
             continue
         nc = sum(len(c) for c in res.circles)
         nv = len(res.vertices)
         ni = nv - nc
-        E = np.stack([slot_edges[n] for n in ns])  # (c, d)
-        vmap = np.empty((len(ns), nv), dtype=np.int64)
-        col = 0
-        for j, c in enumerate(res.circles):
-            vmap[:, col : col + len(c)] = base[E[:, j]][:, None] + np.arange(len(c))[None, :]
-            col += len(c)
-        vmap[:, nc:] = offset + np.arange(len(ns) * ni).reshape(len(ns), ni)
-        offset += len(ns) * ni
-        placed = res.vertices[None, :, :] + graph.nodes[ns][:, None, :]
-        # snapping check: the circle vertices must already be where the canonical points are
-        move = np.abs(placed[:, :nc, :] - circ[vmap[:, :nc]]).max(axis=(1, 2)) if nc else None
-        if move is not None:
+        vmap = np.empty((len(inst), nv), dtype=np.int64)
+        if nc:
+            E = np.stack([units.slots[i] for i in inst])  # (c, d)
+            col = 0
+            for j, c in enumerate(res.circles):
+                vmap[:, col : col + len(c)] = base[E[:, j]][:, None] + np.arange(len(c))[None, :]
+                col += len(c)
+        vmap[:, nc:] = offset + np.arange(len(inst) * ni).reshape(len(inst), ni)
+        offset += len(inst) * ni
+        anchors = units.anchor[inst]
+        placed = res.vertices[None, :, :] + graph.nodes[anchors][:, None, :]
+        bad = np.zeros(len(inst), dtype=bool)
+        if nc:  # snapping check: circle vertices must already be at their canonical points
+            move = np.abs(placed[:, :nc, :] - circ[vmap[:, :nc]]).max(axis=(1, 2))
             bad = move > config.SNAP_RTOL * scale
-            for n, mv in zip(ns[bad], move[bad], strict=True):
-                failed[int(n)] = (
-                    f"a midpoint circle vertex is {mv:.3g} away from its canonical point"
-                )
+            for i, mv in zip(inst[bad], move[bad], strict=True):
+                fail(int(i), f"a midpoint circle vertex is {mv:.3g} away from its canonical point")
         verts.append(placed[:, nc:, :].reshape(-1, 3))
-        if move is not None and bad.any():  # their vertices stay (unused, compacted below)
-            ns, vmap = ns[~bad], vmap[~bad]
+        inst, vmap = inst[~bad], vmap[~bad]  # their vertices stay (unused, compacted below)
+        if len(inst) == 0:
+            continue
         faces.append(vmap[:, res.faces].reshape(-1, 3))
-        fnode.append(np.repeat(ns, len(res.faces)))
-        hub_volume[ns] = res.volume
+        mem = np.stack([units.members[i] for i in inst])  # (c, members)
+        if mem.shape[1] == 1:
+            fnode.append(np.repeat(mem[:, 0], len(res.faces)))
+        else:  # each triangle to the nearest member node
+            local = graph.nodes[mem[0]] - graph.nodes[mem[0, 0]]
+            cen = res.vertices[res.faces].mean(axis=1)
+            near = np.argmin(np.linalg.norm(cen[:, None, :] - local[None, :, :], axis=2), axis=1)
+            fnode.append(mem[:, near].reshape(-1))
+        hub_volume[mem.ravel()] = 0.0
+        hub_volume[units.anchor[inst]] = res.volume
     V = np.concatenate(verts) if verts else np.zeros((0, 3))
     F = np.concatenate(faces) if faces else np.zeros((0, 3), dtype=np.int64)
     FN = np.concatenate(fnode) if fnode else np.zeros(0, dtype=np.int64)
@@ -808,6 +1028,8 @@ def _stack(
     if not used.all():
         new = np.cumsum(used) - 1
         V, F = V[used], new[F]
+    for n in failed:
+        hub_volume[n] = np.nan
     return (
         Mesh(vertices=np.ascontiguousarray(V), faces=np.ascontiguousarray(F)),
         FN,

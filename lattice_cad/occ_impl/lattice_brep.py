@@ -83,7 +83,12 @@ def place_hubs(
     return [_moved(hubs[t], nodes[n]) for n, t in enumerate(template) if t >= 0]
 
 
-def disc_faces(hub: TopoDS_Shape, mid_vectors: NDArray[np.float64], tol: float) -> list[bool]:
+def disc_faces(
+    hub: TopoDS_Shape,
+    mid_vectors: NDArray[np.float64],
+    tol: float,
+    axes: NDArray[np.float64] | None = None,
+) -> list[bool]:
     """Which faces of a hub (in ``TopExp`` order) are midpoint discs.
 
     Parameters
@@ -94,9 +99,12 @@ def disc_faces(hub: TopoDS_Shape, mid_vectors: NDArray[np.float64], tol: float) 
         Node -> midpoint vector of each stump.
     tol : float
         Distance (mm) within which the disc's plane must pass through the midpoint.
+    axes : (d, 3) float64, optional
+        Strut axis of each disc (default: along ``mid_vectors``, as for one hub; a
+        cluster's leaving struts do not start at its origin).
     """
-    h = np.linalg.norm(mid_vectors, axis=1)
-    axes = mid_vectors / h[:, None]
+    if axes is None:
+        axes = mid_vectors / np.linalg.norm(mid_vectors, axis=1)[:, None]
     out = []
     exp = TopExp_Explorer(hub, TopAbs_FACE)
     while exp.More():
@@ -138,6 +146,7 @@ def sew_hubs(
     *,
     tolerance: float,
     failed: dict[int, str] | None = None,
+    axes: Sequence[NDArray[np.float64]] | None = None,
 ) -> list[TopoDS_Shape]:
     """The union of the hubs of a clean lattice, by sewing (one solid per body).
 
@@ -149,6 +158,9 @@ def sew_hubs(
         Per distinct hub, the node -> midpoint vector of each stump.
     tolerance : float
         Sewing tolerance (mm); the shared midpoint circles agree to rounding.
+    axes : sequence of (d, 3) float64, optional
+        Per distinct solid, the axis of each midpoint disc (see :func:`disc_faces`);
+        needed for the clusters of the exact reference.
 
     Returns
     -------
@@ -164,7 +176,7 @@ def sew_hubs(
     hubs = _decode(breps, failed or {})
     kept: list[list[TopoDS_Shape]] = []
     for t, hub in enumerate(hubs):
-        mask = disc_faces(hub, mid_vectors[t], tolerance)
+        mask = disc_faces(hub, mid_vectors[t], tolerance, None if axes is None else axes[t])
         if sum(mask) != len(mid_vectors[t]):
             raise OCCTFailure(
                 f"sewing hubs: distinct hub {t} has {sum(mask)} midpoint disc(s) for "
