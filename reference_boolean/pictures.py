@@ -199,14 +199,14 @@ def design_distance(
     points: NDArray[np.float64], graph: Any, centre: NDArray[np.float64], reach: float
 ) -> NDArray[np.float64]:
     """Signed distance (mm) of ``points`` (P, 3) to the solid the reference models, in closed
-    form: the union of a ball at every node (radius ``SPHERE_FACTOR`` x its largest strut
-    radius) and a cylinder or cone frustum along every strut.
+    form: the union of a ball at every node of degree >= 2 (radius ``SPHERE_FACTOR`` x its
+    largest strut radius) and a flat-ended cylinder or cone frustum along every strut (leaves
+    end flat, as in the reference).
 
     Only the primitives within ``reach`` of ``centre`` are used (the points must lie
     within ``reach`` of it). Exact outside the solid (the distance to a union is the
     smallest distance to its parts); inside, the depth in the deepest part (exact away
-    from the junctions). A strut's end caps are inside its end balls, so a strut counts
-    only between its ends. Positive outside, negative inside.
+    from the junctions). Positive outside, negative inside.
 
     Returns
     -------
@@ -221,8 +221,11 @@ def design_distance(
     rmax = np.zeros(len(nodes))
     np.maximum.at(rmax, edges[:, 0], radii[:, 0])
     np.maximum.at(rmax, edges[:, 1], radii[:, 1])
+    degree = np.bincount(edges.ravel(), minlength=len(nodes))
     out = np.full(len(p), np.inf)
-    ball = np.flatnonzero((rmax > 0) & (np.linalg.norm(nodes - centre, axis=1) < reach + rmax))
+    # no ball at a leaf (degree 1): the strut ends flat there (docs/REFERENCE.md)
+    near_node = np.linalg.norm(nodes - centre, axis=1) < reach + rmax
+    ball = np.flatnonzero((rmax > 0) & (degree >= 2) & near_node)
     if len(ball):
         d = np.linalg.norm(p[:, None, :] - nodes[ball][None], axis=2)
         out = np.minimum(out, (d - config.SPHERE_FACTOR * rmax[ball]).min(axis=1))
@@ -240,7 +243,10 @@ def design_distance(
         rho = np.linalg.norm(w - t[..., None] * u[None], axis=2)
         r_t = ra + (rb - ra) * t / length
         d = (rho - r_t) * (length / np.hypot(length, rb - ra))
-        d[(t < 0) | (t > length)] = np.inf
+        # beyond an end: the distance to that end's flat disc (inside a ball unless a leaf)
+        before, after = t < 0, t > length
+        d = np.where(before, np.hypot(np.maximum(rho - ra, 0.0), -t), d)
+        d = np.where(after, np.hypot(np.maximum(rho - rb, 0.0), t - length), d)
         out = np.minimum(out, d.min(axis=1))
     return out
 

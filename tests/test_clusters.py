@@ -171,3 +171,29 @@ def test_strut_frames_of_bcc_diagonals_do_not_depend_on_rounding():
     axis, x, y = strut_frames(g)
     for a in (axis, x, y):
         assert np.abs(a - a[0]).max() < 1e-12
+
+
+def test_close_up_distance_models_flat_leaf_ends_and_balls_at_joints():
+    """The report's close-up colours (reference_boolean.pictures.design_distance) model the
+    reference's design: flat at a leaf, a ball where struts meet."""
+    from lattice_cad.core import config
+    from reference_boolean.pictures import design_distance
+
+    g = LatticeGraph(
+        nodes=np.array([[0.0, 0, 0], [10.0, 0, 0], [10.0, 10.0, 0]]),
+        edges=np.array([[0, 1], [1, 2]]),
+        radii=np.full((2, 2), 1.0),
+    )
+    pts = np.array(
+        [
+            [-2.0, 0, 0],  # 2 beyond the flat leaf end at node 0
+            [-2.0, 3.0, 0],  # beside and beyond the leaf's disc rim: hypot(2, 2)
+            [5.0, 0, 3.0],  # 2 off the first strut's side
+            [12.0, -2.0, 0],  # beyond the joint at node 1, in the ball's direction
+        ]
+    )
+    d = design_distance(pts, g, np.array([5.0, 0, 0]), 50.0)
+    big = config.SPHERE_FACTOR
+    np.testing.assert_allclose(
+        d, [2.0, np.hypot(2.0, 2.0), 2.0, np.hypot(2.0, 2.0) - big], atol=1e-9
+    )
