@@ -20,6 +20,7 @@ FLANGE = DATA / "step" / "kcl_flange-with-patterns.step"
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # about 2 min on a quiet machine; 10+ min at load 25
 @pytest.mark.filterwarnings("ignore::lattice_cad.core.errors.LatticeWarning")
 def test_flange_step_is_one_valid_solid(tmp_path):
     import cadquery as cq
