@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
+from lattice_cad.core import config
 from lattice_cad.core.errors import LatticeWarning, MissingFileError, PartError
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
@@ -633,9 +634,20 @@ def _orient(f: NDArray[np.int64]) -> NDArray[np.int64]:
 def _union_meshes(
     pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]], name: str
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Boolean union of closed meshes (manifold3d, double precision)."""
+    """Boolean union of closed meshes (manifold3d, double precision).
+
+    The pieces are first rounded to one grid (``config.UNION_SNAP`` of the largest
+    coordinate, a power of two): faces where solids touch are then exactly coincident,
+    which the union merges, instead of a float64 ulp apart, which it keeps as a slit of
+    zero thickness (a self-intersecting surface; seen on trimesh_box_sides.STEP and
+    kcl_enclosure.step).
+    """
     import manifold3d
 
+    big = max(float(np.abs(v[np.unique(fb)]).max(initial=0.0)) for v, fb in pieces)
+    if big > 0:
+        h = 2.0 ** np.floor(np.log2(config.UNION_SNAP * big))
+        pieces = [(np.round(v / h) * h, fb) for v, fb in pieces]
     result = None
     for k, (v, fb) in enumerate(pieces):
         used, local = np.unique(fb, return_inverse=True)

@@ -359,6 +359,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
                 lat.save_inp(out, **fe_options)
             else:
                 lat.save(out, beam_lattice=_beam_lattice_mode(args))
+    if getattr(lat, "beam_clip_report", None) is not None:
+        con.say(lat.beam_clip_report.summary())
     con.say(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
     if fe_options is not None:
         con.say(lat.fe_model.summary())

@@ -252,6 +252,9 @@ class Lattice:
         #: How the lattice was cut to the part (``conformal.trim.TrimReport``; set when the
         #: mesh is built, None when there was nothing to trim against).
         self.trim_report: Any = None
+        #: How the beams of the last beam-lattice 3MF were clipped to the part
+        #: (``conformal.beam_clip.BeamClipReport``; None before one is written).
+        self.beam_clip_report: Any = None
         self.progress: bool = False
         self.build_direction: Any = config.BUILD_DIRECTION
         self.critical_angle: float = config.OVERHANG_ANGLE_DEG
@@ -731,7 +734,14 @@ class Lattice:
             an object outside the build). ``"only"``: beams without triangles and the
             part as clipping mesh, a tiny file that most slicers cannot open (warns
             :class:`~lattice_cad.core.errors.BeamOnlyWarning`); a skin is then written
-            as a separate mesh object of the build.
+            as a separate mesh object of the build. With a part (and ``trim``), the beams
+            are clipped to it (:mod:`conformal.beam_clip`): with ``True`` every round
+            beam lies inside the part within the trim tolerance (beams near the surface
+            are shortened; the trimmed mesh reaches the surface), with ``"only"`` the beam
+            axes end where they cross the surface (the round beams still reach up to their
+            radius beyond it; the clipping mesh trims them for readers that honour it).
+            Cut ends keep the radius the beam had there and get flat caps;
+            :attr:`beam_clip_report` says what was cut.
         node_sets, material : mapping, optional
             With ``.inp``: named node sets by face selector (``{"fixed": "<Z"}``) and the
             material (``{"E": 3500, "nu": 0.36, "density": 1.24e-9}``); see
@@ -851,10 +861,27 @@ class Lattice:
             raise ValueError(f"beam_lattice must be False, True or 'only'; got {mode!r}")
         io.format_for(p, Kind.BEAM_LATTICE)
         if mode is True:  # no clipping mesh: PrusaSlicer refuses any object not in the build
-            return io.save_beam_lattice(self.graph, p, mesh=self.mesh())
+            mesh = self.mesh()
+            return io.save_beam_lattice(self._clipped_beams("solid"), p, mesh=mesh)
         clip = (self.part.vertices, self.part.faces) if self.part is not None else None
         skin = self._skin_wall_mesh if self.skin is not None else None
-        return io.save_beam_lattice(self.graph, p, skin=skin, clip=clip)
+        return io.save_beam_lattice(self._clipped_beams("axis"), p, skin=skin, clip=clip)
+
+    def _clipped_beams(self, keep: Literal["solid", "axis"]) -> LatticeGraph:
+        """The graph's beams clipped to the part (``conformal.beam_clip``): the whole round
+        beams beside the trimmed mesh, the axes in a beams-only file (which carries the
+        part as clipping mesh). The graph itself without a part or with ``trim=False``."""
+        if self.part is None or not self.trim or self.graph.num_edges == 0:
+            return self.graph
+        from conformal.beam_clip import clip_beams
+
+        clipped, self.beam_clip_report = clip_beams(self.graph, self.part, keep=keep)
+        if clipped is None:
+            raise ExportError(
+                f"no beam fits inside the part ({self.beam_clip_report.summary()}); write "
+                "the mesh (.stl, or .3mf without --beam-lattice)"
+            )
+        return clipped
 
     @cached_property
     def _skin_wall_mesh(self) -> Mesh:

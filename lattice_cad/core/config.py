@@ -288,6 +288,13 @@ MAX_BREP_STRUTS = 2_000
 #: the largest strut radius (``conformal.trim``; checked on every vertex and reported).
 TRIM_RTOL = 0.01
 
+#: Before several solids of a part are united, their tessellations are rounded to a common
+#: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):
+#: solids that touch come out of their separate tessellations a float64 ulp or two apart, and
+#: the exact union keeps a zero-thickness slit between such faces (a self-intersecting part
+#: surface that every cut by the part inherits; ``conformal.part``).
+UNION_SNAP = 1e-9
+
 #: Vertices of a written mesh closer than this (mm) are merged before the final check:
 #: trimesh (and tools built on it) merge them on reading, so the file must be closed then.
 NEAR_VERTEX = 1e-8
