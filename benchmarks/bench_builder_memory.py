@@ -109,9 +109,13 @@ def child(spec: dict[str, Any]) -> dict[str, Any]:
     conformal.voxel_lattice(part, cell, part.size.max() / 8, RADIUS_FRACTION[cell] * part.size.max() / 8)
     stages: dict[str, float] = {}
     if spec.get("stages"):
+        graph_cls = voxel.LatticeGraph
         for name in ("voxelize", "tile_arrays", "_cleanup", "keep_main_components",
                      "resolve_radii", "fit_radii", "LatticeGraph"):  # fmt: skip
-            orig = getattr(voxel, name)
+            owner: Any = voxel
+            if name == "LatticeGraph" and hasattr(graph_cls, "_from_owned"):
+                owner, name = graph_cls, "_from_owned"  # noqa: PLW2901
+            orig = getattr(owner, name)
 
             def wrapped(*a: Any, _orig: Any = orig, _name: str = name, **k: Any) -> Any:
                 base = _status_kb("VmRSS")
@@ -121,7 +125,7 @@ def child(spec: dict[str, Any]) -> dict[str, Any]:
                 stages[_name + " (kept)"] = _status_kb("VmRSS") - base
                 return out
 
-            setattr(voxel, name, wrapped)
+            setattr(owner, name, wrapped if owner is voxel else staticmethod(wrapped))
     gc.collect()
     _reset_peak()
     before = _status_kb("VmRSS")

@@ -263,3 +263,122 @@ def old_validate(
             raise InvalidGraphError(f"nodes {a} and {b} coincide at {_fmt_point(nodes[a])}")
 
 
+
+
+# ------------------------------------------------ fast_stitch.fit.clashes before the slabs
+from numba import njit, prange  # noqa: E402
+from numpy.typing import ArrayLike  # noqa: E402
+
+from fast_stitch import _kernels  # noqa: E402
+from fast_stitch.stitch import _clearance_elements  # noqa: E402
+
+
+def _old_incidence(edges, n):
+    flat = edges.ravel()
+    order = np.argsort(flat, kind="stable")
+    inc_edge = (order // 2).astype(np.int64)
+    inc_side = (order % 2).astype(np.int64)
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
+    return offsets, inc_edge, inc_side
+
+
+def end_offsets(nodes, edges, radii, *, shrink=True):
+    from fast_stitch.fit import end_offsets as new
+
+    return new(nodes, edges, radii, shrink=shrink, _incidence_arrays=_old_incidence(
+        np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2), len(nodes)))
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def old_clash_pairs(
+    seg_a, seg_b, rad, lo, hi, cell, origin, dims, count, members, edges, offsets, inc_edge,
+    scale, n_found, start, out_pairs, out_dist, write,
+):  # fmt: skip
+    """Pairs of non-incident elements closer than ``scale * (rad_i + rad_j)``.
+
+    ``write=False``: count them per cell into ``n_found``; ``write=True``:
+    store them from ``start[cell]`` on.
+    """
+    m = edges.shape[0]
+    for c in prange(dims[0] * dims[1] * dims[2]):
+        k = 0
+        for u in range(count[c], count[c + 1]):
+            i = members[u]
+            for w in range(u + 1, count[c + 1]):
+                j = members[w]
+                d2 = _kernels._candidate_d2(
+                    i, j, c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets,
+                    inc_edge, scale,
+                )  # fmt: skip
+                if d2 < 0.0:
+                    continue
+                a = min(i, j)
+                b = max(i, j)
+                if write:
+                    out_pairs[start[c] + k, 0] = a
+                    out_pairs[start[c] + k, 1] = b
+                    out_dist[start[c] + k] = np.sqrt(d2)
+                k += 1
+        if not write:
+            n_found[c] = k
+
+
+def old_clashes(
+    nodes: ArrayLike,
+    edges: ArrayLike,
+    radii: ArrayLike,
+    *,
+    shrink: bool = True,
+    margin: float = config.CLEARANCE_MARGIN,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Struts and joints that share no node but would come too close.
+
+    Elements ``0 .. M-1`` are the struts, ``M + n`` the joint at node ``n``
+    (nodes of degree >= 2). Two elements clash when they share no node (two
+    joints: no strut joins their nodes) and the distance between their
+    capsules' axes is below ``(1 + margin) * (r_a + r_b)`` (see the module
+    docstring). Uses a uniform grid: linear in the number of struts.
+
+    Returns
+    -------
+    pairs : (K, 2) int64
+        Clashing element pairs, ``pairs[:, 0] < pairs[:, 1]``, sorted.
+    distance : (K,) float64
+        Distance between the two axes (segments; a joint's is its node).
+    needed : (K,) float64
+        ``(1 + margin) * (r_a + r_b)``.
+    """
+    nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
+    edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
+    radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
+    n, m = len(nodes_a), len(edges_a)
+    empty = (np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0))
+    if m == 0:
+        return empty
+    offsets, inc_edge, inc_side = _old_incidence(edges_a, n)
+    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink)
+    vec = nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]]
+    length = np.linalg.norm(vec, axis=1)
+    unit = vec / np.where(length > 0, length, 1.0)[:, None]
+    seg_a, seg_b, rad, lo, hi, cell, origin, dims = _clearance_elements(
+        nodes_a, edges_a, radii_a, off, unit, offsets, inc_edge, inc_side, pad=1.0 + margin
+    )
+    count, members = _kernels.element_grid(lo, hi, rad, cell, origin, dims)
+    n_cells = int(np.prod(dims))
+    n_found = np.zeros(n_cells, dtype=np.int64)
+    start = np.zeros(n_cells + 1, dtype=np.int64)
+    no_pairs = np.zeros((0, 2), dtype=np.int64)
+    args = (seg_a, seg_b, rad, lo, hi, cell, origin, dims, count, members, edges_a, offsets,
+            inc_edge, 1.0 + margin)  # fmt: skip
+    old_clash_pairs(*args, n_found, start, no_pairs, np.zeros(0), False)
+    np.cumsum(n_found, out=start[1:])
+    k = int(start[-1])
+    if k == 0:
+        return empty
+    pairs = np.empty((k, 2), dtype=np.int64)
+    dist = np.empty(k)
+    old_clash_pairs(*args, n_found, start, pairs, dist, True)
+    order = np.lexsort((pairs[:, 1], pairs[:, 0]))
+    pairs, dist = pairs[order], dist[order]
+    return pairs, dist, (1.0 + margin) * rad[pairs].sum(axis=1)
