@@ -48,20 +48,32 @@ def incidence(edges, n):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def element_boxes(
-    ids, nodes, edges, radii, end_offset, unit, offsets, inc_edge, inc_side, pad,
+    ids, nodes, edges, radii, end_offset, offsets, inc_edge, inc_side, pad,
     seg_a, seg_b, rad, lo, hi, extent,
 ):  # fmt: skip
     """``_kernels.clearance_elements`` for the elements ``ids`` only (row k: element
-    ``ids[k]``; struts ``0..M-1``, joints ``M + n``)."""
+    ``ids[k]``; struts ``0..M-1``, joints ``M + n``). The unit strut direction is
+    computed here as numpy does it for ``fit.clashes``: ``v / norm(v)``, the squares
+    summed x, y, z in that order."""
     m = edges.shape[0]
     for k in prange(ids.shape[0]):
         i = ids[k]
         if i < m:
             a = edges[i, 0]
             b = edges[i, 1]
+            vx = nodes[b, 0] - nodes[a, 0]
+            vy = nodes[b, 1] - nodes[a, 1]
+            vz = nodes[b, 2] - nodes[a, 2]
+            length = np.sqrt(vx * vx + vy * vy + vz * vz)
+            if not length > 0:
+                length = 1.0
+            u0 = vx / length
+            u1 = vy / length
+            u2 = vz / length
             for c in range(3):
-                seg_a[k, c] = nodes[a, c] + end_offset[i, 0] * unit[i, c]
-                seg_b[k, c] = nodes[b, c] - end_offset[i, 1] * unit[i, c]
+                uc = u0 if c == 0 else (u1 if c == 1 else u2)
+                seg_a[k, c] = nodes[a, c] + end_offset[i, 0] * uc
+                seg_b[k, c] = nodes[b, c] - end_offset[i, 1] * uc
             rad[k] = max(radii[i, 0], radii[i, 1])
         else:
             n = i - m
@@ -189,3 +201,26 @@ def _local_d2(
     if d2 >= reach * reach:
         return -1.0
     return d2
+
+
+@njit(cache=True)
+def bucket(first, nx):
+    """Elements by the first x cell of their box (counting sort; ``first < 0``: left out).
+
+    Returns ``start`` (nx + 1,) int64 and ``order`` (K,) int32: the elements whose box
+    starts in column x are ``order[start[x]:start[x + 1]]``, ascending.
+    """
+    start = np.zeros(nx + 1, dtype=np.int64)
+    for i in range(first.shape[0]):
+        if first[i] >= 0:
+            start[first[i] + 1] += 1
+    for x in range(nx):
+        start[x + 1] += start[x]
+    order = np.empty(start[nx], dtype=np.int32)
+    fill = start[:-1].copy()
+    for i in range(first.shape[0]):
+        f = first[i]
+        if f >= 0:
+            order[fill[f]] = i
+            fill[f] += 1
+    return start, order

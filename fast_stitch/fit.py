@@ -209,7 +209,7 @@ def _clashes(
     inc: tuple[Any, Any, Any],
     margin: float,
     *,
-    block: int = _BLOCK,
+    block: int = 1 << 17,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """:func:`clashes` with the end offsets and incidence given, by x-slabs of the grid.
 
@@ -219,13 +219,6 @@ def _clashes(
     """
     n, m = len(nodes), len(edges)
     offsets, inc_edge, inc_side = inc
-    unit = np.empty((m, 3))
-    for s in range(0, m, _BLOCK):
-        e = edges[s : s + _BLOCK]
-        vec = nodes[e[:, 1]] - nodes[e[:, 0]]
-        length = np.linalg.norm(vec, axis=1)
-        np.divide(vec, np.where(length > 0, length, 1.0)[:, None], out=unit[s : s + _BLOCK])
-    del vec, length
     pad = 1.0 + margin
     n_el = m + n
 
@@ -234,7 +227,7 @@ def _clashes(
         seg_a, seg_b, lo, hi = (np.empty((k, 3)) for _ in range(4))
         rad, extent = np.empty(k), np.empty(k)
         _fit_kernels.element_boxes(
-            ids, nodes, edges, radii, off, unit, offsets, inc_edge, inc_side, float(pad),
+            ids, nodes, edges, radii, off, offsets, inc_edge, inc_side, float(pad),
             seg_a, seg_b, rad, lo, hi, extent,
         )  # fmt: skip
         return seg_a, seg_b, rad, lo, hi, extent
@@ -271,19 +264,20 @@ def _clashes(
         _, _, rad, lo, hi, _ = boxes(np.arange(s, min(n_el, s + block)))
         _fit_kernels.x_spans(lo, hi, rad, origin, cell, dims, first[s : s + block],
                              last[s : s + block])  # fmt: skip
-    per_x = np.bincount(first[first >= 0], minlength=int(dims[0]))
+    nx = int(dims[0])
+    start_x, order = _fit_kernels.bucket(first, nx)
+    widest = int((last - first).max()) if n_el else 0  # the widest box, in columns
     cuts = [0]
-    acc = 0
-    for x in range(int(dims[0])):
-        acc += int(per_x[x])
-        if acc >= block and x + 1 < dims[0]:
-            cuts.append(x + 1)
-            acc = 0
-    cuts.append(int(dims[0]))
+    for x in range(1, nx):
+        if start_x[x] - start_x[cuts[-1]] >= block:
+            cuts.append(x)
+    cuts.append(nx)
     found_pairs, found_dist = [], []
     scale = 1.0 + margin
     for x0, x1 in zip(cuts[:-1], cuts[1:], strict=True):
-        ids = np.flatnonzero((first <= x1 - 1) & (last >= x0))
+        # boxes that start at most `widest` columns before the slab and reach into it
+        cand = order[start_x[max(0, x0 - widest)] : start_x[x1]]
+        ids = np.sort(cand[last[cand] >= x0]).astype(np.int64)
         if len(ids) < 2:
             continue
         seg_a, seg_b, rad, lo, hi, _ = boxes(ids)

@@ -382,3 +382,102 @@ def old_clashes(
     order = np.lexsort((pairs[:, 1], pairs[:, 0]))
     pairs, dist = pairs[order], dist[order]
     return pairs, dist, (1.0 + margin) * rad[pairs].sum(axis=1)
+
+
+# ------------------------------------------------ conformal.radius.fit_radii before the slabs
+def old_misfits(nodes, edges, radii, *, shrink=True, slack=0.0):
+    off = end_offsets(nodes, edges, radii, shrink=shrink)
+    need = off.sum(axis=1)
+    length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+    bad = np.flatnonzero(need >= length * (1.0 - config.MIN_CYLINDER_FRACTION - slack))
+    return bad.astype(np.int64), need, length
+
+
+def old_fit_radii(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    *,
+    min_radius: float = 0.0,
+    shrink: bool = True,
+    clearance: bool = True,
+    max_rounds: int = 60,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Thin the struts at crowded nodes, and struts that pass too close, until all fit.
+
+    A strut fits when its end offsets leave ``config.FIT_SLACK`` of its length free
+    and its radius is below 0.45 of its length. Offsets at a node scale
+    linearly with the radii there, so the radii at both ends of a misfit
+    strut's nodes are scaled down by the missing factor (which may taper
+    neighbouring struts), and the check is repeated.
+
+    With ``clearance``, once every strut fits, struts and joints that share no
+    node but come closer than their radii allow (:func:`fast_stitch.fit.clashes`,
+    with twice its margin as a target) are thinned too: a clashing strut is
+    scaled as a whole (its taper is kept), a clashing joint by scaling the
+    radii of the strut ends at its node; then everything is checked again.
+
+    Parameters
+    ----------
+    nodes : (N, 3) float64
+    edges : (M, 2) int64
+    radii : (M, 2) float64
+    min_radius : float
+        Radii are never reduced below this.
+
+    Returns
+    -------
+    radii : (M, 2) float64
+        The fitted radii.
+    unfit : (K,) int64
+        Struts that still do not fit or clear (radius at ``min_radius``).
+    """
+    r = np.array(radii, dtype=np.float64, copy=True)
+    length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+    cap = 0.45 * length
+    too_fat = r > cap[:, None]
+    r[too_fat] = np.broadcast_to(cap[:, None], r.shape)[too_fat]
+    bad = np.zeros(0, dtype=np.int64)
+    n_nodes, m = len(nodes), len(edges)
+    for _ in range(max_rounds):
+        bad, need, length = old_misfits(nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK)
+        node_f = np.ones(n_nodes)
+        edge_f = np.ones(m)
+        if len(bad):
+            factor = np.clip((1.0 - 1.5 * config.FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
+            np.minimum.at(node_f, edges[bad, 0], factor)
+            np.minimum.at(node_f, edges[bad, 1], factor)
+        elif clearance:
+            # aim past the check's own margin so that one round usually clears a pair
+            pairs, dist, reach = old_clashes(
+                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN
+            )
+            bad = _clash_struts(pairs, edges, m, n_nodes)
+            if not len(pairs):
+                return r, bad
+            factor = np.repeat(np.clip(0.98 * dist / reach, 0.2, 0.97), 2)
+            el = pairs.ravel()
+            strut = el < m
+            np.minimum.at(edge_f, el[strut], factor[strut])
+            np.minimum.at(node_f, el[~strut] - m, factor[~strut])
+        else:
+            return r, bad
+        new = r * node_f[edges] * edge_f[:, None]
+        new = np.maximum(new, min_radius)
+        if np.array_equal(new, r):
+            break
+        r = new
+    return r, bad
+
+
+def _clash_struts(
+    pairs: NDArray[np.int64], edges: NDArray[np.int64], m: int, n_nodes: int
+) -> NDArray[np.int64]:
+    """The struts involved in clashes: clashing struts, and the struts at clashing joints."""
+    el = np.unique(pairs.ravel())
+    joint = np.zeros(n_nodes, dtype=np.bool_)
+    joint[el[el >= m] - m] = True
+    at_joint = np.flatnonzero(joint[edges].any(axis=1))
+    return np.union1d(el[el < m], at_joint).astype(np.int64)
+
+
