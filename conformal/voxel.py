@@ -352,7 +352,13 @@ def _finish(
     r = resolve_radii(radius, nodes, edges)
     if fit == "shrink":
         floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
-        new, unfit = fit_radii(nodes, edges, r, min_radius=floor)
+        # one radius for all (the usual case): the fit may work on r itself
+        same = bool(len(r)) and float(r.min()) == float(r.max())
+        r0 = float(r.flat[0]) if same else 0.0
+        new, unfit = fit_radii(nodes, edges, r, min_radius=floor, overwrite_input=same)
+        if same:
+            del r
+            r = np.full((1, 2), r0)  # what r held everywhere, for the counts below
         changed = int((new < r).any(axis=1).sum())
         if len(unfit):
             raise FitError(
