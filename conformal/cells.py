@@ -698,8 +698,8 @@ def _unique_sorted(s: NDArray[np.int64]) -> NDArray[np.int64]:
     return s[first]
 
 
-#: Keys per block in :func:`_tile_int` (2**20 int64: 8 MB): bounds its temporaries.
-_TILE_BLOCK = 1 << 20
+#: Keys per block in :func:`_tile_int` (2**18 int64: 2 MB): bounds its temporaries.
+_TILE_BLOCK = 1 << 18
 
 
 def _tile_int(

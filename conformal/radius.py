@@ -366,7 +366,7 @@ def fit_radii(
     return r, bad
 
 
-_BLOCK = 1 << 20
+_BLOCK = 1 << 16
 
 
 def _clash_struts(

@@ -549,7 +549,7 @@ def _cleanup(
     return _renumber(nodes, edges, used)
 
 
-_BLOCK = 1 << 20
+_BLOCK = 1 << 16
 
 
 def _touching(edges: NDArray[np.int64], mark: NDArray[np.bool_]) -> NDArray[np.int64]:

@@ -144,7 +144,7 @@ def misfits(
     return _misfits_from(nodes_a, edges_a, off, slack)
 
 
-_BLOCK = 1 << 20
+_BLOCK = 1 << 16
 
 
 def strut_lengths(nodes: NDArray[np.float64], edges: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -209,7 +209,7 @@ def _clashes(
     inc: tuple[Any, Any, Any],
     margin: float,
     *,
-    block: int = 1 << 17,
+    block: int = 1 << 16,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """:func:`clashes` with the end offsets and incidence given, by x-slabs of the grid.
 

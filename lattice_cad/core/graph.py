@@ -509,7 +509,7 @@ def _as_radii(radii: ArrayLike, n_edges: int) -> NDArray[np.float64]:
 
 
 #: Rows per block in the checks of :func:`_validate` (bounds their temporaries).
-_BLOCK = 1 << 20
+_BLOCK = 1 << 16
 
 
 def _blocks(n: int) -> range:
