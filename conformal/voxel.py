@@ -274,10 +274,11 @@ def voxel_lattice(
     del occupied
     if not len(ijk):
         raise _nothing_fits(part, h, radius, f"no cell of size {_mm(h)} fits inside")
-    # the builder's own estimate: tiling, cleanup, graph validation and radius fitting keep
-    # a few copies of every strut (about 600 bytes) and node (about 300 bytes)
+    # the builder's own estimate: the graph itself (about 40 bytes per strut) and the
+    # temporaries of tiling, fitting and validation, by blocks (bench_builder_memory.py:
+    # 60-130 bytes per strut at the peak; cell-local counts overcount shared struts)
     require_memory(
-        len(ijk) * (600 * len(c.edges) + 300 * len(c.nodes)),
+        len(ijk) * (120 * len(c.edges) + 60 * len(c.nodes)),
         f"a lattice of {len(ijk):,} {c.name} cells (about {len(ijk) * len(c.edges):,} struts)",
         advice="use larger cells",
     )
