@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import gc
 import json
-import math
 import os
 import subprocess
 import sys
@@ -106,7 +105,8 @@ def child(spec: dict[str, Any]) -> dict[str, Any]:
     cell = spec["cell"]
     r = RADIUS_FRACTION[cell] * h
     # warm-up: numba JIT/cache load and lazy imports, on a small fill of the same part
-    conformal.voxel_lattice(part, cell, part.size.max() / 8, RADIUS_FRACTION[cell] * part.size.max() / 8)
+    big = float(part.size.max()) / 8
+    conformal.voxel_lattice(part, cell, big, RADIUS_FRACTION[cell] * big)
     stages: dict[str, float] = {}
     if spec.get("stages"):
         graph_cls = voxel.LatticeGraph
@@ -203,7 +203,7 @@ def main() -> None:
                 )
                 if r["stages_kb"]:  # the stage wrappers reset the peak: no overall figure
                     m = r["struts"]
-                    line = f"{label:<16} {r['h']:6.4g} {m:>10,} {r['nodes']:>10,}  (stages run)"
+                    line = f"{label:<16} {r['h']:6.4g} {m:>10,} {r['nodes']:>10,}  (stages)"
                     line += "\n    stages B/strut (peak above the stage's start; kept): " + ", ".join(
                         f"{k} {v * 1024 / m:.0f}" for k, v in r["stages_kb"].items()
                     )
