@@ -204,9 +204,8 @@ def main() -> None:
                 if r["stages_kb"]:  # the stage wrappers reset the peak: no overall figure
                     m = r["struts"]
                     line = f"{label:<16} {r['h']:6.4g} {m:>10,} {r['nodes']:>10,}  (stages)"
-                    line += "\n    stages B/strut (peak above the stage's start; kept): " + ", ".join(
-                        f"{k} {v * 1024 / m:.0f}" for k, v in r["stages_kb"].items()
-                    )
+                    line += "\n    stages B/strut (peak above the stage's start; kept): "
+                    line += ", ".join(f"{k} {v * 1024 / m:.0f}" for k, v in r["stages_kb"].items())
             print(line, flush=True)
             lines.append(line)
     if args.out:
