@@ -126,16 +126,18 @@ def _old_pipeline(part, cell, h, radius):
     [
         ("box", "bcc", 1.0, 0.2),
         ("box", "octet", 1.0, 0.09),
-        ("bunny", "bcc", 0.012, 0.0035),  # the bunny OBJ is about 0.15 units wide
-        ("bunny", "octet", 0.016, 0.0022),
-        ("bunny", "kelvin", 0.02, 0.0016),
+        ("bunny", "bcc", 0.12, 0.024),  # the bunny OBJ is about 1.5 units wide
+        ("bunny", "octet", 0.16, 0.0128),
+        ("bunny", "kelvin", 0.2, 0.01),
+        ("bunny", "octet", 0.16, 0.04),  # too thick: the fit thins struts (in place)
     ],
 )
+@pytest.mark.filterwarnings("ignore::lattice_cad.core.errors.LatticeWarning")
 def test_voxel_lattice_equals_old_pipeline(what, cell, h, radius):
     part = _box_part(9.3) if what == "box" else conformal.load_part(BUNNY)
     g = conformal.voxel_lattice(part, cell, h, radius, fill="inside")
     nodes, edges, radii = _old_pipeline(part, cell, h, radius)
-    assert g.num_edges > 1000
+    assert g.num_edges > 500
     np.testing.assert_array_equal(g.nodes, nodes)
     np.testing.assert_array_equal(g.edges, edges)
     np.testing.assert_array_equal(g.radii, radii)
