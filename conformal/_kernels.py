@@ -558,3 +558,53 @@ def mark_cut_cells(tri, origin, h, dims, pad, offset):
                     if _tri_box(tri, t, cx, cy, cz, ex, ey, ez):
                         cut[i, j, k] = True
     return cut
+
+
+# ------------------------------------------------------------ components
+
+
+@njit(cache=True)
+def component_labels(n, edges):
+    """Connected components of an undirected graph by union-find.
+
+    Parameters
+    ----------
+    n : int
+        Number of nodes.
+    edges : (M, 2) int
+
+    Returns
+    -------
+    count : int
+    labels : (n,) int64
+        Components numbered in the order of their smallest node (as scipy's
+        ``connected_components`` numbers them); a node without edges is its own one.
+    """
+    parent = np.arange(n)
+    for e in range(edges.shape[0]):
+        a = edges[e, 0]
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        b = edges[e, 1]
+        while parent[b] != b:
+            parent[b] = parent[parent[b]]
+            b = parent[b]
+        if a < b:
+            parent[b] = a
+        elif b < a:
+            parent[a] = b
+    # every root is the smallest node of its tree; label the roots in node order
+    labels = np.empty(n, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        r = i
+        while parent[r] != r:
+            r = parent[r]
+        parent[i] = r
+        if r == i:
+            labels[i] = count
+            count += 1
+        else:
+            labels[i] = labels[r]
+    return count, labels

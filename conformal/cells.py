@@ -698,27 +698,20 @@ def _unique_sorted(s: NDArray[np.int64]) -> NDArray[np.int64]:
     return s[first]
 
 
-def _unique_inverse(keys: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """``np.unique(keys, return_inverse=True)`` for 1-d int64 keys, by one argsort.
-
-    (``np.unique`` itself is several times slower on large int64 arrays in
-    recent numpy versions, which default to a hash-based path.)
-    """
-    order = np.argsort(keys)
-    s = keys[order]
-    first = np.empty(len(s), dtype=bool)
-    first[:1] = True
-    np.not_equal(s[1:], s[:-1], out=first[1:])
-    ids = np.cumsum(first) - 1
-    inv = np.empty(len(keys), dtype=np.int64)
-    inv[order] = ids
-    return s[first], inv
+#: Keys per block in :func:`_tile_int` (2**18 int64: 2 MB): bounds its temporaries.
+_TILE_BLOCK = 1 << 18
 
 
 def _tile_int(
-    cell: UnitCell, cells: NDArray[np.int64]
+    cell: UnitCell, cells: NDArray[np.int64], *, block: int = _TILE_BLOCK
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """(node_ijk (N, 3), edges (M, 2)) of the union of the cell copies, sorted."""
+    """(node_ijk (N, 3), edges (M, 2)) of the union of the cell copies, sorted.
+
+    Works on blocks of about ``block`` (cell, node) keys: the distinct node keys of every
+    block, then their union; then the edge keys of every block (node ids by binary search
+    in the sorted node keys), then their union. Temporaries stay O(block) besides the
+    results' own size (about 8 bytes per node and per strut).
+    """
     if len(cells) == 0:
         return np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2), dtype=np.int64)
     d = cell.denominator
@@ -732,43 +725,101 @@ def _tile_int(
     k_nodes = cell.num_nodes
     g_lo = [v * d for v in c_lo]
     span = [(hi - lo + 1) * d + 1 for lo, hi in zip(c_lo, c_hi, strict=True)]
-    if span[0] * span[1] * span[2] <= _INT64_MAX:
-        # One int64 key per (cell, node), linear in the coordinates, so that
-        # key(cell, node) = key(cell origin) + key(node offset) and key order is
-        # lexicographic (x, y, z) order.
-        sy, sz = span[1], span[2]
-        base = ((cells[:, 0] * d - g_lo[0]) * sy + (cells[:, 1] * d - g_lo[1])) * sz + (
-            cells[:, 2] * d - g_lo[2]
+    if span[0] * span[1] * span[2] > _INT64_MAX:  # a huge, sparse extent: rows instead
+        return _tile_int_rows(cell, cells)
+    # One int64 key per (cell, node), linear in the coordinates, so that
+    # key(cell, node) = key(cell origin) + key(node offset) and key order is
+    # lexicographic (x, y, z) order.
+    sy, sz = span[1], span[2]
+    loc = cell.nodes
+    off = (loc[:, 0] * sy + loc[:, 1]) * sz + loc[:, 2]
+    step = max(1, block // k_nodes)
+    starts = range(0, len(cells), step)
+
+    def base(s: int) -> NDArray[np.int64]:
+        c = cells[s : s + step]
+        return ((c[:, 0] * d - g_lo[0]) * sy + (c[:, 1] * d - g_lo[1])) * sz + (
+            c[:, 2] * d - g_lo[2]
         )
-        loc = cell.nodes
-        off = (loc[:, 0] * sy + loc[:, 1]) * sz + loc[:, 2]
-        keys = (base[:, None] + off[None, :]).ravel()
-        del base
-        uniq, inv = _unique_inverse(keys)
-        del keys
-        node_ijk = np.empty((len(uniq), 3), dtype=np.int64)
-        rest, node_ijk[:, 2] = np.divmod(uniq, sz)
-        node_ijk[:, 0], node_ijk[:, 1] = np.divmod(rest, sy)
-        del rest, uniq
-        node_ijk += np.asarray(g_lo, dtype=np.int64)
-    else:  # a huge, sparse extent: unique on coordinate rows instead
-        g = (cells[:, None, :] * d + cell.nodes[None, :, :]).reshape(-1, 3)
-        node_ijk, inv = np.unique(g, axis=0, return_inverse=True)
-        del g
+
+    parts = []
+    for s in starts:
+        k = (base(s)[:, None] + off[None, :]).ravel()
+        k.sort()
+        parts.append(_unique_sorted(k))
+        del k
+    uniq = _sorted_union(parts)
+    n_nodes = len(uniq)
+    node_ijk = np.empty((n_nodes, 3), dtype=np.int64)
+    rest, node_ijk[:, 2] = np.divmod(uniq, sz)
+    node_ijk[:, 0], node_ijk[:, 1] = np.divmod(rest, sy)
+    del rest
+    node_ijk += np.asarray(g_lo, dtype=np.int64)
+    off_a, off_b = off[cell.edges[:, 0]], off[cell.edges[:, 1]]
+    if n_nodes > 3_000_000_000:  # pragma: no cover - n_nodes**2 would overflow int64
+        return node_ijk, _tile_edges_rows(uniq, base, starts, off_a, off_b)
+    step = max(1, block // max(1, cell.num_edges))
+    starts = range(0, len(cells), step)
+    parts = []
+    for s in starts:
+        b0 = base(s)[:, None]
+        a = np.searchsorted(uniq, (b0 + off_a[None, :]).ravel())
+        b = np.searchsorted(uniq, (b0 + off_b[None, :]).ravel())
+        lo = np.minimum(a, b)
+        np.maximum(a, b, out=b)
+        lo *= n_nodes
+        lo += b
+        del a, b
+        lo.sort()
+        parts.append(_unique_sorted(lo))
+        del lo
+    del uniq
+    ekeys = _sorted_union(parts)
+    edges = np.empty((len(ekeys), 2), dtype=np.int64)
+    np.divmod(ekeys, n_nodes, out=(edges[:, 0], edges[:, 1]))
+    return node_ijk, edges
+
+
+def _sorted_union(parts: list[NDArray[np.int64]]) -> NDArray[np.int64]:
+    """Distinct values of the sorted int64 arrays in ``parts`` (emptied), sorted."""
+    if len(parts) == 1:
+        return parts.pop()
+    allk = np.concatenate(parts)
+    parts.clear()
+    allk.sort()
+    return _unique_sorted(allk)
+
+
+def _tile_int_rows(
+    cell: UnitCell, cells: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """:func:`_tile_int` for a huge, sparse extent: unique on coordinate rows."""
+    d, k_nodes = cell.denominator, cell.num_nodes
+    g = (cells[:, None, :] * d + cell.nodes[None, :, :]).reshape(-1, 3)
+    node_ijk, inv = np.unique(g, axis=0, return_inverse=True)
+    del g
     inv = inv.reshape(len(cells), k_nodes)
-    n_nodes = len(node_ijk)
     a = inv[:, cell.edges[:, 0]]
     b = inv[:, cell.edges[:, 1]]
-    del inv
-    lo = np.minimum(a, b)
-    hi = np.maximum(a, b)
-    del a, b
-    if n_nodes <= 3_000_000_000:  # n_nodes**2 fits in int64
-        ekeys = _unique_sorted(np.sort((lo * n_nodes + hi).ravel()))
-        edges = np.stack(np.divmod(ekeys, n_nodes), axis=1)
-    else:  # pragma: no cover - more than 3e9 nodes
-        edges = np.unique(np.stack([lo.ravel(), hi.ravel()], axis=1), axis=0)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    edges = np.unique(np.stack([lo.ravel(), hi.ravel()], axis=1), axis=0)
     return node_ijk, edges.astype(np.int64, copy=False)
+
+
+def _tile_edges_rows(
+    uniq: NDArray[np.int64],
+    base: Callable[[int], NDArray[np.int64]],
+    starts: range,
+    off_a: NDArray[np.int64],
+    off_b: NDArray[np.int64],
+) -> NDArray[np.int64]:  # pragma: no cover - more than 3e9 nodes
+    rows = []
+    for s in starts:
+        b0 = base(s)[:, None]
+        a = np.searchsorted(uniq, (b0 + off_a[None, :]).ravel())
+        b = np.searchsorted(uniq, (b0 + off_b[None, :]).ravel())
+        rows.append(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1))
+    return np.unique(np.concatenate(rows), axis=0)
 
 
 def tile_arrays(

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fast_stitch.fit import clashes, misfits
+from fast_stitch.fit import clashes, misfits, strut_lengths
 from lattice_cad.core import config
 from lattice_cad.core.errors import FitError
 from lattice_cad.core.graph import LatticeGraph
@@ -283,6 +283,7 @@ def fit_radii(
     shrink: bool = True,
     clearance: bool = True,
     max_rounds: int = 60,
+    overwrite_input: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Thin the struts at crowded nodes, and struts that pass too close, until all fit.
 
@@ -305,6 +306,9 @@ def fit_radii(
     radii : (M, 2) float64
     min_radius : float
         Radii are never reduced below this.
+    overwrite_input : bool
+        Work on ``radii`` itself (when it is a C-contiguous float64 array) rather than on
+        a copy: it may hold the result, or be left changed (saves 16 bytes per strut).
 
     Returns
     -------
@@ -313,22 +317,31 @@ def fit_radii(
     unfit : (K,) int64
         Struts that still do not fit or clear (radius at ``min_radius``).
     """
-    r = np.array(radii, dtype=np.float64, copy=True)
-    length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
-    cap = 0.45 * length
-    too_fat = r > cap[:, None]
-    r[too_fat] = np.broadcast_to(cap[:, None], r.shape)[too_fat]
+    own = (
+        overwrite_input and isinstance(radii, np.ndarray) and radii.dtype == np.float64
+        and radii.flags.c_contiguous and radii.flags.writeable
+    )  # fmt: skip
+    r = radii if own else np.array(radii, dtype=np.float64, copy=True)
+    length = strut_lengths(nodes, edges)
+    for s in range(0, len(edges), _BLOCK):  # by blocks: no (M, 2) temporaries
+        cap = 0.45 * length[s : s + _BLOCK]
+        rb = r[s : s + _BLOCK]
+        too_fat = rb > cap[:, None]
+        rb[too_fat] = np.broadcast_to(cap[:, None], rb.shape)[too_fat]
+    del length
     bad = np.zeros(0, dtype=np.int64)
     n_nodes, m = len(nodes), len(edges)
     for _ in range(max_rounds):
         bad, need, length = misfits(nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK)
-        node_f = np.ones(n_nodes)
-        edge_f = np.ones(m)
         if len(bad):
             factor = np.clip((1.0 - 1.5 * config.FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
+            del need, length
+            node_f = np.ones(n_nodes)
+            edge_f = np.ones(m)
             np.minimum.at(node_f, edges[bad, 0], factor)
             np.minimum.at(node_f, edges[bad, 1], factor)
         elif clearance:
+            del need, length
             # aim past the check's own margin so that one round usually clears a pair
             pairs, dist, reach = clashes(
                 nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN
@@ -336,6 +349,8 @@ def fit_radii(
             bad = _clash_struts(pairs, edges, m, n_nodes)
             if not len(pairs):
                 return r, bad
+            node_f = np.ones(n_nodes)
+            edge_f = np.ones(m)
             factor = np.repeat(np.clip(0.98 * dist / reach, 0.2, 0.97), 2)
             el = pairs.ravel()
             strut = el < m
@@ -349,6 +364,9 @@ def fit_radii(
             break
         r = new
     return r, bad
+
+
+_BLOCK = 1 << 16
 
 
 def _clash_struts(

@@ -340,13 +340,15 @@ def voxel_lattice(
         fill = "inside" if rep.cells_inside else "conform"
     rep.fill = fill
     occupied = vox.inside if fill == "inside" else (vox.inside | vox.cut)
-    ijk = np.argwhere(occupied).astype(np.int64)
+    ijk = np.argwhere(occupied).astype(np.int64, copy=False)
+    del occupied
     if not len(ijk):
         raise _nothing_fits(part, h, radius, f"no cell of size {_mm(h)} fits inside")
-    # the builder's own estimate: tiling, cleanup, graph validation and radius fitting keep
-    # a few copies of every strut (about 600 bytes) and node (about 300 bytes)
+    # the builder's own estimate: the graph itself (about 40 bytes per strut) and the
+    # temporaries of tiling, fitting and validation, by blocks (bench_builder_memory.py:
+    # 60-130 bytes per strut at the peak; cell-local counts overcount shared struts)
     require_memory(
-        len(ijk) * (600 * len(c.edges) + 300 * len(c.nodes)),
+        len(ijk) * (120 * len(c.edges) + 60 * len(c.nodes)),
         f"a lattice of {len(ijk):,} {c.name} cells (about {len(ijk) * len(c.edges):,} struts)",
         advice="use larger cells",
     )
@@ -369,7 +371,7 @@ def voxel_lattice(
     if rot is not None:
         nodes = nodes @ rot.T
     t0 = time.perf_counter()
-    graph = _finish(nodes, edges, radius, min_radius, fit, rep)
+    graph = _finish(nodes, edges, radius, min_radius, fit, rep, owned=True)
     rep.seconds["fit"] = time.perf_counter() - t0
     return (graph, rep) if return_report else graph
 
@@ -410,12 +412,24 @@ def _finish(
     min_radius: float | None,
     fit: str,
     rep: BuildReport,
+    *,
+    owned: bool = False,
 ) -> LatticeGraph:
-    """Radii, fitting and the graph (shared by the voxel and tet builders)."""
+    """Radii, fitting and the graph (shared by the voxel and tet builders).
+
+    ``owned``: ``nodes`` and ``edges`` are the builder's own arrays; the graph takes them
+    over without copies (they become read-only).
+    """
     r = resolve_radii(radius, nodes, edges)
     if fit == "shrink":
         floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
-        new, unfit = fit_radii(nodes, edges, r, min_radius=floor)
+        # one radius for all (the usual case): the fit may work on r itself
+        same = bool(len(r)) and float(r.min()) == float(r.max())
+        r0 = float(r.flat[0]) if same else 0.0
+        new, unfit = fit_radii(nodes, edges, r, min_radius=floor, overwrite_input=same)
+        if same:
+            del r
+            r = np.full((1, 2), r0)  # what r held everywhere, for the counts below
         changed = int((new < r).any(axis=1).sum())
         if len(unfit):
             raise FitError(
@@ -442,6 +456,8 @@ def _finish(
                 "use thinner struts or fit='shrink'"
             )
     rep.min_radius = float(r.min())
+    if owned:
+        return LatticeGraph._from_owned(nodes, edges, r)
     return LatticeGraph(nodes, edges, r)
 
 
@@ -565,24 +581,32 @@ def _cleanup(
         short = length < min_len
         rep.removed_short = int(short.sum())
         edges = edges[~short]
-    # dangling struts: degree-1 nodes that are not on the surface, repeatedly
-    alive = np.ones(len(edges), dtype=bool)
-    while prune:
-        deg = np.bincount(edges[alive].ravel(), minlength=n)
-        leaf = (deg == 1) & ~on_surface
-        drop = alive & (leaf[edges[:, 0]] | leaf[edges[:, 1]])
-        if not drop.any():
-            break
-        rep.removed_dangling += int(drop.sum())
-        alive &= ~drop
-    edges = edges[alive]
+    # dangling struts: degree-1 nodes that are not on the surface, repeatedly (the degrees
+    # are kept up to date by subtraction; the edges are copied once, at the end)
+    alive: NDArray[np.bool_] | None = None
+    if prune:
+        deg = np.bincount(np.ascontiguousarray(edges).ravel(), minlength=n)
+        while True:
+            leaf = (deg == 1) & ~on_surface
+            if not leaf.any():
+                break
+            drop = _touching(edges, leaf)
+            if alive is not None:
+                drop = drop[alive[drop]]
+            if not len(drop):
+                break
+            if alive is None:
+                alive = np.ones(len(edges), dtype=bool)
+            rep.removed_dangling += len(drop)
+            alive[drop] = False
+            np.subtract.at(deg, edges[drop].ravel(), 1)
+        del deg
+    if alive is not None:
+        edges = edges[alive]
+        del alive
     if boundary and len(edges):
         # fragments: connected pieces without any interior node
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
-
-        g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-        _, lab = connected_components(g, directed=False)
+        _, lab = _components(n, edges)
         used = np.zeros(n, dtype=bool)
         used[edges.ravel()] = True
         has_interior = np.zeros(lab.max() + 1, dtype=bool)
@@ -591,10 +615,43 @@ def _cleanup(
         rep.removed_fragments = int((~ok).sum())
         edges = edges[ok]
     used = np.zeros(n, dtype=bool)
-    used[edges.ravel()] = True
+    used[np.ascontiguousarray(edges).ravel()] = True
     rep.removed_isolated = int((~used).sum())
+    return _renumber(nodes, edges, used)
+
+
+_BLOCK = 1 << 16
+
+
+def _touching(edges: NDArray[np.int64], mark: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """(K,) int64: the struts with a marked end, ascending (by blocks of struts)."""
+    out = []
+    for s in range(0, len(edges), _BLOCK):
+        e = edges[s : s + _BLOCK]
+        hit = mark[e[:, 0]]
+        hit |= mark[e[:, 1]]
+        out.append(np.flatnonzero(hit) + s)
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+
+
+def _renumber(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], used: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The ``used`` nodes and the edges renumbered onto them (int64, a new array unless
+    every node is used and ``edges`` already is a contiguous int64 array)."""
+    if used.all():
+        return nodes, np.ascontiguousarray(edges, dtype=np.int64)
     new_id = np.cumsum(used) - 1
-    return nodes[used], new_id[edges].astype(np.int64)
+    out = np.empty(edges.shape, dtype=np.int64)
+    for s in range(0, len(edges), _BLOCK):
+        np.take(new_id, edges[s : s + _BLOCK], out=out[s : s + _BLOCK])
+    return nodes[used], out
+
+
+def _components(n: int, edges: NDArray[np.int64]) -> tuple[int, NDArray[np.int64]]:
+    """Connected components: their count and the (n,) int64 label of every node, numbered
+    in the order of their smallest node (as scipy's ``connected_components``)."""
+    return _kernels.component_labels(n, np.ascontiguousarray(edges, dtype=np.int64))
 
 
 def _solid_shells(part: Part) -> list[Part]:
@@ -640,15 +697,12 @@ def main_components(
     bodies : int
         Pieces kept (at most one per separate solid of the part).
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     n = len(nodes)
     if not len(edges):
         return np.zeros(0, dtype=bool), 0, 0
-    g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-    k, lab = connected_components(g, directed=False)
+    k, lab = _components(n, edges)
     elab = lab[edges[:, 0]]
+    del lab
     size = np.bincount(elab, minlength=k)
     present = np.flatnonzero(size)
     if len(present) <= 1:
@@ -690,7 +744,6 @@ def keep_main_components(
     edges = edges[ok]
     used = np.zeros(n, dtype=bool)
     used[edges.ravel()] = True
-    new_id = np.cumsum(used) - 1
     if rep.removed_islands:
         warnings.warn(
             f"{rep.removed_islands} strut(s) in {pieces - rep.bodies} loose piece(s) "
@@ -699,7 +752,7 @@ def keep_main_components(
             LatticeWarning,
             stacklevel=3,
         )
-    return nodes[used], new_id[edges].astype(np.int64)
+    return _renumber(nodes, edges, used)
 
 
 def _find(parent: NDArray[np.int64], i: int) -> int:

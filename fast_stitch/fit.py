@@ -20,13 +20,13 @@ elements whose capsules keep apart never overlap in the stitched mesh.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
-from fast_stitch import _kernels
-from fast_stitch.stitch import _clearance_elements
+from fast_stitch import _fit_kernels, _kernels
 from lattice_cad.core import config
 
 __all__ = ["end_offsets", "misfits", "clashes"]
@@ -62,19 +62,25 @@ def _node_offsets(nodes, edges, radii, offsets, inc_edge, inc_side, shrink, marg
 
 def _incidence(
     edges: NDArray[np.int64], n: int
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """CSR node -> (strut, side) incidence: ``offsets`` (n + 1,), ``inc_edge``, ``inc_side``."""
-    flat = edges.ravel()
-    order = np.argsort(flat, kind="stable")
-    inc_edge = (order // 2).astype(np.int64)
-    inc_side = (order % 2).astype(np.int64)
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
-    return offsets, inc_edge, inc_side
+) -> tuple[NDArray[np.int64], NDArray[np.int32], NDArray[np.int8]]:
+    """CSR node -> (strut, side) incidence: ``offsets`` (n + 1,) int64, ``inc_edge``
+    (2M,) int32, ``inc_side`` (2M,) int8 (the order of a stable argsort of the ends)."""
+    if len(edges) >= 2**31:  # pragma: no cover - int32 strut ids would overflow
+        flat = edges.ravel()
+        order = np.argsort(flat, kind="stable")
+        offsets = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
+        return offsets, order // 2, (order % 2).astype(np.int8)  # type: ignore[return-value]
+    return _fit_kernels.incidence(edges, n)  # type: ignore[no-any-return]
 
 
 def end_offsets(
-    nodes: ArrayLike, edges: ArrayLike, radii: ArrayLike, *, shrink: bool = True
+    nodes: ArrayLike,
+    edges: ArrayLike,
+    radii: ArrayLike,
+    *,
+    shrink: bool = True,
+    _incidence_arrays: tuple[Any, Any, Any] | None = None,
 ) -> NDArray[np.float64]:
     """Profile offset of every strut end, as :func:`fast_stitch.stitch` computes it.
 
@@ -97,7 +103,8 @@ def end_offsets(
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
     radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
     n, m = len(nodes_a), len(edges_a)
-    offsets, inc_edge, inc_side = _incidence(edges_a, n)
+    inc = _incidence(edges_a, n) if _incidence_arrays is None else _incidence_arrays
+    offsets, inc_edge, inc_side = inc
     out = np.zeros((m, 2))
     floor_tan = math.tan(math.radians(90.0 - config.FLOOR_ANGLE_DEG))
     _node_offsets(
@@ -134,44 +141,29 @@ def misfits(
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
     off = end_offsets(nodes_a, edges_a, radii, shrink=shrink)
+    return _misfits_from(nodes_a, edges_a, off, slack)
+
+
+_BLOCK = 1 << 16
+
+
+def strut_lengths(nodes: NDArray[np.float64], edges: NDArray[np.int64]) -> NDArray[np.float64]:
+    """(M,) float64: ``np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)``,
+    by blocks of struts (no (M, 3) temporaries)."""
+    out = np.empty(len(edges))
+    for s in range(0, len(edges), _BLOCK):
+        e = edges[s : s + _BLOCK]
+        out[s : s + _BLOCK] = np.linalg.norm(nodes[e[:, 1]] - nodes[e[:, 0]], axis=1)
+    return out
+
+
+def _misfits_from(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], off: NDArray[np.float64], slack: float
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     need = off.sum(axis=1)
-    length = np.linalg.norm(nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]], axis=1)
+    length = strut_lengths(nodes, edges)
     bad = np.flatnonzero(need >= length * (1.0 - config.MIN_CYLINDER_FRACTION - slack))
     return bad.astype(np.int64), need, length
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def _clash_pairs(
-    seg_a, seg_b, rad, lo, hi, cell, origin, dims, count, members, edges, offsets, inc_edge,
-    scale, n_found, start, out_pairs, out_dist, write,
-):  # fmt: skip
-    """Pairs of non-incident elements closer than ``scale * (rad_i + rad_j)``.
-
-    ``write=False``: count them per cell into ``n_found``; ``write=True``:
-    store them from ``start[cell]`` on.
-    """
-    m = edges.shape[0]
-    for c in prange(dims[0] * dims[1] * dims[2]):
-        k = 0
-        for u in range(count[c], count[c + 1]):
-            i = members[u]
-            for w in range(u + 1, count[c + 1]):
-                j = members[w]
-                d2 = _kernels._candidate_d2(
-                    i, j, c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets,
-                    inc_edge, scale,
-                )  # fmt: skip
-                if d2 < 0.0:
-                    continue
-                a = min(i, j)
-                b = max(i, j)
-                if write:
-                    out_pairs[start[c] + k, 0] = a
-                    out_pairs[start[c] + k, 1] = b
-                    out_dist[start[c] + k] = np.sqrt(d2)
-                k += 1
-        if not write:
-            n_found[c] = k
 
 
 def clashes(
@@ -202,33 +194,114 @@ def clashes(
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
     radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
-    n, m = len(nodes_a), len(edges_a)
+    if len(edges_a) == 0:
+        return np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0)
+    inc = _incidence(edges_a, len(nodes_a))
+    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink, _incidence_arrays=inc)
+    return _clashes(nodes_a, edges_a, radii_a, off, inc, margin)
+
+
+def _clashes(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    off: NDArray[np.float64],
+    inc: tuple[Any, Any, Any],
+    margin: float,
+    *,
+    block: int = 1 << 16,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`clashes` with the end offsets and incidence given, by x-slabs of the grid.
+
+    The grid is the one of ``fast_stitch.stitch._clearance_elements`` (same origin, cell
+    and dims); the elements are boxed a slab at a time (about ``block`` elements), each
+    slab finds the pairs whose home cell it holds. Same pairs and distances as one pass.
+    """
+    n, m = len(nodes), len(edges)
+    offsets, inc_edge, inc_side = inc
+    pad = 1.0 + margin
+    n_el = m + n
+
+    def boxes(ids: NDArray[np.int64]) -> tuple[NDArray[np.float64], ...]:
+        k = len(ids)
+        seg_a, seg_b, lo, hi = (np.empty((k, 3)) for _ in range(4))
+        rad, extent = np.empty(k), np.empty(k)
+        _fit_kernels.element_boxes(
+            ids, nodes, edges, radii, off, offsets, inc_edge, inc_side, float(pad),
+            seg_a, seg_b, rad, lo, hi, extent,
+        )  # fmt: skip
+        return seg_a, seg_b, rad, lo, hi, extent
+
+    # the grid (as _clearance_elements): bounds of the active boxes, median extent
+    origin = np.full(3, np.inf)
+    top = np.full(3, -np.inf)
+    ext = np.empty(n_el)
+    n_active = 0
+    for s in range(0, n_el, block):
+        _, _, rad, lo, hi, extent = boxes(np.arange(s, min(n_el, s + block)))
+        act = rad >= 0
+        if act.any():
+            np.minimum(origin, lo[act].min(axis=0), out=origin)
+            np.maximum(top, hi[act].max(axis=0), out=top)
+        k = int(act.sum())
+        ext[n_active : n_active + k] = extent[act]
+        n_active += k
     empty = (np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0))
-    if m == 0:
+    if n_active == 0:
         return empty
-    offsets, inc_edge, inc_side = _incidence(edges_a, n)
-    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink)
-    vec = nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]]
-    length = np.linalg.norm(vec, axis=1)
-    unit = vec / np.where(length > 0, length, 1.0)[:, None]
-    seg_a, seg_b, rad, lo, hi, cell, origin, dims = _clearance_elements(
-        nodes_a, edges_a, radii_a, off, unit, offsets, inc_edge, inc_side, pad=1.0 + margin
-    )
-    count, members = _kernels.element_grid(lo, hi, rad, cell, origin, dims)
-    n_cells = int(np.prod(dims))
-    n_found = np.zeros(n_cells, dtype=np.int64)
-    start = np.zeros(n_cells + 1, dtype=np.int64)
-    no_pairs = np.zeros((0, 2), dtype=np.int64)
-    args = (seg_a, seg_b, rad, lo, hi, cell, origin, dims, count, members, edges_a, offsets,
-            inc_edge, 1.0 + margin)  # fmt: skip
-    _clash_pairs(*args, n_found, start, no_pairs, np.zeros(0), False)
-    np.cumsum(n_found, out=start[1:])
-    k = int(start[-1])
-    if k == 0:
+    cell = max(float(np.median(ext[:n_active], overwrite_input=True)), 1e-300)
+    del ext
+    span = top - origin
+    while True:
+        dims = np.maximum(1, np.ceil(span / cell).astype(np.int64))
+        if int(np.prod(dims)) <= 4 * n_active + 64:
+            break
+        cell *= 1.5
+    # x-span of every element's box, then slabs of about `block` elements
+    first = np.empty(n_el, dtype=np.int32)
+    last = np.empty(n_el, dtype=np.int32)
+    for s in range(0, n_el, block):
+        _, _, rad, lo, hi, _ = boxes(np.arange(s, min(n_el, s + block)))
+        _fit_kernels.x_spans(lo, hi, rad, origin, cell, dims, first[s : s + block],
+                             last[s : s + block])  # fmt: skip
+    nx = int(dims[0])
+    start_x, order = _fit_kernels.bucket(first, nx)
+    widest = int((last - first).max()) if n_el else 0  # the widest box, in columns
+    cuts = [0]
+    for x in range(1, nx):
+        if start_x[x] - start_x[cuts[-1]] >= block:
+            cuts.append(x)
+    cuts.append(nx)
+    found_pairs, found_dist = [], []
+    scale = 1.0 + margin
+    for x0, x1 in zip(cuts[:-1], cuts[1:], strict=True):
+        # boxes that start at most `widest` columns before the slab and reach into it
+        cand = order[start_x[max(0, x0 - widest)] : start_x[x1]]
+        ids = np.sort(cand[last[cand] >= x0]).astype(np.int64)
+        if len(ids) < 2:
+            continue
+        seg_a, seg_b, rad, lo, hi, _ = boxes(ids)
+        count, members = _fit_kernels.slab_grid(lo, hi, rad, cell, origin, dims, x0, x1 - 1)
+        n_cells = len(count) - 1
+        n_found = np.zeros(n_cells, dtype=np.int64)
+        start = np.zeros(n_cells + 1, dtype=np.int64)
+        args = (ids, seg_a, seg_b, rad, lo, hi, cell, origin, dims, x0, count, members, edges,
+                offsets, inc_edge, scale)  # fmt: skip
+        _fit_kernels.slab_pairs(*args, n_found, start, np.zeros((0, 2), dtype=np.int64),
+                                np.zeros(0), False)  # fmt: skip
+        np.cumsum(n_found, out=start[1:])
+        k = int(start[-1])
+        if k:
+            pairs = np.empty((k, 2), dtype=np.int64)
+            dist = np.empty(k)
+            _fit_kernels.slab_pairs(*args, n_found, start, pairs, dist, True)
+            found_pairs.append(pairs)
+            found_dist.append(dist)
+    if not found_pairs:
         return empty
-    pairs = np.empty((k, 2), dtype=np.int64)
-    dist = np.empty(k)
-    _clash_pairs(*args, n_found, start, pairs, dist, True)
+    pairs = np.concatenate(found_pairs)
+    dist = np.concatenate(found_dist)
     order = np.lexsort((pairs[:, 1], pairs[:, 0]))
     pairs, dist = pairs[order], dist[order]
-    return pairs, dist, (1.0 + margin) * rad[pairs].sum(axis=1)
+    rad = boxes(pairs.ravel())[2].reshape(-1, 2)
+    return pairs, dist, (1.0 + margin) * rad.sum(axis=1)

@@ -90,6 +90,40 @@ class LatticeGraph:
         nodes_a = _as_nodes(nodes)
         edges_a = _as_edges(edges, len(nodes_a))
         radii_a = _as_radii(radii, len(edges_a))
+        self._adopt(nodes_a, edges_a, radii_a)
+
+    @classmethod
+    def _from_owned(
+        cls,
+        nodes: NDArray[np.float64],
+        edges: NDArray[np.int64],
+        radii: NDArray[np.float64],
+    ) -> LatticeGraph:
+        """A graph that takes the arrays over without copying them (the builders' path).
+
+        ``nodes`` (N, 3) float64, ``edges`` (M, 2) int64 and ``radii`` (M, 2) float64 must
+        be C-contiguous arrays that nobody else writes to: they are validated as by the
+        constructor and made read-only in place. Other arrays go through the constructor.
+        """
+        ok = (
+            isinstance(nodes, np.ndarray) and nodes.dtype == np.float64 and nodes.ndim == 2
+            and nodes.shape[1] == 3 and nodes.flags.c_contiguous and len(nodes) > 0
+            and isinstance(edges, np.ndarray) and edges.dtype == np.int64 and edges.ndim == 2
+            and edges.shape[1] == 2 and edges.flags.c_contiguous
+            and isinstance(radii, np.ndarray) and radii.dtype == np.float64
+            and radii.shape == (len(edges), 2) and radii.flags.c_contiguous
+        )  # fmt: skip
+        if not ok:
+            return cls(nodes, edges, radii)
+        if len(edges) and (int(edges.min()) < 0 or int(edges.max()) >= len(nodes)):
+            return cls(nodes, edges, radii)  # the constructor names the bad index
+        g = cls.__new__(cls)
+        g._adopt(nodes, edges, radii)
+        return g
+
+    def _adopt(
+        self, nodes_a: NDArray[np.float64], edges_a: NDArray[np.int64], radii_a: NDArray[np.float64]
+    ) -> None:
         _validate(nodes_a, edges_a, radii_a)
         for a in (nodes_a, edges_a, radii_a):
             a.flags.writeable = False
@@ -104,7 +138,7 @@ class LatticeGraph:
                 f"{len(isolated)} isolated node(s) without struts will be ignored "
                 f"(node {shown}{more})",
                 LatticeWarning,
-                stacklevel=2,
+                stacklevel=3,
             )
 
     # ------------------------------------------------------------------ sizes
@@ -445,6 +479,8 @@ def _as_edges(edges: ArrayLike, n_nodes: int) -> NDArray[np.int64]:
                 raise InvalidGraphError(
                     f"edge {k // 2} has a non-integer node index {raw[k // 2].tolist()}"
                 )
+    if raw.dtype.kind in "iu" and raw.min() >= 0 and raw.max() < n_nodes:
+        return np.ascontiguousarray(raw.astype(np.int64))
     # range check in the given type: a uint64 2**64 - 1 or a float 1e20 must not wrap
     out = (raw < 0) | (raw >= n_nodes)
     if out.any():
@@ -472,89 +508,192 @@ def _as_radii(radii: ArrayLike, n_edges: int) -> NDArray[np.float64]:
     return np.ascontiguousarray(out, dtype=np.float64)
 
 
+#: Rows per block in the checks of :func:`_validate` (bounds their temporaries).
+_BLOCK = 1 << 16
+
+
+def _blocks(n: int) -> range:
+    return range(0, n, _BLOCK)
+
+
+def _first_row(n: int, bad_rows: Any) -> int | None:
+    """The first row ``i < n`` for which ``bad_rows(start, stop)`` (a bool block) is True."""
+    for s in _blocks(n):
+        bad = bad_rows(s, min(n, s + _BLOCK))
+        if bad.any():
+            return s + int(np.flatnonzero(bad)[0])
+    return None
+
+
+def _first_cell(n: int, bad_cells: Any) -> tuple[int, int] | None:
+    """The first (row, column) of an (n, k) test evaluated by blocks of rows."""
+    for s in _blocks(n):
+        bad = bad_cells(s, min(n, s + _BLOCK))
+        if bad.any():
+            r, c = (int(v) for v in np.argwhere(bad)[0])
+            return s + r, c
+    return None
+
+
+def _lengths(nodes: NDArray[np.float64], edges: NDArray[np.int64], s: int, t: int) -> Any:
+    vec = nodes[edges[s:t, 1]] - nodes[edges[s:t, 0]]
+    return np.sqrt(np.einsum("ij,ij->i", vec, vec))
+
+
+def _is_sorted_rows(a: NDArray[Any], strict: bool) -> bool:
+    """Are the rows of the (n, k) array in (strictly) increasing lexicographic order?"""
+    n, k = a.shape
+    for s in _blocks(max(n - 1, 0)):
+        t = min(n - 1, s + _BLOCK)
+        x, y = a[s:t], a[s + 1 : t + 1]
+        # lexicographic x < y (or <=) over the k columns, from the last column back
+        ok = (x[:, k - 1] < y[:, k - 1]) if strict else (x[:, k - 1] <= y[:, k - 1])
+        for c in range(k - 2, -1, -1):
+            ok = (x[:, c] < y[:, c]) | ((x[:, c] == y[:, c]) & ok)
+        if not ok.all():
+            return False
+    return True
+
+
 def _validate(
     nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]
 ) -> None:
-    bad = ~np.isfinite(nodes).all(axis=1)
-    if bad.any():
-        n = int(np.flatnonzero(bad)[0])
-        raise InvalidGraphError(f"node {n} has a non-finite coordinate {nodes[n].tolist()}")
-    if len(edges) == 0:
+    """The invariants of :class:`LatticeGraph`, checked by blocks of rows (temporaries stay
+    small whatever the size); raises :class:`InvalidGraphError` for the first problem."""
+    n_nodes, m = len(nodes), len(edges)
+    bad = _first_row(n_nodes, lambda s, t: ~np.isfinite(nodes[s:t]).all(axis=1))
+    if bad is not None:
+        raise InvalidGraphError(f"node {bad} has a non-finite coordinate {nodes[bad].tolist()}")
+    if m == 0:
         return
-    huge = np.abs(nodes).max(axis=1) > config.MAX_COORDINATE
-    if huge.any():
-        n = int(np.flatnonzero(huge)[0])
+    huge = _first_row(
+        n_nodes, lambda s, t: np.abs(nodes[s:t]).max(axis=1) > config.MAX_COORDINATE
+    )
+    if huge is not None:
+        n = huge
         raise InvalidGraphError(
             f"node {n} at {_fmt_point(nodes[n])} is beyond the largest supported coordinate "
             f"{config.MAX_COORDINATE:g} (lengths' squares and the exact predicates' products "
             "would overflow); use a larger length unit (smaller numbers) or move the lattice to "
             "the origin"
         )
-    loops = edges[:, 0] == edges[:, 1]
-    if loops.any():
-        e = int(np.flatnonzero(loops)[0])
-        raise InvalidGraphError(f"edge {e} is a self-loop on node {int(edges[e, 0])}")
-    key = np.sort(edges, axis=1)
-    order = np.lexsort((key[:, 1], key[:, 0]))
-    ks = key[order]
-    dup = np.flatnonzero((ks[1:] == ks[:-1]).all(axis=1))
-    if len(dup):
-        # report the later edge as the duplicate of the earlier one
-        pairs = np.sort(np.stack([order[dup], order[dup + 1]], axis=1), axis=1)
-        first, second = (int(v) for v in pairs[np.argmin(pairs[:, 1])])
-        raise InvalidGraphError(
-            f"edge {second} {tuple(edges[second].tolist())} duplicates edge {first} "
-            f"{tuple(edges[first].tolist())}"
-        )
-    badr = ~np.isfinite(radii)
-    if badr.any():
-        e = int(np.flatnonzero(badr.any(axis=1))[0])
+    loop = _first_row(m, lambda s, t: edges[s:t, 0] == edges[s:t, 1])
+    if loop is not None:
+        raise InvalidGraphError(f"edge {loop} is a self-loop on node {int(edges[loop, 0])}")
+    _check_duplicates(edges)
+    badr = _first_row(m, lambda s, t: ~np.isfinite(radii[s:t]).all(axis=1))
+    if badr is not None:
+        e = badr
         raise InvalidGraphError(f"edge {e} has a non-finite radius {radii[e].tolist()}")
-    nonpos = radii <= 0
-    if nonpos.any():
-        e, side = (int(v) for v in np.argwhere(nonpos)[0])
+    nonpos = _first_cell(m, lambda s, t: radii[s:t] <= 0)
+    if nonpos is not None:
+        e, side = nonpos
         raise InvalidGraphError(
             f"edge {e} has radius {radii[e, side]:g} at node {int(edges[e, side])}; "
             "radii must be > 0"
         )
-    tiny = radii < config.MIN_RADIUS
-    if tiny.any():
-        e, side = (int(v) for v in np.argwhere(tiny)[0])
+    tiny = _first_cell(m, lambda s, t: radii[s:t] < config.MIN_RADIUS)
+    if tiny is not None:
+        e, side = tiny
         raise InvalidGraphError(
             f"edge {e} has radius {radii[e, side]:g} at node {int(edges[e, side])}, below the "
             f"smallest supported radius {config.MIN_RADIUS:g} (products of such lengths "
             "underflow in floating point); use a smaller length unit"
         )
-    vec = nodes[edges[:, 1]] - nodes[edges[:, 0]]
-    length = np.sqrt(np.einsum("ij,ij->i", vec, vec))
-    zero = length == 0.0
-    if zero.any():
-        e = int(np.flatnonzero(zero)[0])
+    zero: int | None = None
+    fat: int | None = None
+    for s in _blocks(m):
+        t = min(m, s + _BLOCK)
+        length = _lengths(nodes, edges, s, t)
+        z = np.flatnonzero(length == 0.0)
+        if len(z):
+            zero = s + int(z[0])
+            break
+        if fat is None:
+            f = np.flatnonzero(radii[s:t].max(axis=1) >= 0.5 * length)
+            if len(f):
+                fat = s + int(f[0])
+    if zero is not None:
+        e = zero
         a, b = (int(v) for v in edges[e])
         raise InvalidGraphError(
             f"edge {e} ({a}, {b}) has zero length: nodes {a} and {b} coincide at "
             f"{_fmt_point(nodes[a])}"
         )
-    fat = radii.max(axis=1) >= 0.5 * length
-    if fat.any():
-        e = int(np.flatnonzero(fat)[0])
+    if fat is not None:
+        e = fat
+        length_e = float(_lengths(nodes, edges, e, e + 1)[0])
         raise InvalidGraphError(
             f"edge {e} ({int(edges[e, 0])}, {int(edges[e, 1])}): radius {radii[e].max():g} is not "
-            f"strictly below half its length {length[e]:g} (must be < {0.5 * length[e]:g})"
+            f"strictly below half its length {length_e:g} (must be < {0.5 * length_e:g})"
         )
-    if config.PRECISION_CONTRACT:
+    if config.PRECISION_CONTRACT and _precision_ratio(nodes, edges, radii) > (
+        config.PRECISION_RATIO_F64
+    ):
         msg = precision_problem(nodes, edges, radii, "float64")
         if msg:
             raise InvalidGraphError(msg)
-    # distinct nodes at the same position (only among nodes that carry struts)
+    _check_coincident(nodes, edges)
+
+
+def _check_duplicates(edges: NDArray[np.int64]) -> None:
+    """Duplicate edges (in either direction): the later one is named as a duplicate of the
+    earlier one. Sorted edges (``a < b``, rows ascending, as the builders make them) are
+    checked by neighbours; others by a sort of all the rows."""
+    m = len(edges)
+    normal = _first_row(m, lambda s, t: edges[s:t, 0] >= edges[s:t, 1]) is None
+    if normal and _is_sorted_rows(edges, strict=False):
+        dup = _first_row(
+            m - 1, lambda s, t: (edges[s:t] == edges[s + 1 : t + 1]).all(axis=1)
+        )
+        if dup is None:
+            return
+        first, second = dup, dup + 1
+    else:
+        key = np.sort(edges, axis=1)
+        order = np.lexsort((key[:, 1], key[:, 0]))
+        ks = key[order]
+        dups = np.flatnonzero((ks[1:] == ks[:-1]).all(axis=1))
+        if not len(dups):
+            return
+        # report the later edge as the duplicate of the earlier one
+        pairs = np.sort(np.stack([order[dups], order[dups + 1]], axis=1), axis=1)
+        first, second = (int(v) for v in pairs[np.argmin(pairs[:, 1])])
+    raise InvalidGraphError(
+        f"edge {second} {tuple(edges[second].tolist())} duplicates edge {first} "
+        f"{tuple(edges[first].tolist())}"
+    )
+
+
+def _precision_ratio(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]
+) -> float:
+    """The largest ``|x| / r`` of the struts (see :func:`precision_problem`), by blocks."""
+    big = np.empty(len(nodes))
+    for s in _blocks(len(nodes)):
+        np.abs(nodes[s : s + _BLOCK]).max(axis=1, out=big[s : s + _BLOCK])
+    worst = 0.0
+    for s in _blocks(len(edges)):
+        e = edges[s : s + _BLOCK]
+        scale = np.maximum(big[e[:, 0]], big[e[:, 1]])
+        scale /= radii[s : s + _BLOCK].min(axis=1)
+        worst = max(worst, float(scale.max()))
+    return worst
+
+
+def _check_coincident(nodes: NDArray[np.float64], edges: NDArray[np.int64]) -> None:
+    """Distinct nodes at the same position (only among nodes that carry struts)."""
     used = np.flatnonzero(np.bincount(edges.ravel(), minlength=len(nodes)) > 0)
-    if len(used) > 1:
-        pts = nodes[used]
-        order = np.lexsort((pts[:, 2], pts[:, 1], pts[:, 0]))
-        same = np.flatnonzero((pts[order][1:] == pts[order][:-1]).all(axis=1))
-        if len(same):
-            a, b = sorted((int(used[order[same[0]]]), int(used[order[same[0] + 1]])))
-            raise InvalidGraphError(f"nodes {a} and {b} coincide at {_fmt_point(nodes[a])}")
+    if len(used) <= 1:
+        return
+    pts = nodes if len(used) == len(nodes) else nodes[used]
+    if _is_sorted_rows(pts, strict=True):  # the builders' nodes: sorted, distinct
+        return
+    order = np.lexsort((pts[:, 2], pts[:, 1], pts[:, 0]))
+    same = np.flatnonzero((pts[order][1:] == pts[order][:-1]).all(axis=1))
+    if len(same):
+        a, b = sorted((int(used[order[same[0]]]), int(used[order[same[0] + 1]])))
+        raise InvalidGraphError(f"nodes {a} and {b} coincide at {_fmt_point(nodes[a])}")
 
 
 def precision_problem(
