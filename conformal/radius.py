@@ -164,8 +164,12 @@ def _clash_list(
     *,
     shrink: bool = True,
     margin: float = config.CLEARANCE_MARGIN,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> list[StrutClash]:
-    pairs, dist, need = clashes(nodes, edges, radii, shrink=shrink, margin=margin)
+    pairs, dist, need = clashes(
+        nodes, edges, radii, shrink=shrink, margin=margin, segments=segments, profile=profile
+    )
     m = len(edges)
 
     def name(el: int) -> str:
@@ -193,12 +197,14 @@ def check_fit(
     *,
     shrink: bool = True,
     clearance: bool = True,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> list[StrutMisfit | StrutClash]:
     """What :func:`fast_stitch.stitch` would reject in ``graph``.
 
-    Uses the stitcher's own offset rule (:mod:`fast_stitch.fit`); the result
-    does not depend on ``segments`` (kept for symmetry with ``stitch``): the
-    P-gon profiles are inscribed in the circles checked here.
+    Uses the stitcher's own offset rule (:mod:`fast_stitch.fit`) for the profile
+    polygons of ``segments`` and ``profile`` (as in :func:`fast_stitch.stitch`: the
+    default ``"volume"`` polygons have the circle's area, so their circumradius is
+    larger than the strut radius, by 10 % at P = 6).
 
     Parameters
     ----------
@@ -211,8 +217,9 @@ def check_fit(
     list of StrutMisfit (too-short struts) then StrutClash (overlapping pairs)
         Empty when the graph will stitch.
     """
-    del segments  # offsets do not depend on the number of segments
-    bad, need, length = misfits(graph.nodes, graph.edges, graph.radii, shrink=shrink)
+    bad, need, length = misfits(
+        graph.nodes, graph.edges, graph.radii, shrink=shrink, segments=segments, profile=profile
+    )
     out: list[StrutMisfit | StrutClash] = [
         StrutMisfit(
             int(e),
@@ -223,7 +230,12 @@ def check_fit(
         for e in bad
     ]
     if clearance and not out:  # clearance is only meaningful once every strut has a cylinder
-        out.extend(_clash_list(graph.nodes, graph.edges, graph.radii, shrink=shrink))
+        out.extend(
+            _clash_list(
+                graph.nodes, graph.edges, graph.radii, shrink=shrink, segments=segments,
+                profile=profile,
+            )  # fmt: skip
+        )
     return out
 
 

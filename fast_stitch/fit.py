@@ -5,8 +5,17 @@ to the strut's end profile with exactly the rule of :func:`fast_stitch.stitch`
 (``fast_stitch._kernels.hub_offsets`` with the same margin and floor angle).
 A strut fits when the offsets of its two ends leave some open cylinder:
 ``offset[e, 0] + offset[e, 1] < length[e] * (1 - config.MIN_CYLINDER_FRACTION)``;
-:func:`misfits` lists the struts that do not. Offsets do not depend on the
-number of segments.
+:func:`misfits` lists the struts that do not.
+
+Profiles: every function takes the stitch's ``segments`` and ``profile``, because the
+profile polygons are larger than the strut's circle except with
+``profile="inscribed"`` (circumradius ``r * profile_factor(P, profile)``: +10 % at the
+default P = 6 with ``"volume"``/``"area"``): offsets and clearances are those of the
+enlarged polygons. With ``profile="volume"`` the stitch then scales each hub about its
+node (:mod:`fast_stitch.hubvolume`) by ``s_n <= 1`` where the hub is fuller than the
+exact solid (the mesh shrinks inside the one checked here), and grows boundary hubs by
+at most what keeps ``config.FIT_SLACK`` of each strut free; the offsets returned are
+those before that scaling.
 
 :func:`clashes` lists the elements that share no node but whose bounding
 capsules would overlap (:func:`fast_stitch.stitch`'s ``check_clearance``):
@@ -26,8 +35,10 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from fast_stitch import _kernels
+from fast_stitch.hubvolume import profile_factor
 from fast_stitch.stitch import _clearance_elements
 from lattice_cad.core import config
+from lattice_cad.core.checks import check_segments
 
 __all__ = ["end_offsets", "misfits", "clashes"]
 
@@ -73,8 +84,22 @@ def _incidence(
     return offsets, inc_edge, inc_side
 
 
+def _profile_radii(
+    radii: ArrayLike, shape: tuple[int, int], segments: int, profile: str
+) -> NDArray[np.float64]:
+    """(M, 2) float64: circumradii of the stitch's profile polygons."""
+    k = profile_factor(check_segments(segments), profile)
+    return np.ascontiguousarray(np.broadcast_to(radii, shape), dtype=np.float64) * k
+
+
 def end_offsets(
-    nodes: ArrayLike, edges: ArrayLike, radii: ArrayLike, *, shrink: bool = True
+    nodes: ArrayLike,
+    edges: ArrayLike,
+    radii: ArrayLike,
+    *,
+    shrink: bool = True,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> NDArray[np.float64]:
     """Profile offset of every strut end, as :func:`fast_stitch.stitch` computes it.
 
@@ -85,7 +110,9 @@ def end_offsets(
     radii : (M, 2) float64
         Radius at each strut end.
     shrink : bool
-        As in :func:`fast_stitch.stitch`.
+    segments : int
+    profile : {"volume", "area", "inscribed", "circumscribed"}
+        As in :func:`fast_stitch.stitch` (the profile polygons' size).
 
     Returns
     -------
@@ -95,7 +122,7 @@ def end_offsets(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
+    radii_a = _profile_radii(radii, edges_a.shape, segments, profile)
     n, m = len(nodes_a), len(edges_a)
     offsets, inc_edge, inc_side = _incidence(edges_a, n)
     out = np.zeros((m, 2))
@@ -114,6 +141,8 @@ def misfits(
     *,
     shrink: bool = True,
     slack: float = 0.0,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Struts whose end profiles would meet or cross.
 
@@ -122,6 +151,8 @@ def misfits(
     slack : float
         Extra fraction of each strut's length to keep free (0: the exact
         stitch rule).
+    segments, profile
+        As in :func:`fast_stitch.stitch` (see :func:`end_offsets`).
 
     Returns
     -------
@@ -133,7 +164,7 @@ def misfits(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    off = end_offsets(nodes_a, edges_a, radii, shrink=shrink)
+    off = end_offsets(nodes_a, edges_a, radii, shrink=shrink, segments=segments, profile=profile)
     need = off.sum(axis=1)
     length = np.linalg.norm(nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]], axis=1)
     bad = np.flatnonzero(need >= length * (1.0 - config.MIN_CYLINDER_FRACTION - slack))
@@ -181,6 +212,8 @@ def clashes(
     *,
     shrink: bool = True,
     margin: float = config.CLEARANCE_MARGIN,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Struts and joints that share no node but would come too close.
 
@@ -188,7 +221,9 @@ def clashes(
     (nodes of degree >= 2). Two elements clash when they share no node (two
     joints: no strut joins their nodes) and the distance between their
     capsules' axes is below ``(1 + margin) * (r_a + r_b)`` (see the module
-    docstring). Uses a uniform grid: linear in the number of struts.
+    docstring). Radii are those of the profile polygons of ``segments`` and
+    ``profile`` (see :func:`end_offsets`). Uses a uniform grid: linear in the
+    number of struts.
 
     Returns
     -------
@@ -201,13 +236,13 @@ def clashes(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
+    radii_a = _profile_radii(radii, edges_a.shape, segments, profile)
     n, m = len(nodes_a), len(edges_a)
     empty = (np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0))
     if m == 0:
         return empty
     offsets, inc_edge, inc_side = _incidence(edges_a, n)
-    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink)
+    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink, profile="inscribed")
     vec = nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]]
     length = np.linalg.norm(vec, axis=1)
     unit = vec / np.where(length > 0, length, 1.0)[:, None]

@@ -77,30 +77,72 @@ def test_estimate_formula_by_hand():
 def test_single_strut_is_an_exact_prism(P):
     r, L = 0.3, 2.5
     g = LatticeGraph([[0, 0, 0], [1.5, 2.0, 0]], [[0, 1]], r)  # length 2.5
-    mesh = fast_stitch.stitch(g, P)
+    mesh = fast_stitch.stitch(g, P, profile="inscribed")
     polygon = 0.5 * P * r * r * math.sin(2 * math.pi / P)
     assert mesh.volume == pytest.approx(polygon * L, rel=1e-12)
     assert len(mesh.faces) == 2 * P + 2 * (P - 2)
     assert_valid(mesh)
+    # the default profile has the circle's area; circumscribed polygons' edges touch it
+    assert fast_stitch.stitch(g, P).volume == pytest.approx(math.pi * r * r * L, rel=1e-12)
+    outer = fast_stitch.stitch(g, P, profile="circumscribed").volume
+    assert outer == pytest.approx(P * r * r * math.tan(math.pi / P) * L, rel=1e-12)
 
 
 @pytest.mark.parametrize("P", [3, 6, 12])
 def test_volume_preserving_strut_keeps_the_cylinder_volume(P):
     r, L = 0.3, 2.5
     g = LatticeGraph([[0, 0, 0], [1.5, 2.0, 0]], [[0, 1]], r)
-    mesh = fast_stitch.stitch(g, P, volume_preserving=True)
+    mesh = fast_stitch.stitch(g, P, profile="area")
     assert mesh.volume == pytest.approx(math.pi * r * r * L, rel=1e-12)
     assert_valid(mesh)
-    block_mesh = fast_stitch.stitch(
-        block("bcc", 2, cell_size=5.0, radius=0.3), P, volume_preserving=True
-    )
-    assert_valid(block_mesh)
+    with pytest.warns(DeprecationWarning, match="volume_preserving"):
+        alias = fast_stitch.stitch(g, P, volume_preserving=True)
+    assert np.array_equal(alias.vertices, mesh.vertices)
+    with pytest.warns(DeprecationWarning):
+        plain = fast_stitch.stitch(g, P, volume_preserving=False)
+    assert np.array_equal(plain.vertices, fast_stitch.stitch(g, P, profile="inscribed").vertices)
+    bcc = block("bcc", 2, cell_size=5.0, radius=0.3)
+    for profile in ("area", "volume", "circumscribed"):
+        assert_valid(fast_stitch.stitch(bcc, P, profile=profile))
+    with pytest.raises(ValueError, match="profile must be one of"):
+        fast_stitch.stitch(g, P, profile="exact")
+
+
+def cross_volume(r, L, axes):
+    """Exact volume of the union of a ball (radius r) and half-cylinders [0, L] along
+    +x, +y, +z and, with ``axes == 6``, also -x, -y, -z (inclusion-exclusion with the
+    Steinmetz solids: bicylinder 16/3 r^3, tricylinder 8 (2 - sqrt 2) r^3)."""
+    tri = 8 * (2 - math.sqrt(2)) * r**3
+    if axes == 6:  # three full cylinders of length 2L; the ball is inside them
+        return 3 * math.pi * r * r * 2 * L - 3 * 16 / 3 * r**3 + tri
+    # three half-cylinders: pairs overlap in a quarter bicylinder, all three in an eighth
+    # tricylinder; the ball's octant x, y, z < 0 is outside all of them
+    return 3 * math.pi * r * r * L - 3 * 4 / 3 * r**3 + tri / 8 + math.pi * r**3 / 6
+
+
+@pytest.mark.parametrize("axes", [3, 6])
+@pytest.mark.parametrize("P", [4, 6, 8, 12])
+def test_volume_profile_matches_the_exact_cross(axes, P):
+    """profile='volume': the hub correction makes the mesh's volume the exact solid's,
+    for a hub fuller than the exact solid (6 axes: shrinks) and for a corner whose hull
+    misses the back of the ball (3 axes: grows); leaves are flat in both."""
+    r, L = 0.25, 1.5
+    dirs = axis_dirs()[[0, 2, 4]] if axes == 3 else axis_dirs()
+    g = star_graph(dirs, L, r)
+    exact = cross_volume(r, L, axes)
+    mesh = fast_stitch.stitch(g, P)
+    assert mesh.volume == pytest.approx(exact, rel=2e-4)
+    assert counts_ok(mesh, g, P)
+    assert_valid(mesh)
+    area = fast_stitch.stitch(g, P, profile="area").volume
+    assert abs(area - exact) > 10 * abs(mesh.volume - exact)  # the correction matters
+    assert fast_stitch.stitch(g, P, profile="inscribed").volume < exact
 
 
 def test_tapered_strut_is_an_exact_frustum():
     P, r0, r1, L = 8, 0.4, 0.1, 3.0
     g = LatticeGraph([[0, 0, 0], [0, 0, L]], [[0, 1]], [[r0, r1]])
-    mesh = fast_stitch.stitch(g, P)
+    mesh = fast_stitch.stitch(g, P, profile="inscribed")
     area = lambda r: 0.5 * P * r * r * math.sin(2 * math.pi / P)  # noqa: E731
     a0, a1 = area(r0), area(r1)
     assert mesh.volume == pytest.approx(L / 3 * (a0 + a1 + math.sqrt(a0 * a1)), rel=1e-12)
@@ -112,10 +154,14 @@ def test_collinear_chain_is_one_exact_prism():
     P, r = 6, 0.1
     x = np.array([0.0, 1.0, 2.5, 3.0, 4.2])
     g = LatticeGraph(np.column_stack([x, 0 * x, 0 * x]), [[0, 1], [1, 2], [3, 2], [3, 4]], r)
-    mesh = fast_stitch.stitch(g, P)
+    mesh = fast_stitch.stitch(g, P, profile="inscribed")
     assert mesh.volume == pytest.approx(0.5 * P * r * r * math.sin(2 * math.pi / P) * 4.2, rel=1e-9)
     assert counts_ok(mesh, g, P)
     assert_valid(mesh)
+    # exact solid: one cylinder (balls inside it); hubs are prism slices, nothing to correct
+    vol = fast_stitch.stitch(g, P)
+    assert vol.volume == pytest.approx(math.pi * r * r * 4.2, rel=1e-4)
+    assert_valid(vol)
 
 
 # --------------------------------------------- property tests on many graphs
@@ -148,7 +194,7 @@ def test_stars_match_the_slow_reference(rng):
         g = random_star(rng, int(rng.integers(2, 15)), tapered=bool(trial % 2))
         P = int(rng.choice([3, 5, 6, 9]))
         shrink = bool(trial % 3)
-        mesh = fast_stitch.stitch(g, P, seed=trial, shrink=shrink)
+        mesh = fast_stitch.stitch(g, P, seed=trial, shrink=shrink, profile="inscribed")
         v, f = reference_stitch(g, P, seed=trial, shrink=shrink)
         np.testing.assert_allclose(mesh.vertices, v, rtol=0, atol=1e-12)
         assert canonical_faces(mesh.faces) == canonical_faces(f)
@@ -158,7 +204,7 @@ def test_jittered_grid_matches_reference_and_is_valid(rng):
     nodes, edges = cubic_grid(4, 1.0)
     nodes = nodes + rng.uniform(-0.2, 0.2, nodes.shape)
     g = LatticeGraph(nodes, edges, rng.uniform(0.03, 0.08, (len(edges), 2)))
-    mesh = fast_stitch.stitch(g, 7, seed=3)
+    mesh = fast_stitch.stitch(g, 7, seed=3, profile="inscribed")
     v, f = reference_stitch(g, 7, seed=3)
     np.testing.assert_allclose(mesh.vertices, v, rtol=0, atol=1e-12)
     assert canonical_faces(mesh.faces) == canonical_faces(f)
