@@ -246,6 +246,8 @@ def fit_problems(
     *,
     shrink: bool = True,
     limit: int = 5,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> str:
     """A message naming the struts that will not stitch with ``radii`` ("" when all do).
 
@@ -257,7 +259,7 @@ def fit_problems(
     edges = np.asarray(edges, dtype=np.int64)
     radii = np.asarray(radii, dtype=np.float64)
     length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
-    bad, need, _ = misfits(nodes, edges, radii, shrink=shrink)
+    bad, need, _ = misfits(nodes, edges, radii, shrink=shrink, segments=segments, profile=profile)
     bad = np.union1d(bad, np.flatnonzero(radii.max(axis=1) >= 0.5 * length))
     parts = []
     if len(bad):
@@ -271,7 +273,7 @@ def fit_problems(
             f"{' ...' if len(bad) > limit else ''}"
         )
     else:
-        cl = _clash_list(nodes, edges, radii, shrink=shrink)
+        cl = _clash_list(nodes, edges, radii, shrink=shrink, segments=segments, profile=profile)
         if cl:
             shown = "; ".join(
                 f"{c.names[0]} and {c.names[1]}: {c.distance:.4g} apart, need {c.needed:.4g}"
@@ -295,6 +297,8 @@ def fit_radii(
     shrink: bool = True,
     clearance: bool = True,
     max_rounds: int = 60,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Thin the struts at crowded nodes, and struts that pass too close, until all fit.
 
@@ -317,6 +321,9 @@ def fit_radii(
     radii : (M, 2) float64
     min_radius : float
         Radii are never reduced below this.
+    segments, profile
+        The stitch's profile polygons (:func:`fast_stitch.stitch`): the check is for
+        their circumradius, ``r * fast_stitch.hubvolume.profile_factor(segments, profile)``.
 
     Returns
     -------
@@ -333,7 +340,10 @@ def fit_radii(
     bad = np.zeros(0, dtype=np.int64)
     n_nodes, m = len(nodes), len(edges)
     for _ in range(max_rounds):
-        bad, need, length = misfits(nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK)
+        bad, need, length = misfits(
+            nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK, segments=segments,
+            profile=profile,
+        )  # fmt: skip
         node_f = np.ones(n_nodes)
         edge_f = np.ones(m)
         if len(bad):
@@ -343,8 +353,9 @@ def fit_radii(
         elif clearance:
             # aim past the check's own margin so that one round usually clears a pair
             pairs, dist, reach = clashes(
-                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN
-            )
+                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN,
+                segments=segments, profile=profile,
+            )  # fmt: skip
             bad = _clash_struts(pairs, edges, m, n_nodes)
             if not len(pairs):
                 return r, bad
