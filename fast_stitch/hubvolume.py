@@ -23,8 +23,9 @@ leaves), which is what :func:`reference_boolean.build_reference` builds. Two ste
    r / L = 1/6). ``H_n`` is star-shaped about the node, so
    ``vol(H_n) = int_{S^2} rho(w)^3 / 3 dw`` with the radial function
    ``rho = min(max(R, max_i rho_Ci(w)), min_i d_i / (w . a_i))`` (closed form per
-   direction), integrated on ``config.HUB_QUADRATURE`` Fibonacci directions (relative
-   error about 1e-4 of the hub's volume on closed-form hubs). ``V_hull`` is the hull's
+   direction), integrated on ``config.HUB_QUADRATURE`` (1,024) Fibonacci directions (relative
+   error below 4e-4 of the hub's volume on closed-form hubs; about 20 us per distinct
+   hub). ``V_hull`` is the hull's
    exact volume (its triangles and profile polygons, cones from the node).
 
    The correction scales every profile at node n (radius and offset) by one factor
@@ -184,7 +185,7 @@ def hub_scales(
     np.minimum.at(hi_s, edges[:, 0], room)
     np.minimum.at(hi_s, edges[:, 1], room)
     hi_s = np.maximum(hi_s, 1.0)
-    for _ in range(12):
+    for _ in range(20):
         se = s[node_end]
         li = l_i + (1.0 - se) * d_i
         quad = a_i * se * se + a_o + se * g_io
@@ -195,6 +196,10 @@ def hub_scales(
         step = np.zeros(n_nodes)
         ok = dg > 0.0
         step[ok] = g[ok] / dg[ok]
-        s = np.clip(s - step, lo_s, hi_s)
-        s[degree < 2] = 1.0
+        new = np.clip(s - step, lo_s, hi_s)
+        new[degree < 2] = 1.0
+        done = bool(np.all(np.abs(new - s) <= 1e-13))
+        s = new
+        if done:
+            break
     return s, v_hull, v_exact

@@ -298,7 +298,7 @@ BREP_SEW_RTOL = 1e-5
 #: "volume" keeps the exact solid's volume (cross-section area and hub volume).
 DEFAULT_PROFILE = "volume"
 #: Directions of the spherical quadrature of the exact hub volume (profile="volume").
-HUB_QUADRATURE = 4096
+HUB_QUADRATURE = 1024
 #: Smallest per-node scale of the hub correction (profile="volume").
 MIN_HUB_SCALE = 0.5
 #: Largest per-node scale of the hub correction (profile="volume"; boundary hubs grow).
