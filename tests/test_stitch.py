@@ -237,9 +237,14 @@ def test_shrink_reduces_volume_and_both_are_valid():
     t = math.radians(20)
     dirs = [[1, 0, 0], [math.cos(t), math.sin(t), 0], [0, 0, 1], [0, 0, -1], [-1, 0, 0]]
     g = star_graph(dirs, 3.0, 0.1)
-    small = fast_stitch.stitch(g, 8, shrink=True)
-    big = fast_stitch.stitch(g, 8, shrink=False)
+    small = fast_stitch.stitch(g, 8, shrink=True, profile="inscribed")
+    big = fast_stitch.stitch(g, 8, shrink=False, profile="inscribed")
     assert small.volume < 0.9 * big.volume
+    # the default profile corrects both hubs to the exact solid's volume
+    a, b = fast_stitch.stitch(g, 8, shrink=True), fast_stitch.stitch(g, 8, shrink=False)
+    assert a.volume == pytest.approx(b.volume, rel=1e-3)
+    assert_valid(a)
+    assert_valid(b)
     assert len(small.faces) == len(big.faces)
     assert_valid(small)
     assert_valid(big)
@@ -304,6 +309,9 @@ def test_struts_crossing_away_from_nodes_are_reported(nodes, edges, message):
 
 def test_clearance_passes_struts_just_apart():
     g = LatticeGraph([[-1, 0, 0], [1, 0, 0], [0, -1, 0.101], [0, 1, 0.101]], [[0, 1], [2, 3]], 0.05)
+    assert_valid(fast_stitch.stitch(g, profile="inscribed"))
+    # the default polygons have the circle's area: circumradius 1.0996 r at P = 6
+    g = LatticeGraph([[-1, 0, 0], [1, 0, 0], [0, -1, 0.111], [0, 1, 0.111]], [[0, 1], [2, 3]], 0.05)
     assert_valid(fast_stitch.stitch(g))
 
 
