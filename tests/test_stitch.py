@@ -431,3 +431,27 @@ def test_method_dispatch_and_chord_error():
         fast_stitch.stitch(g, method="marching-cubes")
     with pytest.raises(ValueError, match="sections"):
         fast_stitch.stitch(g, sections=2)
+
+
+def test_fit_checks_the_profile_polygons():
+    """fast_stitch.fit and conformal.check_fit check the polygons the stitch builds: the
+    default (area-preserving) hexagons are 1.0996 r wide, so a strut that fits inscribed
+    ones can be too short for them; both agree with the stitch."""
+    from conformal.radius import check_fit
+    from fast_stitch.fit import end_offsets, misfits
+    from fast_stitch.hubvolume import area_factor
+
+    g = tight_v(20.0, r=0.05, L=0.30)
+    off_in = end_offsets(g.nodes, g.edges, g.radii, profile="inscribed")
+    off_vol = end_offsets(g.nodes, g.edges, g.radii)
+    np.testing.assert_allclose(off_vol, off_in * area_factor(6), rtol=1e-12)
+    assert off_in.sum(axis=1).max() < 0.30 < off_vol.sum(axis=1).max()
+    assert len(misfits(g.nodes, g.edges, g.radii, profile="inscribed")[0]) == 0
+    assert len(misfits(g.nodes, g.edges, g.radii)[0]) == 2
+    assert check_fit(g, profile="inscribed") == [] and len(check_fit(g)) == 2
+    assert_valid(fast_stitch.stitch(g, profile="inscribed"))
+    with pytest.raises(StitchError, match="too small an angle"):
+        fast_stitch.stitch(g)
+    # P changes the polygon: at P = 12 the area-preserving polygon is 1.0236 r wide
+    assert len(misfits(g.nodes, g.edges, g.radii, segments=12)[0]) == 0
+    assert_valid(fast_stitch.stitch(g, 12))
