@@ -87,7 +87,7 @@ def validate(
     notes: dict[str, Any] = {}
     for prof in profiles:
         label = base if prof == "volume" else f"{base} {prof}"
-        meshes[label] = fast_stitch.stitch(graph, segments, profile=prof, **opts)
+        meshes[label] = fast_stitch.stitch(graph, segments, profile=prof, **opts)  # type: ignore[arg-type]
     rep = compare(
         graph,
         meshes=meshes,
