@@ -54,6 +54,7 @@ def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, en
         d = offsets[n + 1] - lo
         a = np.empty((d, 3))
         r = np.empty(d)
+        r2 = np.empty(d)
         off = np.empty(d)
         R = 0.0
         for t in range(d):
@@ -68,6 +69,7 @@ def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, en
             a[t, 1] = vy / nn
             a[t, 2] = vz / nn
             r[t] = radii[e, s]
+            r2[t] = r[t] * r[t]
             off[t] = end_offset[e, s]
             R = max(R, r[t])
         total = 0.0
@@ -80,9 +82,11 @@ def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, en
                     continue
                 p = off[t] / c
                 clip = min(clip, p)
-                sn = np.sqrt(max(0.0, 1.0 - c * c))
-                if sn * p > r[t]:
-                    p = r[t] / sn
+                if p <= grow:  # the cylinder's radial distance is at most p
+                    continue
+                s2 = max(0.0, 1.0 - c * c)
+                if s2 * p * p > r2[t]:  # leaves through the side: r / sin
+                    p = r[t] / np.sqrt(s2)
                 grow = max(grow, p)
             rho = min(grow, clip)
             total += rho * rho * rho
