@@ -164,8 +164,12 @@ def _clash_list(
     *,
     shrink: bool = True,
     margin: float = config.CLEARANCE_MARGIN,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> list[StrutClash]:
-    pairs, dist, need = clashes(nodes, edges, radii, shrink=shrink, margin=margin)
+    pairs, dist, need = clashes(
+        nodes, edges, radii, shrink=shrink, margin=margin, segments=segments, profile=profile
+    )
     m = len(edges)
 
     def name(el: int) -> str:
@@ -193,12 +197,14 @@ def check_fit(
     *,
     shrink: bool = True,
     clearance: bool = True,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> list[StrutMisfit | StrutClash]:
     """What :func:`fast_stitch.stitch` would reject in ``graph``.
 
-    Uses the stitcher's own offset rule (:mod:`fast_stitch.fit`); the result
-    does not depend on ``segments`` (kept for symmetry with ``stitch``): the
-    P-gon profiles are inscribed in the circles checked here.
+    Uses the stitcher's own offset rule (:mod:`fast_stitch.fit`) for the profile
+    polygons of ``segments`` and ``profile`` (as in :func:`fast_stitch.stitch`: the
+    default ``"volume"`` polygons have the circle's area, so their circumradius is
+    larger than the strut radius, by 10 % at P = 6).
 
     Parameters
     ----------
@@ -211,8 +217,9 @@ def check_fit(
     list of StrutMisfit (too-short struts) then StrutClash (overlapping pairs)
         Empty when the graph will stitch.
     """
-    del segments  # offsets do not depend on the number of segments
-    bad, need, length = misfits(graph.nodes, graph.edges, graph.radii, shrink=shrink)
+    bad, need, length = misfits(
+        graph.nodes, graph.edges, graph.radii, shrink=shrink, segments=segments, profile=profile
+    )
     out: list[StrutMisfit | StrutClash] = [
         StrutMisfit(
             int(e),
@@ -223,7 +230,12 @@ def check_fit(
         for e in bad
     ]
     if clearance and not out:  # clearance is only meaningful once every strut has a cylinder
-        out.extend(_clash_list(graph.nodes, graph.edges, graph.radii, shrink=shrink))
+        out.extend(
+            _clash_list(
+                graph.nodes, graph.edges, graph.radii, shrink=shrink, segments=segments,
+                profile=profile,
+            )  # fmt: skip
+        )
     return out
 
 
@@ -234,6 +246,8 @@ def fit_problems(
     *,
     shrink: bool = True,
     limit: int = 5,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> str:
     """A message naming the struts that will not stitch with ``radii`` ("" when all do).
 
@@ -245,7 +259,7 @@ def fit_problems(
     edges = np.asarray(edges, dtype=np.int64)
     radii = np.asarray(radii, dtype=np.float64)
     length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
-    bad, need, _ = misfits(nodes, edges, radii, shrink=shrink)
+    bad, need, _ = misfits(nodes, edges, radii, shrink=shrink, segments=segments, profile=profile)
     bad = np.union1d(bad, np.flatnonzero(radii.max(axis=1) >= 0.5 * length))
     parts = []
     if len(bad):
@@ -259,7 +273,7 @@ def fit_problems(
             f"{' ...' if len(bad) > limit else ''}"
         )
     else:
-        cl = _clash_list(nodes, edges, radii, shrink=shrink)
+        cl = _clash_list(nodes, edges, radii, shrink=shrink, segments=segments, profile=profile)
         if cl:
             shown = "; ".join(
                 f"{c.names[0]} and {c.names[1]}: {c.distance:.4g} apart, need {c.needed:.4g}"
@@ -284,6 +298,8 @@ def fit_radii(
     clearance: bool = True,
     max_rounds: int = 60,
     overwrite_input: bool = False,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Thin the struts at crowded nodes, and struts that pass too close, until all fit.
 
@@ -309,6 +325,9 @@ def fit_radii(
     overwrite_input : bool
         Work on ``radii`` itself (when it is a C-contiguous float64 array) rather than on
         a copy: it may hold the result, or be left changed (saves 16 bytes per strut).
+    segments, profile
+        The stitch's profile polygons (:func:`fast_stitch.stitch`): the check is for
+        their circumradius, ``r * fast_stitch.hubvolume.profile_factor(segments, profile)``.
 
     Returns
     -------
@@ -332,7 +351,10 @@ def fit_radii(
     bad = np.zeros(0, dtype=np.int64)
     n_nodes, m = len(nodes), len(edges)
     for _ in range(max_rounds):
-        bad, need, length = misfits(nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK)
+        bad, need, length = misfits(
+            nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK, segments=segments,
+            profile=profile,
+        )  # fmt: skip
         if len(bad):
             factor = np.clip((1.0 - 1.5 * config.FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
             del need, length
@@ -344,8 +366,9 @@ def fit_radii(
             del need, length
             # aim past the check's own margin so that one round usually clears a pair
             pairs, dist, reach = clashes(
-                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN
-            )
+                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN,
+                segments=segments, profile=profile,
+            )  # fmt: skip
             bad = _clash_struts(pairs, edges, m, n_nodes)
             if not len(pairs):
                 return r, bad

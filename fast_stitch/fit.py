@@ -5,8 +5,17 @@ to the strut's end profile with exactly the rule of :func:`fast_stitch.stitch`
 (``fast_stitch._kernels.hub_offsets`` with the same margin and floor angle).
 A strut fits when the offsets of its two ends leave some open cylinder:
 ``offset[e, 0] + offset[e, 1] < length[e] * (1 - config.MIN_CYLINDER_FRACTION)``;
-:func:`misfits` lists the struts that do not. Offsets do not depend on the
-number of segments.
+:func:`misfits` lists the struts that do not.
+
+Profiles: every function takes the stitch's ``segments`` and ``profile``, because the
+profile polygons are larger than the strut's circle except with
+``profile="inscribed"`` (circumradius ``r * profile_factor(P, profile)``: +10 % at the
+default P = 6 with ``"volume"``/``"area"``): offsets and clearances are those of the
+enlarged polygons. With ``profile="volume"`` the stitch then scales each hub about its
+node (:mod:`fast_stitch.hubvolume`) by ``s_n <= 1`` where the hub is fuller than the
+exact solid (the mesh shrinks inside the one checked here), and grows boundary hubs by
+at most what keeps ``config.FIT_SLACK`` of each strut free; the offsets returned are
+those before that scaling.
 
 :func:`clashes` lists the elements that share no node but whose bounding
 capsules would overlap (:func:`fast_stitch.stitch`'s ``check_clearance``):
@@ -27,7 +36,9 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from fast_stitch import _fit_kernels, _kernels
+from fast_stitch.hubvolume import profile_factor
 from lattice_cad.core import config
+from lattice_cad.core.checks import check_segments
 
 __all__ = ["end_offsets", "misfits", "clashes"]
 
@@ -74,12 +85,22 @@ def _incidence(
     return _fit_kernels.incidence(edges, n)  # type: ignore[no-any-return]
 
 
+def _profile_radii(
+    radii: ArrayLike, shape: tuple[int, int], segments: int, profile: str
+) -> NDArray[np.float64]:
+    """(M, 2) float64: circumradii of the stitch's profile polygons."""
+    k = profile_factor(check_segments(segments), profile)
+    return np.ascontiguousarray(np.broadcast_to(radii, shape), dtype=np.float64) * k
+
+
 def end_offsets(
     nodes: ArrayLike,
     edges: ArrayLike,
     radii: ArrayLike,
     *,
     shrink: bool = True,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
     _incidence_arrays: tuple[Any, Any, Any] | None = None,
 ) -> NDArray[np.float64]:
     """Profile offset of every strut end, as :func:`fast_stitch.stitch` computes it.
@@ -91,7 +112,9 @@ def end_offsets(
     radii : (M, 2) float64
         Radius at each strut end.
     shrink : bool
-        As in :func:`fast_stitch.stitch`.
+    segments : int
+    profile : {"volume", "area", "inscribed", "circumscribed"}
+        As in :func:`fast_stitch.stitch` (the profile polygons' size).
 
     Returns
     -------
@@ -101,7 +124,7 @@ def end_offsets(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
+    radii_a = _profile_radii(radii, edges_a.shape, segments, profile)
     n, m = len(nodes_a), len(edges_a)
     inc = _incidence(edges_a, n) if _incidence_arrays is None else _incidence_arrays
     offsets, inc_edge, inc_side = inc
@@ -121,6 +144,8 @@ def misfits(
     *,
     shrink: bool = True,
     slack: float = 0.0,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Struts whose end profiles would meet or cross.
 
@@ -129,6 +154,8 @@ def misfits(
     slack : float
         Extra fraction of each strut's length to keep free (0: the exact
         stitch rule).
+    segments, profile
+        As in :func:`fast_stitch.stitch` (see :func:`end_offsets`).
 
     Returns
     -------
@@ -140,7 +167,7 @@ def misfits(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    off = end_offsets(nodes_a, edges_a, radii, shrink=shrink)
+    off = end_offsets(nodes_a, edges_a, radii, shrink=shrink, segments=segments, profile=profile)
     return _misfits_from(nodes_a, edges_a, off, slack)
 
 
@@ -173,6 +200,8 @@ def clashes(
     *,
     shrink: bool = True,
     margin: float = config.CLEARANCE_MARGIN,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Struts and joints that share no node but would come too close.
 
@@ -180,7 +209,9 @@ def clashes(
     (nodes of degree >= 2). Two elements clash when they share no node (two
     joints: no strut joins their nodes) and the distance between their
     capsules' axes is below ``(1 + margin) * (r_a + r_b)`` (see the module
-    docstring). Uses a uniform grid: linear in the number of struts.
+    docstring). Radii are those of the profile polygons of ``segments`` and
+    ``profile`` (see :func:`end_offsets`). Uses a uniform grid: linear in the
+    number of struts.
 
     Returns
     -------
@@ -193,11 +224,14 @@ def clashes(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
+    radii_a = _profile_radii(radii, edges_a.shape, segments, profile)
     if len(edges_a) == 0:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0)
     inc = _incidence(edges_a, len(nodes_a))
-    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink, _incidence_arrays=inc)
+    # radii_a are already the polygons' circumradii
+    off = end_offsets(
+        nodes_a, edges_a, radii_a, shrink=shrink, profile="inscribed", _incidence_arrays=inc
+    )
     return _clashes(nodes_a, edges_a, radii_a, off, inc, margin)
 
 

@@ -12,7 +12,10 @@ Algorithm (per node of degree d >= 2, in parallel over distinct hub shapes):
    plain floating point); the triangles inside each profile are removed,
    which leaves exactly ``d * P + 2d - 4`` triangles (Euler);
 4. open cylinders (frustums for tapered struts) join the two profiles of each
-   strut with ``2P`` triangles; degree-1 nodes get a flat cap of ``P - 2``.
+   strut with ``2P`` triangles; degree-1 nodes get a flat cap of ``P - 2``;
+5. ``profile="volume"`` (default): the profiles have the circle's area, and each hub
+   is scaled about its node so that its volume is the exact solid's there
+   (:mod:`fast_stitch.hubvolume`): the mesh has the exact solid's volume.
 
 Profiles use one frame per strut (no twist) with a seeded pseudo-random
 phase derived from the strut's direction, so hubs that are translates of
@@ -31,6 +34,7 @@ from numpy.typing import NDArray
 
 from fast_stitch import _kernels
 from fast_stitch._predicates import box_stats, tri_tri
+from fast_stitch.hubvolume import PROFILES, Profile, area_factor, hub_scales, profile_factor
 from lattice_cad.core import config
 from lattice_cad.core.checks import (
     Progress,
@@ -44,7 +48,15 @@ from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh, stl_size
 from lattice_cad.core.resources import require_memory
 
-__all__ = ["stitch", "estimate", "Estimate", "ProgressCallback"]
+__all__ = [
+    "stitch",
+    "estimate",
+    "Estimate",
+    "ProgressCallback",
+    "Profile",
+    "area_factor",
+    "profile_factor",
+]
 
 _CHUNK = 1 << 15
 
@@ -119,7 +131,8 @@ def stitch(
     workers: int | None = None,
     progress: bool | ProgressCallback | None = None,
     check_clearance: bool = True,
-    volume_preserving: bool = False,
+    profile: Profile = "volume",
+    volume_preserving: bool | None = None,
 ) -> Mesh:
     """Build the watertight triangle mesh of a lattice graph.
 
@@ -157,10 +170,22 @@ def stitch(
         crossing away from a node, a strut through another node's joint). The
         construction guarantees everything else; this makes the no
         self-intersection guarantee hold for every graph that stitches.
-    volume_preserving : bool
-        Enlarge every profile polygon so that its area equals the circle's
-        (circumradius ``r * sqrt(2 pi / (P sin(2 pi / P)))``): struts then keep
-        the exact cylinder's cross-section area and volume.
+    profile : {"volume", "area", "inscribed", "circumscribed"}
+        The P-gon of every strut end (``method="verma"`` only).
+        ``"volume"`` (default): the mesh has the volume of the exact solid (the
+        cylinders united with a ball of the largest radius at every node of
+        degree >= 2, flat at leaves): profiles of the circle's area (circumradius
+        ``r * sqrt(2 pi / (P sin(2 pi / P)))``, so struts keep the cylinder's
+        volume) and every hub, with the strut ends at it, scaled about its node by
+        ``s_n <= 1`` so that the hub has the exact solid's volume there (see
+        :mod:`fast_stitch.hubvolume`; typically ``1 - s_n < 2 %``).
+        ``"area"``: profiles of the circle's area, no hub correction (hubs are
+        a little fuller than the exact solid). ``"inscribed"``: vertices on the
+        circle (the mesh is thinner than the design, e.g. -16 % of the volume at
+        P = 6). ``"circumscribed"``: edges tangent to the circle (struts contain
+        the cylinders).
+    volume_preserving : bool, optional
+        Deprecated alias: True is ``profile="area"``, False ``profile="inscribed"``.
 
     Returns
     -------
@@ -178,6 +203,21 @@ def stitch(
         two struts at a node are parallel; struts or joints that share no node
         overlap (with ``check_clearance``).
     """
+    if volume_preserving is not None:
+        import warnings
+
+        warnings.warn(
+            "stitch(volume_preserving=...) is deprecated: use profile='volume' (the default, "
+            "exact volume including the hubs), 'area' (the former volume_preserving=True) or "
+            "'inscribed' (the former default)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        profile = "area" if volume_preserving else "inscribed"
+    if profile not in PROFILES:
+        raise ValueError(
+            f"profile must be one of {', '.join(map(repr, PROFILES))}, got {profile!r}"
+        )
     if method == "lslt":
         from fast_stitch.lslt import stitch_lslt
 
@@ -217,10 +257,11 @@ def stitch(
         numba.set_num_threads(min(workers, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
     bar = Progress(progress, graph.num_nodes, desc="stitch", unit="hub")
     try:
-        radii = graph.radii * area_factor(P) if volume_preserving else graph.radii
-        mesh, end_offset, face_start = _stitch(
-            graph, radii, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar
-        )
+        radii = graph.radii * profile_factor(P, profile)
+        mesh, end_offset, face_start, radii = _stitch(
+            graph, radii, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar,
+            correct_hubs=profile == "volume",
+        )  # fmt: skip
         if check_clearance:
             bar("clearance", 0, 1)
             _check_clearance(graph, radii, mesh, end_offset, face_start, P)
@@ -232,11 +273,6 @@ def stitch(
         numba.set_num_threads(prev_threads)
 
 
-def area_factor(P: int) -> float:
-    """Circumradius / radius of the regular P-gon whose area is the circle's."""
-    return math.sqrt(2.0 * math.pi / (P * math.sin(2.0 * math.pi / P)))
-
-
 def _stitch(
     graph: LatticeGraph,
     radii: NDArray[np.float64],
@@ -244,7 +280,13 @@ def _stitch(
     shrink: bool,
     seed: int,
     progress: Progress,
-) -> tuple[Mesh, NDArray[np.float64], NDArray[np.int64]]:
+    *,
+    correct_hubs: bool = False,
+) -> tuple[Mesh, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """The mesh, its profile offsets (M, 2), hub face starts (N,) and profile radii (M, 2).
+
+    With ``correct_hubs`` the hubs are scaled to the exact solid's volume (``radii`` are
+    then the area-preserving profile radii; see :mod:`fast_stitch.hubvolume`)."""
     nodes, edges = graph.nodes, graph.edges
     n_nodes, m = graph.num_nodes, graph.num_edges
     offsets, inc_edge, inc_side = graph.incidence
@@ -335,7 +377,19 @@ def _stitch(
     _kernels.node_faces(
         offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, faces
     )
-    return Mesh(vertices=vertices, faces=faces), end_offset, face_start
+    if correct_hubs and len(hubs):
+        scale, _, _ = hub_scales(
+            nodes, edges, graph.incidence, degree, graph.radii, radii, end_offset, length,
+            vertices, faces, face_start, node_rep, P,
+        )  # fmt: skip
+        # similar hubs: same triangles, profiles (radius and offset) scaled about the node
+        node_scale = scale[edges]
+        radii = radii * node_scale
+        end_offset = end_offset * node_scale
+        _kernels.profile_vertices(
+            nodes, edges, axis, sign, fu, fv, radii, end_offset, P, vertices
+        )
+    return Mesh(vertices=vertices, faces=faces), end_offset, face_start, radii
 
 
 def _edges_at(graph: LatticeGraph, n: int) -> list[int]:

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import inspect
 import os
+import warnings
+from collections.abc import Sequence
 from typing import Any
 
 from lattice_cad.core import config
@@ -17,7 +18,8 @@ def validate(
     segments: int = config.DEFAULT_SEGMENTS,
     report: str | os.PathLike[str] | None = "report.html",
     *,
-    volume_preserving: bool | str = "both",
+    profiles: Sequence[str] = ("volume", "inscribed"),
+    volume_preserving: bool | str | None = None,
     union_segments: tuple[int, ...] = (16, 32, 64, 128),
     samples: int = 50_000,
     union_hubs: int | None = config.DEFAULT_UNION_HUBS,
@@ -36,13 +38,14 @@ def validate(
         P, the profile polygon sides of :func:`fast_stitch.stitch`.
     report : path-like or None
         Where to write the report (``.html``, ``.md`` or ``.json``); None: do not write.
-    volume_preserving : bool or "both"
-        ``"both"`` (default): compare the plain and the volume-preserving
-        :func:`fast_stitch.stitch` meshes side by side in one report (the first
-        row, and the report's single-mesh attributes, are the plain mesh; the
-        volume-preserving one is skipped, with a note in ``extra``, when this
-        fast_stitch has no ``volume_preserving``). True: only the
-        volume-preserving mesh. False: only the plain mesh.
+    profiles : sequence of {"volume", "area", "inscribed", "circumscribed"}
+        The :func:`fast_stitch.stitch` profiles to compare side by side in one report;
+        the first is the report's main mesh (its first row and single-mesh attributes).
+        Default: the default mesh (``"volume"``, labelled ``fast_stitch P=<segments>``)
+        and the inscribed option (``fast_stitch P=<segments> inscribed``).
+    volume_preserving : bool or "both", optional
+        Deprecated: True is ``profiles=("area",)``, False ``("inscribed",)``, "both"
+        ``("inscribed", "area")``.
     union_segments : tuple of int
         Resolutions of the manifold3d unions in the report.
     samples : int
@@ -80,6 +83,7 @@ def validate(
     import dataclasses
 
     import fast_stitch
+    from fast_stitch.hubvolume import PROFILES
     from reference_boolean import compare
     from reference_boolean.verdict import check_tolerances
 
@@ -87,24 +91,35 @@ def validate(
     if reference_tolerance is not None:
         reference_options["tolerance"] = reference_tolerance
 
-    if volume_preserving not in (True, False, "both"):
+    if volume_preserving is not None:
+        if volume_preserving not in (True, False, "both"):
+            raise ValueError(
+                f"volume_preserving must be True, False or 'both', got {volume_preserving!r}"
+            )
+        warnings.warn(
+            "validate(volume_preserving=...) is deprecated: use profiles=(...)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        profiles = {True: ("area",), False: ("inscribed",), "both": ("inscribed", "area")}[
+            volume_preserving  # type: ignore[index]
+        ]
+    profiles = tuple(profiles) if not isinstance(profiles, str) else (profiles,)
+    bad = [p for p in profiles if p not in PROFILES]
+    if bad or not profiles or len(set(profiles)) != len(profiles):
         raise ValueError(
-            f"volume_preserving must be True, False or 'both', got {volume_preserving!r}"
+            f"profiles must be distinct names out of {', '.join(map(repr, PROFILES))}, "
+            f"got {profiles!r}"
         )
     opts = dict(stitch_options or {})
     opts.pop("volume_preserving", None)
-    has_vp = "volume_preserving" in inspect.signature(fast_stitch.stitch).parameters
+    opts.pop("profile", None)
     base = f"fast_stitch P={segments}"
     meshes: dict[str, Any] = {}
     notes: dict[str, Any] = {}
-    if volume_preserving in (False, "both"):
-        meshes[base] = fast_stitch.stitch(graph, segments, **opts)
-    if volume_preserving is True or (volume_preserving == "both" and has_vp):
-        meshes[f"{base} volume_preserving"] = fast_stitch.stitch(
-            graph, segments, volume_preserving=True, **opts
-        )
-    elif volume_preserving == "both":
-        notes["note"] = "fast_stitch.stitch has no volume_preserving: only the plain mesh"
+    for prof in profiles:
+        label = base if prof == "volume" else f"{base} {prof}"
+        meshes[label] = fast_stitch.stitch(graph, segments, profile=prof, **opts)  # type: ignore[arg-type]
     rep = compare(
         graph,
         meshes=meshes,

@@ -49,7 +49,7 @@ def test_union_converges_like_n_squared(star, star_ref):
 
 
 def test_mesh_deviation_and_reports(star, star_ref, tmp_path):
-    mesh = fast_stitch.stitch(star, 8)
+    mesh = fast_stitch.stitch(star, 8, profile="inscribed")
     rep = compare(
         star,
         mesh=mesh,
@@ -108,14 +108,16 @@ def test_validate_one_call(tmp_path):
     out = tmp_path / "report.md"
     rep = validate(g, 6, out, union_segments=(16, 32), samples=2000)
     assert out.exists() and out.stat().st_size > 500
-    # plain and volume-preserving side by side; the single-mesh attributes are the plain one's
-    plain, vp = "fast_stitch P=6", "fast_stitch P=6 volume_preserving"
-    assert list(rep.comparisons) == [plain, vp]
-    assert rep.label == plain
-    assert rep.volume_mesh == rep.comparisons[plain].volume
+    # the default (volume) and the inscribed meshes side by side; the single-mesh
+    # attributes are the default one's
+    vp, plain = "fast_stitch P=6", "fast_stitch P=6 inscribed"
+    assert list(rep.comparisons) == [vp, plain]
+    assert rep.label == vp
+    assert rep.volume_mesh == rep.comparisons[vp].volume
     assert rep.reference.complete
     vref = rep.reference.volume
-    # the area-preserving polygons bring the volume closer to the reference
+    # the default mesh has the exact volume (up to the leaf ends' design, balls in the
+    # reference, flat in the mesh); the inscribed one is far lighter
     assert abs(rep.comparisons[vp].volume - vref) < abs(rep.comparisons[plain].volume - vref)
     d = rep.to_dict()
     assert set(d["volume_mesh"]) == {plain, vp}
@@ -123,21 +125,26 @@ def test_validate_one_call(tmp_path):
         (rep.comparisons[vp].volume - vref) / vref
     )
     assert set(d["hausdorff"][vp]["symmetric"]) == {"max", "mean", "p95"}
-    assert [m["label"] for m in d["meshes"]] == [plain, vp]
+    assert [m["label"] for m in d["meshes"]] == [vp, plain]
     md = out.read_text()
     rows = [ln for ln in md.splitlines() if ln.startswith("| fast_stitch P=6")]
     assert len(rows) == 2  # one comparison row per mesh
-    only_vp = validate(g, 6, None, volume_preserving=True, union_segments=(), samples=2000)
+    only_vp = validate(g, 6, None, profiles=("volume",), union_segments=(), samples=2000)
     assert list(only_vp.comparisons) == [vp]
     assert isinstance(only_vp.to_dict()["volume_mesh"], float)
     assert only_vp.volume_mesh == pytest.approx(rep.comparisons[vp].volume)
+    with pytest.warns(DeprecationWarning, match="volume_preserving"):
+        old = validate(g, 6, None, volume_preserving=True, union_segments=(), samples=2000)
+    assert list(old.comparisons) == ["fast_stitch P=6 area"]
     with pytest.raises(ValueError, match="volume_preserving"):
         validate(g, 6, None, volume_preserving="sometimes", union_segments=())
+    with pytest.raises(ValueError, match="profiles"):
+        validate(g, 6, None, profiles=("exact",), union_segments=())
 
 
 def test_compare_several_meshes(star, star_ref, tmp_path):
-    m6 = fast_stitch.stitch(star, 6)
-    m12 = fast_stitch.stitch(star, 12)
+    m6 = fast_stitch.stitch(star, 6, profile="inscribed")
+    m12 = fast_stitch.stitch(star, 12, profile="inscribed")
     rep = compare(
         star,
         mesh=m6,

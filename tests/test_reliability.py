@@ -108,7 +108,7 @@ def test_tiny_star_is_not_called_inside_out():
     """Campaign: radius 1e-9 called "inside-out, volume -3.25e-14" (float cancellation)."""
     nodes, edges, _ = star()
     g = LatticeGraph(nodes, edges, 1e-9)
-    mesh = fast_stitch.stitch(g, 6)
+    mesh = fast_stitch.stitch(g, 6, profile="inscribed")
     rep = fast_stitch.check(mesh)
     assert rep.valid, str(rep)
     exact = 3 * 6 / 2 * np.sin(2 * np.pi / 6) * 1e-18  # prisms: area of the hexagon x length

@@ -77,30 +77,72 @@ def test_estimate_formula_by_hand():
 def test_single_strut_is_an_exact_prism(P):
     r, L = 0.3, 2.5
     g = LatticeGraph([[0, 0, 0], [1.5, 2.0, 0]], [[0, 1]], r)  # length 2.5
-    mesh = fast_stitch.stitch(g, P)
+    mesh = fast_stitch.stitch(g, P, profile="inscribed")
     polygon = 0.5 * P * r * r * math.sin(2 * math.pi / P)
     assert mesh.volume == pytest.approx(polygon * L, rel=1e-12)
     assert len(mesh.faces) == 2 * P + 2 * (P - 2)
     assert_valid(mesh)
+    # the default profile has the circle's area; circumscribed polygons' edges touch it
+    assert fast_stitch.stitch(g, P).volume == pytest.approx(math.pi * r * r * L, rel=1e-12)
+    outer = fast_stitch.stitch(g, P, profile="circumscribed").volume
+    assert outer == pytest.approx(P * r * r * math.tan(math.pi / P) * L, rel=1e-12)
 
 
 @pytest.mark.parametrize("P", [3, 6, 12])
 def test_volume_preserving_strut_keeps_the_cylinder_volume(P):
     r, L = 0.3, 2.5
     g = LatticeGraph([[0, 0, 0], [1.5, 2.0, 0]], [[0, 1]], r)
-    mesh = fast_stitch.stitch(g, P, volume_preserving=True)
+    mesh = fast_stitch.stitch(g, P, profile="area")
     assert mesh.volume == pytest.approx(math.pi * r * r * L, rel=1e-12)
     assert_valid(mesh)
-    block_mesh = fast_stitch.stitch(
-        block("bcc", 2, cell_size=5.0, radius=0.3), P, volume_preserving=True
-    )
-    assert_valid(block_mesh)
+    with pytest.warns(DeprecationWarning, match="volume_preserving"):
+        alias = fast_stitch.stitch(g, P, volume_preserving=True)
+    assert np.array_equal(alias.vertices, mesh.vertices)
+    with pytest.warns(DeprecationWarning):
+        plain = fast_stitch.stitch(g, P, volume_preserving=False)
+    assert np.array_equal(plain.vertices, fast_stitch.stitch(g, P, profile="inscribed").vertices)
+    bcc = block("bcc", 2, cell_size=5.0, radius=0.3)
+    for profile in ("area", "volume", "circumscribed"):
+        assert_valid(fast_stitch.stitch(bcc, P, profile=profile))
+    with pytest.raises(ValueError, match="profile must be one of"):
+        fast_stitch.stitch(g, P, profile="exact")
+
+
+def cross_volume(r, L, axes):
+    """Exact volume of the union of a ball (radius r) and half-cylinders [0, L] along
+    +x, +y, +z and, with ``axes == 6``, also -x, -y, -z (inclusion-exclusion with the
+    Steinmetz solids: bicylinder 16/3 r^3, tricylinder 8 (2 - sqrt 2) r^3)."""
+    tri = 8 * (2 - math.sqrt(2)) * r**3
+    if axes == 6:  # three full cylinders of length 2L; the ball is inside them
+        return 3 * math.pi * r * r * 2 * L - 3 * 16 / 3 * r**3 + tri
+    # three half-cylinders: pairs overlap in a quarter bicylinder, all three in an eighth
+    # tricylinder; the ball's octant x, y, z < 0 is outside all of them
+    return 3 * math.pi * r * r * L - 3 * 4 / 3 * r**3 + tri / 8 + math.pi * r**3 / 6
+
+
+@pytest.mark.parametrize("axes", [3, 6])
+@pytest.mark.parametrize("P", [4, 6, 8, 12])
+def test_volume_profile_matches_the_exact_cross(axes, P):
+    """profile='volume': the hub correction makes the mesh's volume the exact solid's,
+    for a hub fuller than the exact solid (6 axes: shrinks) and for a corner whose hull
+    misses the back of the ball (3 axes: grows); leaves are flat in both."""
+    r, L = 0.25, 1.5
+    dirs = axis_dirs()[[0, 2, 4]] if axes == 3 else axis_dirs()
+    g = star_graph(dirs, L, r)
+    exact = cross_volume(r, L, axes)
+    mesh = fast_stitch.stitch(g, P)
+    assert mesh.volume == pytest.approx(exact, rel=2e-4)
+    assert counts_ok(mesh, g, P)
+    assert_valid(mesh)
+    area = fast_stitch.stitch(g, P, profile="area").volume
+    assert abs(area - exact) > 10 * abs(mesh.volume - exact)  # the correction matters
+    assert fast_stitch.stitch(g, P, profile="inscribed").volume < exact
 
 
 def test_tapered_strut_is_an_exact_frustum():
     P, r0, r1, L = 8, 0.4, 0.1, 3.0
     g = LatticeGraph([[0, 0, 0], [0, 0, L]], [[0, 1]], [[r0, r1]])
-    mesh = fast_stitch.stitch(g, P)
+    mesh = fast_stitch.stitch(g, P, profile="inscribed")
     area = lambda r: 0.5 * P * r * r * math.sin(2 * math.pi / P)  # noqa: E731
     a0, a1 = area(r0), area(r1)
     assert mesh.volume == pytest.approx(L / 3 * (a0 + a1 + math.sqrt(a0 * a1)), rel=1e-12)
@@ -112,10 +154,14 @@ def test_collinear_chain_is_one_exact_prism():
     P, r = 6, 0.1
     x = np.array([0.0, 1.0, 2.5, 3.0, 4.2])
     g = LatticeGraph(np.column_stack([x, 0 * x, 0 * x]), [[0, 1], [1, 2], [3, 2], [3, 4]], r)
-    mesh = fast_stitch.stitch(g, P)
+    mesh = fast_stitch.stitch(g, P, profile="inscribed")
     assert mesh.volume == pytest.approx(0.5 * P * r * r * math.sin(2 * math.pi / P) * 4.2, rel=1e-9)
     assert counts_ok(mesh, g, P)
     assert_valid(mesh)
+    # exact solid: one cylinder (balls inside it); hubs are prism slices, nothing to correct
+    vol = fast_stitch.stitch(g, P)
+    assert vol.volume == pytest.approx(math.pi * r * r * 4.2, rel=1e-4)
+    assert_valid(vol)
 
 
 # --------------------------------------------- property tests on many graphs
@@ -148,7 +194,7 @@ def test_stars_match_the_slow_reference(rng):
         g = random_star(rng, int(rng.integers(2, 15)), tapered=bool(trial % 2))
         P = int(rng.choice([3, 5, 6, 9]))
         shrink = bool(trial % 3)
-        mesh = fast_stitch.stitch(g, P, seed=trial, shrink=shrink)
+        mesh = fast_stitch.stitch(g, P, seed=trial, shrink=shrink, profile="inscribed")
         v, f = reference_stitch(g, P, seed=trial, shrink=shrink)
         np.testing.assert_allclose(mesh.vertices, v, rtol=0, atol=1e-12)
         assert canonical_faces(mesh.faces) == canonical_faces(f)
@@ -158,7 +204,7 @@ def test_jittered_grid_matches_reference_and_is_valid(rng):
     nodes, edges = cubic_grid(4, 1.0)
     nodes = nodes + rng.uniform(-0.2, 0.2, nodes.shape)
     g = LatticeGraph(nodes, edges, rng.uniform(0.03, 0.08, (len(edges), 2)))
-    mesh = fast_stitch.stitch(g, 7, seed=3)
+    mesh = fast_stitch.stitch(g, 7, seed=3, profile="inscribed")
     v, f = reference_stitch(g, 7, seed=3)
     np.testing.assert_allclose(mesh.vertices, v, rtol=0, atol=1e-12)
     assert canonical_faces(mesh.faces) == canonical_faces(f)
@@ -191,9 +237,14 @@ def test_shrink_reduces_volume_and_both_are_valid():
     t = math.radians(20)
     dirs = [[1, 0, 0], [math.cos(t), math.sin(t), 0], [0, 0, 1], [0, 0, -1], [-1, 0, 0]]
     g = star_graph(dirs, 3.0, 0.1)
-    small = fast_stitch.stitch(g, 8, shrink=True)
-    big = fast_stitch.stitch(g, 8, shrink=False)
+    small = fast_stitch.stitch(g, 8, shrink=True, profile="inscribed")
+    big = fast_stitch.stitch(g, 8, shrink=False, profile="inscribed")
     assert small.volume < 0.9 * big.volume
+    # the default profile corrects both hubs to the exact solid's volume
+    a, b = fast_stitch.stitch(g, 8, shrink=True), fast_stitch.stitch(g, 8, shrink=False)
+    assert a.volume == pytest.approx(b.volume, rel=1e-3)
+    assert_valid(a)
+    assert_valid(b)
     assert len(small.faces) == len(big.faces)
     assert_valid(small)
     assert_valid(big)
@@ -258,6 +309,9 @@ def test_struts_crossing_away_from_nodes_are_reported(nodes, edges, message):
 
 def test_clearance_passes_struts_just_apart():
     g = LatticeGraph([[-1, 0, 0], [1, 0, 0], [0, -1, 0.101], [0, 1, 0.101]], [[0, 1], [2, 3]], 0.05)
+    assert_valid(fast_stitch.stitch(g, profile="inscribed"))
+    # the default polygons have the circle's area: circumradius 1.0996 r at P = 6
+    g = LatticeGraph([[-1, 0, 0], [1, 0, 0], [0, -1, 0.111], [0, 1, 0.111]], [[0, 1], [2, 3]], 0.05)
     assert_valid(fast_stitch.stitch(g))
 
 
@@ -377,3 +431,27 @@ def test_method_dispatch_and_chord_error():
         fast_stitch.stitch(g, method="marching-cubes")
     with pytest.raises(ValueError, match="sections"):
         fast_stitch.stitch(g, sections=2)
+
+
+def test_fit_checks_the_profile_polygons():
+    """fast_stitch.fit and conformal.check_fit check the polygons the stitch builds: the
+    default (area-preserving) hexagons are 1.0996 r wide, so a strut that fits inscribed
+    ones can be too short for them; both agree with the stitch."""
+    from conformal.radius import check_fit
+    from fast_stitch.fit import end_offsets, misfits
+    from fast_stitch.hubvolume import area_factor
+
+    g = tight_v(20.0, r=0.05, L=0.30)
+    off_in = end_offsets(g.nodes, g.edges, g.radii, profile="inscribed")
+    off_vol = end_offsets(g.nodes, g.edges, g.radii)
+    np.testing.assert_allclose(off_vol, off_in * area_factor(6), rtol=1e-12)
+    assert off_in.sum(axis=1).max() < 0.30 < off_vol.sum(axis=1).max()
+    assert len(misfits(g.nodes, g.edges, g.radii, profile="inscribed")[0]) == 0
+    assert len(misfits(g.nodes, g.edges, g.radii)[0]) == 2
+    assert check_fit(g, profile="inscribed") == [] and len(check_fit(g)) == 2
+    assert_valid(fast_stitch.stitch(g, profile="inscribed"))
+    with pytest.raises(StitchError, match="too small an angle"):
+        fast_stitch.stitch(g)
+    # P changes the polygon: at P = 12 the area-preserving polygon is 1.0236 r wide
+    assert len(misfits(g.nodes, g.edges, g.radii, segments=12)[0]) == 0
+    assert_valid(fast_stitch.stitch(g, 12))

@@ -11,6 +11,7 @@ import fast_stitch
 from conformal.part import Part, PartError, load_part
 from conformal.radius import StrutClash, check_fit, fit_radii
 from conformal.tet import tet_edges, tet_lattice, tet_mesh
+from fast_stitch.hubvolume import area_factor
 from lattice_cad import LatticeGraph
 from lattice_cad.core.errors import LatticeWarning
 from tests.conftest import DATA, assert_valid
@@ -51,9 +52,11 @@ def test_tet_stitches(cyl):
 
 
 def test_tet_realistic_radius_stitches(cyl):
-    # 6 mm tets at radius 0.4: flat tets put opposite edges closer than 0.8, which
-    # used to pass the fit check and then fail in stitch's clearance check
-    raw = tet_lattice(cyl, 6.0, 0.4, fit="off", repair=False)
+    # 6 mm tets at radius 0.4 (polygons; the default stitch's hexagons have the circle's
+    # area, circumradius 1.0996 r, so r = 0.364): flat tets put opposite edges closer than
+    # 0.8, which used to pass the fit check and then fail in stitch's clearance check
+    r = 0.4 / area_factor(6)
+    raw = tet_lattice(cyl, 6.0, r, fit="off", repair=False)
     old, unfit = fit_radii(raw.nodes, raw.edges, raw.radii, min_radius=0.04, clearance=False)
     assert len(unfit) == 0
     g0 = LatticeGraph(raw.nodes, raw.edges, old)  # what the node-only fit check gave
@@ -62,11 +65,11 @@ def test_tet_realistic_radius_stitches(cyl):
     with pytest.raises(fast_stitch.StitchError, match="share no node"):
         fast_stitch.stitch(g0)
     # with the graph repair (the default) no strut is thinner than 0.7 of the radius
-    g, rep = tet_lattice(cyl, 6.0, 0.4, return_report=True)
+    g, rep = tet_lattice(cyl, 6.0, r, return_report=True)
     assert check_fit(g) == []
-    assert rep.thinned_beyond_tolerance == 0 and g.radii.min() >= 0.7 * 0.4 - 1e-12
-    assert g.radii.max() == pytest.approx(0.4)
-    assert np.median(g.radii) == pytest.approx(0.4)  # only the crowded struts are thinned
+    assert rep.thinned_beyond_tolerance == 0 and g.radii.min() >= 0.7 * r - 1e-12
+    assert g.radii.max() == pytest.approx(r)
+    assert np.median(g.radii) == pytest.approx(r)  # only the crowded struts are thinned
     assert_valid(fast_stitch.stitch(g))
 
 

@@ -21,6 +21,7 @@ from conformal.radius import (
 )
 from conformal.voxel import voxel_lattice, voxelize
 from fast_stitch.fit import clashes
+from fast_stitch.hubvolume import area_factor
 from lattice_cad import LatticeGraph
 from lattice_cad.core.errors import LatticeWarning
 from tests.conftest import assert_valid
@@ -154,7 +155,11 @@ def test_clearance_check_and_fit():
     assert len(probs) == 1 and isinstance(probs[0], StrutClash)
     c = probs[0]
     assert (c.first, c.second, c.first_joint, c.second_joint) == (0, 1, False, False)
-    assert c.distance == pytest.approx(0.1) and c.needed == pytest.approx(0.16 * 1.02)
+    # the default stitch's hexagons have the circle's area: circumradius 1.0996 r
+    assert c.distance == pytest.approx(0.1) and c.needed == pytest.approx(
+        0.16 * 1.02 * area_factor(6)
+    )
+    assert check_fit(g, profile="inscribed")[0].needed == pytest.approx(0.16 * 1.02)
     assert "strut 0 (nodes 0, 1) and strut 1 (nodes 2, 3)" in str(c)
     with pytest.raises(fast_stitch.StitchError, match="share no node"):
         fast_stitch.stitch(g)

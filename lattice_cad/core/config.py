@@ -318,3 +318,13 @@ BREP_STEP_BYTES = 27_000
 #: Sewing tolerance of the hubs' shared midpoint circles, relative to the smallest strut
 #: radius (the circles agree to rounding: both hubs build them on the same frame).
 BREP_SEW_RTOL = 1e-5
+
+#: Default strut profile of :func:`fast_stitch.stitch` (see its ``profile`` option):
+#: "volume" keeps the exact solid's volume (cross-section area and hub volume).
+DEFAULT_PROFILE = "volume"
+#: Directions of the spherical quadrature of the exact hub volume (profile="volume").
+HUB_QUADRATURE = 1024
+#: Smallest per-node scale of the hub correction (profile="volume").
+MIN_HUB_SCALE = 0.5
+#: Largest per-node scale of the hub correction (profile="volume"; boundary hubs grow).
+MAX_HUB_SCALE = 1.25

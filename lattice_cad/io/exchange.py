@@ -489,7 +489,9 @@ def save_beam_lattice(
     the lattice goes into the same object (``mesh=``): readers without the extension
     (PrusaSlicer 2.5 measured; Bambu Studio shares its reader) ignore the beams and slice
     the triangles, a beam-aware reader gets the triangles united with the round beams (the
-    polygonal struts of the mesh are inscribed in them). Without ``mesh`` the file holds
+    default stitched mesh has polygons of the circle's area, whose corners reach
+    10 % of ``r`` beyond the beams at P = 6; a mesh stitched with
+    ``profile="inscribed"`` lies inside them). Without ``mesh`` the file holds
     beams only: tiny, but most readers cannot open it (:class:`BeamOnlyWarning`).
 
     Parameters

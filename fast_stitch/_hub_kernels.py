@@ -1,0 +1,139 @@
+"""Numba kernels of the hub volume correction of :func:`fast_stitch.stitch` (``profile="volume"``).
+
+Arrays and scalars only. See :mod:`fast_stitch.hubvolume` for the derivation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, error_model="numpy")
+def sphere_directions(n):
+    """(n, 3) float64: the Fibonacci (golden spiral) directions, equal weights ``4 pi / n``."""
+    out = np.empty((n, 3))
+    golden = np.pi * (3.0 - np.sqrt(5.0))
+    for i in range(n):
+        z = 1.0 - 2.0 * (i + 0.5) / n
+        rr = np.sqrt(max(0.0, 1.0 - z * z))
+        ph = i * golden
+        out[i, 0] = rr * np.cos(ph)
+        out[i, 1] = rr * np.sin(ph)
+        out[i, 2] = z
+    return out
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, end_offset, W, out):
+    """Volume of the exact solid's part on the node's side of all its profile planes.
+
+    The exact solid near node ``n`` is the ball of radius ``R = max r_i`` united with
+    the strut cylinders ``C_i`` (radius ``r_i`` at this end, from the node to the
+    profile plane at ``end_offset``), cut by the half-spaces ``x . a_i <= d_i``. It is
+    star-shaped about the node, so its volume is ``int rho(w)^3 / 3 dw`` over the unit
+    sphere, with the radial function ``rho = min(max(R, max_i rho_Ci), min_i d_i / (w . a_i))``;
+    integrated with the equal-weight directions ``W``.
+
+    Parameters
+    ----------
+    reps : (K,) int64
+        Nodes (degree >= 2) to measure.
+    radii : (M, 2) float64
+        True strut radii (of the design, not of the polygons).
+    end_offset : (M, 2) float64
+        Profile offsets.
+    W : (Q, 3) float64
+    out : (K,) float64, out
+    """
+    q = W.shape[0]
+    wgt = 4.0 * np.pi / q / 3.0
+    for ri in prange(reps.shape[0]):
+        n = reps[ri]
+        lo = offsets[n]
+        d = offsets[n + 1] - lo
+        a = np.empty((d, 3))
+        r = np.empty(d)
+        r2 = np.empty(d)
+        off = np.empty(d)
+        R = 0.0
+        for t in range(d):
+            e = inc_edge[lo + t]
+            s = inc_side[lo + t]
+            o = edges[e, 1 - s]
+            vx = nodes[o, 0] - nodes[n, 0]
+            vy = nodes[o, 1] - nodes[n, 1]
+            vz = nodes[o, 2] - nodes[n, 2]
+            nn = np.sqrt(vx * vx + vy * vy + vz * vz)
+            a[t, 0] = vx / nn
+            a[t, 1] = vy / nn
+            a[t, 2] = vz / nn
+            r[t] = radii[e, s]
+            r2[t] = r[t] * r[t]
+            off[t] = end_offset[e, s]
+            R = max(R, r[t])
+        total = 0.0
+        for k in range(q):
+            grow = R
+            clip = np.inf
+            for t in range(d):
+                c = W[k, 0] * a[t, 0] + W[k, 1] * a[t, 1] + W[k, 2] * a[t, 2]
+                if c <= 0.0:
+                    continue
+                p = off[t] / c
+                clip = min(clip, p)
+                if p <= grow:  # the cylinder's radial distance is at most p
+                    continue
+                s2 = max(0.0, 1.0 - c * c)
+                if s2 * p * p > r2[t]:  # leaves through the side: r / sin
+                    p = r[t] / np.sqrt(s2)
+                grow = max(grow, p)
+            rho = min(grow, clip)
+            total += rho * rho * rho
+        out[ri] = total * wgt
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def hub_mesh_volumes(reps, nodes, vertices, faces, face_start, offsets, inc_edge, inc_side,
+                     prad, end_offset, P, out):  # fmt: skip
+    """Volume of each hub polyhedron: the convex hull of its profiles.
+
+    The hub's triangles (``d P + 2 d - 4`` rows from ``face_start[n]``, outward) plus its
+    profile polygons (area ``P / 2 rho^2 sin(2 pi / P)`` at distance ``d_i`` from the node)
+    close it; volumes are cones from the node.
+
+    Parameters
+    ----------
+    prad : (M, 2) float64
+        Profile circumradius of each strut end.
+    out : (K,) float64, out
+    """
+    poly = 0.5 * P * np.sin(2.0 * np.pi / P)
+    for ri in prange(reps.shape[0]):
+        n = reps[ri]
+        lo = offsets[n]
+        d = offsets[n + 1] - lo
+        x0 = nodes[n, 0]
+        y0 = nodes[n, 1]
+        z0 = nodes[n, 2]
+        total = 0.0
+        for f in range(face_start[n], face_start[n] + d * P + 2 * d - 4):
+            i = faces[f, 0]
+            j = faces[f, 1]
+            k = faces[f, 2]
+            ax = vertices[i, 0] - x0
+            ay = vertices[i, 1] - y0
+            az = vertices[i, 2] - z0
+            bx = vertices[j, 0] - x0
+            by = vertices[j, 1] - y0
+            bz = vertices[j, 2] - z0
+            cx = vertices[k, 0] - x0
+            cy = vertices[k, 1] - y0
+            cz = vertices[k, 2] - z0
+            total += ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+        total /= 6.0
+        for t in range(d):
+            e = inc_edge[lo + t]
+            s = inc_side[lo + t]
+            total += poly * prad[e, s] * prad[e, s] * end_offset[e, s] / 3.0
+        out[ri] = total
