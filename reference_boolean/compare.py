@@ -95,12 +95,12 @@ def hub_union(
 ) -> tuple[float, int, bool]:
     """manifold3d unions of the unit trusses of ``nodes`` (a sample of the lattice's hubs).
 
-    Each hub is the union of its sphere (the reference's radius) and its half-struts from
-    the node to the strut midpoints (cylinders, or cone frustums from the node radius to
-    the midpoint radius), ``segments`` per circle: the polyhedral counterpart of one
-    reference hub, so the sum of their volumes converges to the sum of those hubs'
-    exact volumes (``Reference.hub_volume``) as ``segments`` grows. Each hub is a
-    separate union: the cost is that of the sample, not of the lattice.
+    Each hub is the union of its sphere (the reference's radius; none at a leaf, which ends
+    flat) and its half-struts from the node to the strut midpoints (cylinders, or cone
+    frustums from the node radius to the midpoint radius), ``segments`` per circle: the
+    polyhedral counterpart of one reference hub, so the sum of their volumes converges to
+    the sum of those hubs' exact volumes (``Reference.hub_volume``) as ``segments`` grows.
+    Each hub is a separate union: the cost is that of the sample, not of the lattice.
 
     Parameters
     ----------
@@ -132,7 +132,9 @@ def hub_union(
     for node in np.asarray(nodes, dtype=np.int64):
         p = graph.nodes[node]
         R = config.SPHERE_FACTOR * rmax[node]
-        parts = [unit.scale([R, R, R]).translate(p.tolist())]
+        # no ball at a leaf: the reference ends the strut flat there (docs/REFERENCE.md)
+        leaf = offsets[node + 1] - offsets[node] == 1
+        parts = [] if leaf else [unit.scale([R, R, R]).translate(p.tolist())]
         es = inc_edge[offsets[node] : offsets[node + 1]]
         sd = inc_side[offsets[node] : offsets[node + 1]]
         for e, side in zip(es, sd, strict=True):
@@ -160,8 +162,13 @@ def _z_to(d: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def union_sample(reference: Reference, hubs: int, seed: int = 0) -> NDArray[np.int64]:
-    """(k,) int64: a seeded sample of ``hubs`` nodes whose reference hub was built."""
-    ok = np.flatnonzero(np.isfinite(reference.hub_volume))
+    """(k,) int64: a seeded sample of ``hubs`` nodes whose reference hub was built on its
+    own (nodes fused into a cluster solid are left out: their hubs overlap, so the sum of
+    their separate unions is not the cluster's volume)."""
+    single = np.isfinite(reference.hub_volume)
+    for members in reference.clusters:
+        single[np.asarray(members, dtype=np.int64)] = False
+    ok = np.flatnonzero(single)
     if len(ok) <= hubs:
         return ok
     rng = np.random.default_rng(seed)

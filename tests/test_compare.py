@@ -69,10 +69,10 @@ def test_mesh_deviation_and_reports(star, star_ref, tmp_path):
     assert d["relative_volume_error"]["mesh"] < 0
     assert d["triangles"]["mesh"] == len(mesh.faces)
     assert len(d["worst_nodes"]) == 5  # every node with struts
-    json.loads((rep.save(tmp_path / "r.json")).read_text())
-    md = rep.save(tmp_path / "r.md").read_text()
+    json.loads((rep.save(tmp_path / "r.json")).read_text(encoding="utf-8"))
+    md = rep.save(tmp_path / "r.md").read_text(encoding="utf-8")
     assert "| segments |" in md and "fast_stitch P=8" in md
-    page = rep.save(tmp_path / "r.html").read_text()
+    page = rep.save(tmp_path / "r.html").read_text(encoding="utf-8")
     pngs = re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)", page)
     from reference_boolean.report import first_screen
 
@@ -126,7 +126,7 @@ def test_validate_one_call(tmp_path):
     )
     assert set(d["hausdorff"][vp]["symmetric"]) == {"max", "mean", "p95"}
     assert [m["label"] for m in d["meshes"]] == [vp, plain]
-    md = out.read_text()
+    md = out.read_text(encoding="utf-8")
     rows = [ln for ln in md.splitlines() if ln.startswith("| fast_stitch P=6")]
     assert len(rows) == 2  # one comparison row per mesh
     only_vp = validate(g, 6, None, profiles=("volume",), union_segments=(), samples=2000)
@@ -161,11 +161,11 @@ def test_compare_several_meshes(star, star_ref, tmp_path):
     assert c["P=12"].hausdorff["symmetric"]["mean"] < c["P=6"].hausdorff["symmetric"]["mean"]
     assert abs(c["P=12"].relative_volume_error) < abs(c["P=6"].relative_volume_error)
     assert rep.volume_mesh == c["P=6"].volume and rep.hausdorff is c["P=6"].hausdorff
-    d = json.loads(rep.save(tmp_path / "r.json").read_text())
+    d = json.loads(rep.save(tmp_path / "r.json").read_text(encoding="utf-8"))
     assert set(d["volume_mesh"]) == {"P=6", "P=12", "exact"}
     assert d["triangles"]["mesh"]["P=12"] == len(m12.faces)
     assert d["valid"]["mesh"]["exact"]["valid"]
-    page = rep.save(tmp_path / "r.html").read_text()
+    page = rep.save(tmp_path / "r.html").read_text(encoding="utf-8")
     assert page.count("<td>P=12</td>") == 1 and "Mesh under test: exact" in page
     from reference_boolean.report import first_screen
 

@@ -68,7 +68,7 @@ def parse_inp(path: Path) -> dict:
     elements: dict[int, tuple[str, tuple[int, int, int]]] = {}
     sections: dict[str, tuple[float, np.ndarray]] = {}
     nsets: dict[str, list[int]] = {}
-    lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("**")]
+    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines() if not ln.startswith("**")]
     i = 0
     while i < len(lines):
         head = lines[i].upper()
@@ -184,11 +184,11 @@ def test_material_and_dialect(tmp_path):
     out = tmp_path / "a.inp"
     fe.save_inp(g, out, dialect="abaqus", material={"E": 1700, "nu": 0.4, "density": 0.93e-9,
                                                     "name": "PA12"})  # fmt: skip
-    text = out.read_text()
+    text = out.read_text(encoding="utf-8")
     assert "*MATERIAL, NAME=PA12\n*ELASTIC\n1700, 0.4\n*DENSITY\n9.3e-10\n" in text
     assert all(v[0] == 0.4 for v in parse_inp(out)["sections"].values())  # Abaqus: radius
     fe.save_inp(g, out)
-    text = out.read_text()
+    text = out.read_text(encoding="utf-8")
     assert f"*ELASTIC\n{config.FE_YOUNGS_MODULUS:g}, {config.FE_POISSON:g}\n" in text
     with pytest.raises(ValueError, match="poisson"):
         fe.save_inp(g, out, material={"nu": 0.5})
@@ -243,7 +243,7 @@ def test_cad_selectors_on_a_part(tmp_path):
         inner.save_inp(out, node_sets={"top": ">Z"})
     # the suffix dispatches: save() writes the same model
     lat.save(tmp_path / "b.inp", node_sets={"fixed": "<Z"})
-    assert "*NSET, NSET=fixed" in (tmp_path / "b.inp").read_text()
+    assert "*NSET, NSET=fixed" in (tmp_path / "b.inp").read_text(encoding="utf-8")
     with pytest.raises(ValueError, match="apply to .inp"):
         lat.save(tmp_path / "b.json", node_sets={"fixed": "<Z"})
 
@@ -323,7 +323,7 @@ def test_ccx_runs_the_example_step_of_the_file(ccx, tmp_path):
     g = block("bcc", (2, 2, 1), cell_size=5.0, radius=0.4)
     model = tmp_path / "ex.inp"
     fe.save_inp(g, model, node_sets={"fixed": "<Z", "load": ">Z"})
-    text = model.read_text()
+    text = model.read_text(encoding="utf-8")
     head, example = text.split("** Example analysis", 1)
     step = "\n".join(ln[3:] for ln in example.splitlines()[3:])
     assert step.startswith("*BOUNDARY\nfixed, 1, 6\n*STEP")

@@ -329,7 +329,7 @@ def test_validate_report_has_the_printability_table(tmp_path):
     lat = Lattice(block("bcc", 1, cell_size=5.0, radius=0.4))
     lat.critical_angle = 40.0
     rep = lat.validate(report=tmp_path / "r.md", union_segments=(16,), samples=2000)
-    text = (tmp_path / "r.md").read_text()
+    text = (tmp_path / "r.md").read_text(encoding="utf-8")
     assert "## Printability (build direction +Z, critical angle 40 deg)" in text
     assert "| overhanging struts | 8 of 8 (100.00%) |" in text
     assert any(k.startswith("Printability") for k in rep.extra)

@@ -56,7 +56,7 @@ def test_first_screen_has_verdict_figures_and_pictures(bracket_report, tmp_path)
     assert rep.reference.complete and len(rep.comparisons) == 1
     comp = next(iter(rep.comparisons.values()))
     md_path = rep.save(tmp_path / "r.md")
-    md = md_path.read_text()
+    md = md_path.read_text(encoding="utf-8")
     top = _first_screen_md(md)
     lines = [ln for ln in top.splitlines() if ln.strip()]
     # the verdict is the first line after the title
@@ -85,7 +85,7 @@ def test_first_screen_has_verdict_figures_and_pictures(bracket_report, tmp_path)
     rest = md.split("# Details")[1]
     assert "## Reference" in rest and "| quantity | value |" in rest
     # HTML: the same first screen on top of the page
-    page = rep.save(tmp_path / "r.html").read_text()
+    page = rep.save(tmp_path / "r.html").read_text(encoding="utf-8")
     assert page.index("id='verdict'") < page.index("id='figures'") < page.index("Details")
     assert page.index("alt='overview'") < page.index("id='worst'") < page.index("Details")
 
@@ -126,7 +126,7 @@ def test_verdict_fails_a_tiny_tolerance_and_passes_a_large_one(bracket_report, t
     # the verdict reaches every format
     assert to_text(large).splitlines()[0].startswith("PASS: ")
     assert to_markdown(tiny).splitlines()[2].startswith("**FAIL: ")
-    assert "class='verdict pass'" in large.save(tmp_path / "p.html").read_text()
+    assert "class='verdict pass'" in large.save(tmp_path / "p.html").read_text(encoding="utf-8")
     assert large.to_dict()["verdict"]["status"] == "PASS"
     assert tiny.to_dict()["verdict"]["status"] == "FAIL"
 

@@ -96,7 +96,7 @@ def _prusa_gcode(exe: str, src: Path, tmp_path: Path) -> dict:
     """Slice with PrusaSlicer's defaults; what the G-code says about the part."""
     run = _prusa(exe, src, tmp_path)
     assert run.returncode == 0, run.stderr[-2000:] + run.stdout[-2000:]
-    text = (tmp_path / (src.name + ".gcode")).read_text()
+    text = (tmp_path / (src.name + ".gcode")).read_text(encoding="utf-8")
     setting = {
         k: float(v)
         for k, v in re.findall(r"^; (layer_height|first_layer_height|filament_diameter) = ([\d.]+)",
@@ -176,7 +176,7 @@ def _cura(cura: tuple[str, Path], src: Path, tmp_path: Path) -> subprocess.Compl
 def _cura_gcode(cura: tuple[str, Path], src: Path, tmp_path: Path) -> dict:
     run = _cura(cura, src, tmp_path)
     assert run.returncode == 0, run.stderr[-2000:]
-    text = (tmp_path / (src.name + ".gcode")).read_text()
+    text = (tmp_path / (src.name + ".gcode")).read_text(encoding="utf-8")
     # the moves of the print: from the first layer to the last (not the start/end G-code)
     body = text[text.index(";LAYER:0") : text.rindex(";TIME_ELAPSED:")]
     zs = [float(z) for z in re.findall(r"^G[01] [^;\n]*Z([\d.]+)", body, re.M)]
