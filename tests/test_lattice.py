@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -246,21 +245,20 @@ def test_preview_graph_mesh_and_part(tmp_path, box_lattice):
 
 
 @pytest.mark.slow
-def test_preview_of_a_million_triangles_is_fast(tmp_path):
+def test_preview_of_a_million_triangles(tmp_path):
+    """A 1M-triangle mesh and its graph render to non-blank pictures (their speed is
+    measured by benchmarks/bench_preview.py, not here)."""
+    from PIL import Image
+
     from lattice_cad import preview
 
     g = block("bcc", (20, 20, 12), cell_size=5.0, radius=0.4)
     m = fast_stitch.stitch(g, 6)
     assert len(m.faces) > 1_000_000
-    preview.render_png(block("bcc", 1, cell_size=5.0))  # warm matplotlib up
-    t0 = time.perf_counter()
-    preview.save_png(m, tmp_path / "big.png")
-    t_mesh = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    preview.save_png(g, tmp_path / "graph.png")
-    t_graph = time.perf_counter() - t0
-    # shaded 1200 x 900 (rendered at 2400 x 1800): ~2 s each on a quiet 2-core machine
-    assert t_mesh < 10.0 and t_graph < 10.0, (t_mesh, t_graph)
+    for what, name in ((m, "big.png"), (g, "graph.png")):
+        preview.save_png(what, tmp_path / name)
+        px = np.asarray(Image.open(tmp_path / name).convert("L"), dtype=np.float64)
+        assert px.std() > 5.0 and (px < 250).mean() > 0.05, name
 
 
 def test_preview_simplifies_without_holes(monkeypatch):

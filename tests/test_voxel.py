@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 import warnings
 
 import numpy as np
@@ -189,15 +188,14 @@ def test_clearance_strut_through_joint():
     assert_valid(fast_stitch.stitch(LatticeGraph(nodes, edges, r)))
 
 
-def test_clearance_check_is_fast(rng):
+def test_clearance_check_of_a_large_jittered_grid(rng):
+    """104,544 struts: no clash at r = 0.1, clashes at 0.3 (its speed is measured by
+    benchmarks/bench_stitch.py and bench_builder_memory.py, not here)."""
     from tests.conftest import cubic_grid
 
     nodes, edges = cubic_grid(33)  # 104,544 struts
     nodes = nodes + rng.normal(0.0, 0.05, nodes.shape)
-    clashes(*cubic_grid(3), 0.1)  # compile
-    t0 = time.perf_counter()
     pairs, _, _ = clashes(nodes, edges, 0.1)
-    assert time.perf_counter() - t0 < 1.5
     assert len(pairs) == 0
     pairs, dist, need = clashes(nodes, edges, 0.3)
     assert len(pairs) and np.all(dist < need)
