@@ -52,7 +52,15 @@ from lattice_cad.occ_impl.shapes import (
     translated,
     volume,
 )
-from lattice_cad.occ_impl.truss import ATTEMPTS, HubResult, HubSpec, make_sphere, stump_start
+from lattice_cad.occ_impl.truss import (
+    ATTEMPTS,
+    HubResult,
+    HubSpec,
+    circle_loops,
+    circles_first,
+    make_sphere,
+    stump_start,
+)
 
 __all__ = ["ClusterSpec", "build_cluster", "make_cluster_shape"]
 
@@ -280,63 +288,8 @@ def tessellate_open(
     v = np.concatenate(verts)
     f = np.concatenate(tris)
     v, f, _ = merge_close(v, f, config.MERGE_RTOL * scale)
-    circles = _circles(v, f, centres, axes, r_mid, xdirs, ydirs, tol)
-    on_circle = np.concatenate(circles) if circles else np.zeros(0, np.int64)
-    order = np.concatenate([on_circle, np.setdiff1d(np.arange(len(v)), on_circle)])
-    inv = np.empty(len(v), dtype=np.int64)
-    inv[order] = np.arange(len(v))
-    starts = np.cumsum([0] + [len(c) for c in circles])
-    circles = [np.arange(starts[j], starts[j + 1], dtype=np.int64) for j in range(len(circles))]
-    return v[order], inv[f], circles
-
-
-def _circles(
-    v: NDArray[np.float64],
-    f: NDArray[np.int64],
-    centres: NDArray[np.float64],
-    axes: NDArray[np.float64],
-    r_mid: NDArray[np.float64],
-    xdirs: NDArray[np.float64],
-    ydirs: NDArray[np.float64],
-    tol: float,
-) -> list[NDArray[np.int64]]:
-    """Boundary loops of the open mesh, one per disc, in canonical angle order."""
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    key = np.sort(e, axis=1)
-    uniq, counts = np.unique(key, axis=0, return_counts=True)
-    if (counts > 2).any():
-        raise OCCTFailure(f"{int((counts > 2).sum())} non-manifold edge(s) in the cluster mesh")
-    bverts = np.unique(uniq[counts == 1])
-    out = []
-    used = np.zeros(len(v), dtype=bool)
-    for j in range(len(centres)):
-        rel = v[bverts] - centres[j]
-        h = rel @ axes[j]
-        rad = np.linalg.norm(rel - h[:, None] * axes[j], axis=1)
-        on = (np.abs(h) < tol) & (np.abs(rad - r_mid[j]) < tol * 10)
-        idx = bverts[on]
-        k = len(idx)
-        if k < 3:
-            raise OCCTFailure(f"midpoint circle of leaving strut {j} has {k} boundary vertices")
-        ang = np.arctan2(rel[on] @ ydirs[j], rel[on] @ xdirs[j]) % (2 * math.pi)
-        step = 2 * math.pi / k
-        slot = np.rint(ang / step).astype(np.int64) % k
-        dev = np.abs((ang - slot * step + math.pi) % (2 * math.pi) - math.pi)
-        if dev.max() > config.ANGLE_TOL or len(np.unique(slot)) != k:
-            raise OCCTFailure(
-                f"midpoint circle of leaving strut {j}: {k} vertices not uniformly spaced from "
-                f"the frame's x axis (max angle error {dev.max():.3g} rad)"
-            )
-        ordered = np.empty(k, dtype=np.int64)
-        ordered[slot] = idx
-        used[idx] = True
-        out.append(ordered)
-    if not used[bverts].all():
-        raise OCCTFailure(
-            f"{int((~used[bverts]).sum())} boundary vertices of the cluster mesh are not on a "
-            "midpoint circle (the tessellation is not closed)"
-        )
-    return out
+    circles = circle_loops(v, f, centres, axes, r_mid, xdirs, ydirs, tol, what="leaving strut")
+    return circles_first(v, f, circles)
 
 
 # ------------------------------------------------------------------- driver

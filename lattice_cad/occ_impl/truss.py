@@ -367,49 +367,50 @@ def _tessellate(
     v = np.concatenate(verts)
     f = np.concatenate(tris)
     v, f, _ = merge_close(v, f, config.MERGE_RTOL * scale)
-    circles = _circles(v, f, spec, tol)
-    # circle vertices first (stable), the rest after
-    on_circle = np.concatenate(circles)
-    order = np.concatenate([on_circle, np.setdiff1d(np.arange(len(v)), on_circle)])
-    inv = np.empty(len(v), dtype=np.int64)
-    inv[order] = np.arange(len(v))
-    starts = np.cumsum([0] + [len(c) for c in circles])
-    circles = [np.arange(starts[j], starts[j + 1], dtype=np.int64) for j in range(len(circles))]
-    return v[order], inv[f], circles
+    return circles_first(v, f, _circles(v, f, spec, tol))
 
 
-def _circles(
-    v: NDArray[np.float64], f: NDArray[np.int64], spec: HubSpec, tol: float
+def circle_loops(
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    centres: NDArray[np.float64],
+    axes: NDArray[np.float64],
+    r_mid: NDArray[np.float64],
+    xdirs: NDArray[np.float64],
+    ydirs: NDArray[np.float64],
+    tol: float,
+    *,
+    what: str = "strut",
 ) -> list[NDArray[np.int64]]:
-    """Boundary loops of the open hub mesh, one per stump, in canonical angle order."""
+    """Boundary loops of an open hub or cluster mesh, one per midpoint disc (centre, unit
+    axis, radius and canonical frame given per disc), in canonical angle order; each
+    checked to be uniformly spaced from the frame's x axis (``what`` names the disc's
+    strut in errors)."""
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     key = np.sort(e, axis=1)
     uniq, counts = np.unique(key, axis=0, return_counts=True)
     if (counts > 2).any():
         raise OCCTFailure(f"{int((counts > 2).sum())} non-manifold edge(s) in the hub mesh")
-    bnd = uniq[counts == 1]
-    bverts = np.unique(bnd)
+    bverts = np.unique(uniq[counts == 1])
     out = []
     used = np.zeros(len(v), dtype=bool)
-    for j in range(len(spec.vecs)):
-        c = spec.vecs[j]
-        axis = c / np.linalg.norm(c)
-        rel = v[bverts] - c
-        h = rel @ axis
-        rad = np.linalg.norm(rel - h[:, None] * axis, axis=1)
-        on = (np.abs(h) < tol) & (np.abs(rad - spec.r_mid[j]) < tol * 10)
+    for j in range(len(centres)):
+        rel = v[bverts] - centres[j]
+        h = rel @ axes[j]
+        rad = np.linalg.norm(rel - h[:, None] * axes[j], axis=1)
+        on = (np.abs(h) < tol) & (np.abs(rad - r_mid[j]) < tol * 10)
         idx = bverts[on]
         k = len(idx)
         if k < 3:
-            raise OCCTFailure(f"midpoint circle of stump {j} has {k} boundary vertices")
-        ang = np.arctan2(rel[on] @ spec.ydirs[j], rel[on] @ spec.xdirs[j]) % (2 * math.pi)
+            raise OCCTFailure(f"midpoint circle of {what} {j} has {k} boundary vertices")
+        ang = np.arctan2(rel[on] @ ydirs[j], rel[on] @ xdirs[j]) % (2 * math.pi)
         step = 2 * math.pi / k
         slot = np.rint(ang / step).astype(np.int64) % k
         dev = np.abs((ang - slot * step + math.pi) % (2 * math.pi) - math.pi)
         if dev.max() > config.ANGLE_TOL or len(np.unique(slot)) != k:
             raise OCCTFailure(
-                f"midpoint circle of stump {j}: {k} vertices not uniformly spaced from the "
-                f"frame's x axis (max angle error {dev.max():.3g} rad)"
+                f"midpoint circle of {what} {j}: {k} vertices not uniformly spaced from "
+                f"the frame's x axis (max angle error {dev.max():.3g} rad)"
             )
         ordered = np.empty(k, dtype=np.int64)
         ordered[slot] = idx
@@ -421,6 +422,29 @@ def _circles(
             "midpoint circle (the tessellation is not closed)"
         )
     return out
+
+
+def _circles(
+    v: NDArray[np.float64], f: NDArray[np.int64], spec: HubSpec, tol: float
+) -> list[NDArray[np.int64]]:
+    """Boundary loops of the open hub mesh, one per stump, in canonical angle order."""
+    centres = np.asarray(spec.vecs, dtype=np.float64)
+    axes = centres / np.linalg.norm(centres, axis=1)[:, None]
+    return circle_loops(v, f, centres, axes, spec.r_mid, spec.xdirs, spec.ydirs, tol, what="stump")
+
+
+def circles_first(
+    v: NDArray[np.float64], f: NDArray[np.int64], circles: list[NDArray[np.int64]]
+) -> tuple[NDArray[np.float64], NDArray[np.int64], list[NDArray[np.int64]]]:
+    """Renumber the vertices: circle vertices first (in circle order), the rest after;
+    returns the vertices, faces and circles renumbered."""
+    on_circle = np.concatenate(circles) if circles else np.zeros(0, np.int64)
+    order = np.concatenate([on_circle, np.setdiff1d(np.arange(len(v)), on_circle)])
+    inv = np.empty(len(v), dtype=np.int64)
+    inv[order] = np.arange(len(v))
+    starts = np.cumsum([0] + [len(c) for c in circles])
+    circles = [np.arange(starts[j], starts[j + 1], dtype=np.int64) for j in range(len(circles))]
+    return v[order], inv[f], circles
 
 
 # ------------------------------------------------------------------- driver
