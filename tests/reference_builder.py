@@ -283,11 +283,19 @@ def _old_incidence(edges, n):
     return offsets, inc_edge, inc_side
 
 
-def end_offsets(nodes, edges, radii, *, shrink=True):
+def end_offsets(nodes, edges, radii, *, shrink=True, profile="inscribed"):
     from fast_stitch.fit import end_offsets as new
 
-    return new(nodes, edges, radii, shrink=shrink, _incidence_arrays=_old_incidence(
-        np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2), len(nodes)))
+    inc = _old_incidence(np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2), len(nodes))
+    return new(nodes, edges, radii, shrink=shrink, profile=profile, _incidence_arrays=inc)
+
+
+def _profile_radii(radii, shape, profile):
+    """The profile polygons' circumradii (the stitch's P = 6), as the checks use them."""
+    from fast_stitch.hubvolume import profile_factor
+
+    r = np.ascontiguousarray(np.broadcast_to(radii, shape), dtype=np.float64)
+    return r * profile_factor(config.DEFAULT_SEGMENTS, profile)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -331,6 +339,7 @@ def old_clashes(
     *,
     shrink: bool = True,
     margin: float = config.CLEARANCE_MARGIN,
+    profile: str = "inscribed",
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Struts and joints that share no node but would come too close.
 
@@ -351,13 +360,13 @@ def old_clashes(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    radii_a = np.ascontiguousarray(np.broadcast_to(radii, edges_a.shape), dtype=np.float64)
+    radii_a = _profile_radii(radii, edges_a.shape, profile)
     n, m = len(nodes_a), len(edges_a)
     empty = (np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0))
     if m == 0:
         return empty
     offsets, inc_edge, inc_side = _old_incidence(edges_a, n)
-    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink)
+    off = end_offsets(nodes_a, edges_a, radii_a, shrink=shrink, profile="inscribed")
     vec = nodes_a[edges_a[:, 1]] - nodes_a[edges_a[:, 0]]
     length = np.linalg.norm(vec, axis=1)
     unit = vec / np.where(length > 0, length, 1.0)[:, None]
@@ -385,8 +394,8 @@ def old_clashes(
 
 
 # ------------------------------------------------ conformal.radius.fit_radii before the slabs
-def old_misfits(nodes, edges, radii, *, shrink=True, slack=0.0):
-    off = end_offsets(nodes, edges, radii, shrink=shrink)
+def old_misfits(nodes, edges, radii, *, shrink=True, slack=0.0, profile="inscribed"):
+    off = end_offsets(nodes, edges, radii, shrink=shrink, profile=profile)
     need = off.sum(axis=1)
     length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
     bad = np.flatnonzero(need >= length * (1.0 - config.MIN_CYLINDER_FRACTION - slack))
@@ -402,6 +411,7 @@ def old_fit_radii(
     shrink: bool = True,
     clearance: bool = True,
     max_rounds: int = 60,
+    profile: str = "inscribed",
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Thin the struts at crowded nodes, and struts that pass too close, until all fit.
 
@@ -440,7 +450,9 @@ def old_fit_radii(
     bad = np.zeros(0, dtype=np.int64)
     n_nodes, m = len(nodes), len(edges)
     for _ in range(max_rounds):
-        bad, need, length = old_misfits(nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK)
+        bad, need, length = old_misfits(
+            nodes, edges, r, shrink=shrink, slack=config.FIT_SLACK, profile=profile
+        )
         node_f = np.ones(n_nodes)
         edge_f = np.ones(m)
         if len(bad):
@@ -450,7 +462,8 @@ def old_fit_radii(
         elif clearance:
             # aim past the check's own margin so that one round usually clears a pair
             pairs, dist, reach = old_clashes(
-                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN
+                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN,
+                profile=profile,
             )
             bad = _clash_struts(pairs, edges, m, n_nodes)
             if not len(pairs):

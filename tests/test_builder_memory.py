@@ -22,6 +22,7 @@ import conformal
 from conformal import voxel
 from conformal.cells import CELLS, _tile_int, tile_arrays
 from fast_stitch.fit import _clashes, _incidence, clashes, end_offsets, misfits
+from lattice_cad.core import config
 from lattice_cad.core.errors import InvalidGraphError
 from lattice_cad.core.graph import LatticeGraph, _validate
 
@@ -86,16 +87,17 @@ def test_clashes_by_slabs_equal_one_pass(name, rng):
     p0, d0, n0 = old_clashes(nodes, g.edges, r)
     assert len(p0) > 100  # the comparison has something to compare
     inc = _incidence(g.edges, len(nodes))
-    off = end_offsets(nodes, g.edges, r, _incidence_arrays=inc)
+    # the old one-pass check knew only the inscribed profile (vertices on the circle)
+    off = end_offsets(nodes, g.edges, r, profile="inscribed", _incidence_arrays=inc)
     for blk in (1, 60, 1 << 20):
         p1, d1, n1 = _clashes(nodes, g.edges, r, off, inc, 0.02, block=blk)
         np.testing.assert_array_equal(p1, p0)
         np.testing.assert_array_equal(d1, d0)
         np.testing.assert_array_equal(n1, n0)
-    p1, d1, _ = clashes(nodes, g.edges, r)
+    p1, d1, _ = clashes(nodes, g.edges, r, profile="inscribed")
     np.testing.assert_array_equal(p1, p0)
     np.testing.assert_array_equal(d1, d0)
-    bad, need, length = misfits(nodes, g.edges, r)
+    bad, need, length = misfits(nodes, g.edges, r, profile="inscribed")
     np.testing.assert_array_equal(
         length, np.linalg.norm(nodes[g.edges[:, 1]] - nodes[g.edges[:, 0]], axis=1)
     )
@@ -117,7 +119,9 @@ def _old_pipeline(part, cell, h, radius):
         nodes, edges, np.zeros(len(nodes), bool), 0.1 * h, False, True, rep
     )
     r = resolve_radii(radius, nodes, edges)
-    new, _ = old_fit_radii(nodes, edges, r, min_radius=0.1 * float(r.min()))
+    new, _ = old_fit_radii(
+        nodes, edges, r, min_radius=0.1 * float(r.min()), profile=config.DEFAULT_PROFILE
+    )
     return nodes, edges, new
 
 
