@@ -31,7 +31,7 @@ def bracket_report():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
         lat = Lattice.fill(ROOT / "examples" / "bracket.step", "bcc", 5.0, 0.5, fill="inside")
-    return lat.validate(volume_preserving=False, union_segments=(), samples=4000)
+    return lat.validate(profiles=("inscribed",), union_segments=(), samples=4000)
 
 
 def _pixels(png: bytes) -> np.ndarray:
@@ -150,12 +150,12 @@ def test_default_tolerance_is_ten_percent_of_the_radius():
     from lattice_cad.validate import validate
 
     g = star_graph([[1, 0, 0], [0, 1, 0], [0, 0, 1]], lengths=1.0, radii=0.1)
-    rep = validate(g, 24, None, volume_preserving=False, union_segments=(), samples=2000)
+    rep = validate(g, 24, None, profiles=("inscribed",), union_segments=(), samples=2000)
     v = rep.verdict()
     assert v.tolerance == pytest.approx(0.01) and v.tolerance_default
     assert v.tolerance_volume == pytest.approx(0.01)
     given = validate(
-        g, 24, None, volume_preserving=False, union_segments=(), samples=2000, tolerance=0.5
+        g, 24, None, profiles=("inscribed",), union_segments=(), samples=2000, tolerance=0.5
     )
     assert given.verdict().tolerance == 0.5 and not given.verdict().tolerance_default
     for bad in ({"tolerance": 0.0}, {"tolerance": -1.0}, {"tolerance_volume": float("nan")}):
