@@ -15,6 +15,7 @@ it.
 from __future__ import annotations
 
 import math
+import signal
 import tempfile
 import time
 import warnings
@@ -154,6 +155,10 @@ def _gmsh_tets(
     if gmsh.isInitialized():
         raise RuntimeError("gmsh is already initialised in this process; finalise it first")
     gmsh.initialize(readConfigFiles=False, interruptible=False)
+    # gmsh's initialize resets SIGPIPE to the default action (terminate): Python ignores it
+    # and reports EPIPE instead, and a process that later writes to a closed pipe or socket
+    # (a Dask client, a pool's pipe) would die silently with status 141
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)
     stage = "surface"
     try:
         gmsh.option.setNumber("General.Terminal", 0)

@@ -111,3 +111,27 @@ def test_gmsh_failure_is_parterror(cyl, monkeypatch):
 def test_bad_size(cyl):
     with pytest.raises(ValueError, match="size"):
         tet_lattice(cyl, -1.0)
+
+
+def test_gmsh_in_this_process_leaves_sigpipe_ignored(cyl, monkeypatch):
+    """Regression: gmsh.initialize() resets SIGPIPE to terminate; the CI run of the suite
+    died with status 141 (SIGPIPE) in a later test after the in-process gmsh test above."""
+    import ctypes
+    import signal
+
+    import conformal.tet
+
+    class _SigAction(ctypes.Structure):
+        _fields_ = [("handler", ctypes.c_void_p), ("mask", ctypes.c_ulong * 16),
+                    ("flags", ctypes.c_int), ("restorer", ctypes.c_void_p)]  # fmt: skip
+
+    def disposition() -> int | None:
+        sa = _SigAction()
+        assert ctypes.CDLL(None).sigaction(signal.SIGPIPE, None, ctypes.byref(sa)) == 0
+        return sa.handler
+
+    assert disposition() == int(signal.SIG_IGN)
+    monkeypatch.setattr(conformal.tet, "run_isolated", lambda fn, *a, **kw: fn(*a))
+    g = tet_lattice(cyl, 5.0, 0.2)
+    assert g.num_edges > 0
+    assert disposition() == int(signal.SIG_IGN)
