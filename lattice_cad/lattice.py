@@ -138,8 +138,28 @@ def _self_supporting_rotation(
 
 
 def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
-    """A boolean result (skin) rounded to float32 as STL and 3MF store it, checked in full
-    (with the folds the rounding makes collapsed), or :class:`ExportError`."""
+    """A boolean result (skin, trim) rounded to float32 as STL and 3MF store it, checked in
+    full (with the folds the rounding makes collapsed), or :class:`ExportError`.
+
+    If the rounding breaks it, the slivers the booleans left (thinner than float32's
+    spacing) are collapsed first by manifold3d's ``simplify`` with a tolerance of
+    ``config.SIMPLIFY_ULPS`` float32 steps at the mesh's largest coordinate (the solid
+    stays 2-manifold and moves by at most that), and the result is checked again.
+    """
+    try:
+        return _checked_single_precision_once(mesh, name)
+    except ExportError:
+        from conformal.skin import as_manifold, to_arrays
+        from lattice_cad.core.mesh import Mesh
+
+        extent = float(np.abs(mesh.vertices).max()) if len(mesh.vertices) else 1.0
+        eps = config.SIMPLIFY_ULPS * float(np.spacing(np.float32(max(extent, 1.0))))
+        v, f = to_arrays(as_manifold(mesh, name=name).simplify(eps))
+        return _checked_single_precision_once(Mesh(vertices=v, faces=f), name)
+
+
+def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
+    """:func:`_checked_single_precision` without the sliver collapse."""
     import fast_stitch
     from lattice_cad import io
     from lattice_cad.core.mesh import Mesh, weld

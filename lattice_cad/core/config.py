@@ -228,6 +228,11 @@ TRIM_FRACTION = 0.9
 #: Stumps whose start could only move by less than this fraction of ``R`` start at the node.
 TRIM_MIN_REL = 0.05
 
+#: Slivers of a boolean result (skin, trim) that float32 cannot hold are collapsed by
+#: manifold3d's simplify with this many float32 steps (at the largest coordinate) as its
+#: tolerance before the result is checked again (lattice_cad.lattice).
+SIMPLIFY_ULPS = 4
+
 #: Default number of surface samples per mesh for the deviation measures.
 DEFAULT_SAMPLES = 50_000
 
