@@ -144,7 +144,8 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
     If the rounding breaks it, the slivers the booleans left (thinner than float32's
     spacing) are collapsed first by manifold3d's ``simplify`` with a tolerance of
     ``config.SIMPLIFY_ULPS`` float32 steps at the mesh's largest coordinate (the solid
-    stays 2-manifold and moves by at most that), and the result is checked again.
+    stays 2-manifold and moves by at most that), and the result is checked again; then
+    with 4 and 16 times that tolerance.
     """
     try:
         return _checked_single_precision_once(mesh, name)
@@ -153,8 +154,15 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
         from lattice_cad.core.mesh import Mesh
 
         extent = float(np.abs(mesh.vertices).max()) if len(mesh.vertices) else 1.0
-        eps = config.SIMPLIFY_ULPS * float(np.spacing(np.float32(max(extent, 1.0))))
-        v, f = to_arrays(as_manifold(mesh, name=name).simplify(eps))
+        ulp = float(np.spacing(np.float32(max(extent, 1.0))))
+        solid = as_manifold(mesh, name=name)
+        for k in (1, 4):  # a pinch left by one tolerance can go with a larger one
+            v, f = to_arrays(solid.simplify(k * config.SIMPLIFY_ULPS * ulp))
+            try:
+                return _checked_single_precision_once(Mesh(vertices=v, faces=f), name)
+            except ExportError:
+                continue
+        v, f = to_arrays(solid.simplify(16 * config.SIMPLIFY_ULPS * ulp))
         return _checked_single_precision_once(Mesh(vertices=v, faces=f), name)
 
 
