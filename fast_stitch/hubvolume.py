@@ -185,6 +185,10 @@ def hub_scales(
     np.minimum.at(hi_s, edges[:, 0], room)
     np.minimum.at(hi_s, edges[:, 1], room)
     hi_s = np.maximum(hi_s, 1.0)
+    # every node iterates on its own until its step is below 1e-13 (then it is frozen):
+    # a node's scale depends on its own struts only, not on how long other nodes take
+    # (a shard of the graph gives the same bits; see lattice_cad.distributed)
+    active = degree >= 2
     for _ in range(20):
         se = s[node_end]
         li = l_i + (1.0 - se) * d_i
@@ -197,9 +201,10 @@ def hub_scales(
         ok = dg > 0.0
         step[ok] = g[ok] / dg[ok]
         new = np.clip(s - step, lo_s, hi_s)
-        new[degree < 2] = 1.0
-        done = bool(np.all(np.abs(new - s) <= 1e-13))
+        new[~active] = s[~active]
+        moved = np.abs(new - s) > 1e-13
         s = new
-        if done:
+        active &= moved
+        if not active.any():
             break
     return s, v_hull, v_exact

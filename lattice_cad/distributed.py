@@ -247,6 +247,29 @@ def _prune(n: int, edges: NDArray[np.int64], protected: NDArray[np.bool_]) -> ND
         alive &= ~drop
 
 
+def _hops(profile: str) -> int:
+    """How far (in struts) from an owned node the complete stars must reach.
+
+    A profile's offset at a node depends on all struts at that node; the owned triangles
+    (hubs at owned nodes, cylinders of owned struts) use the offsets at the owned nodes
+    and at their neighbours: 1. With ``profile="volume"`` they also use each of those
+    nodes' hub scale, which depends on the offsets at the far ends of its struts (the
+    frustum lengths, :func:`fast_stitch.hubvolume.hub_scales`): 2.
+    """
+    return 2 if profile == "volume" else 1
+
+
+def _within(
+    seed: NDArray[np.bool_], edges: NDArray[np.int64], hops: int
+) -> NDArray[np.bool_]:
+    """(N,) bool: the nodes at most ``hops`` struts away from a ``seed`` node."""
+    out = seed.copy()
+    for _ in range(hops):
+        touch = out[edges].any(axis=1)
+        out[edges[touch].ravel()] = True
+    return out
+
+
 def _compact(
     nodes: NDArray[np.float64], owned: NDArray[np.bool_], used: NDArray[np.bool_]
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
@@ -347,6 +370,7 @@ class _FillSpec:
     size: tuple[int, int, int]
     halo: int
     prune: bool
+    hops: int
     tmpdir: str
     threads: int
 
@@ -398,11 +422,9 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             lower = _prune(n, edges, np.zeros(n, dtype=bool))
         else:
             alive = lower = np.ones(len(edges), dtype=bool)
-        # the nodes whose hubs this shard needs: its own and their neighbours
-        e_alive = edges[alive]
-        need = owned.copy()
-        touch = owned[e_alive].any(axis=1)
-        need[e_alive[touch].ravel()] = True
+        # the nodes whose hubs this shard needs: its own, their neighbours (and theirs
+        # with profile="volume", see _hops)
+        need = _within(owned, edges[alive], spec.hops)
         relevant = need[edges].any(axis=1)
         if incomplete[need].any():
             k = int(np.flatnonzero(need & incomplete)[0])
@@ -494,8 +516,7 @@ def _fill_stitch(
         if fit == "shrink":
             floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
             new, _ = fit_radii(nodes, edges, r, min_radius=floor)
-            need = owned.copy()
-            need[edges[owned[edges].any(axis=1)].ravel()] = True
+            need = _within(owned, edges, _hops(profile))
             changed = (new != r).any(axis=1) & need[edges].any(axis=1)
             if changed.any():
                 e = int(np.flatnonzero(changed)[0])
@@ -506,9 +527,8 @@ def _fill_stitch(
                     "thinner struts, or fit='off'"
                 )
         # stitch only what the owned triangles depend on: the struts at the owned nodes
-        # and at their neighbours (whose hubs are complete here)
-        need = owned.copy()
-        need[edges[owned[edges].any(axis=1)].ravel()] = True
+        # and at the nodes within _hops (whose hubs are complete here)
+        need = _within(owned, edges, _hops(profile))
         sub = need[edges].any(axis=1)
         edges, r = edges[sub], r[sub]
         used = np.zeros(len(nodes), dtype=bool)
@@ -673,16 +693,10 @@ def _workdir(tmpdir: str | os.PathLike[str] | None, keep: bool) -> Iterator[Path
 
 
 def _check_profile(profile: str) -> None:
-    """The profiles whose meshes are identical sharded and in one process."""
-    if profile == "volume":
-        raise ShardingError(
-            "profile='volume' (the default of one process: each hub scaled to the exact "
-            "solid's volume) does not yet give identical seams across shards; use "
-            "profile='area' (the sharded default: struts of the exact cross-section area, "
-            "hubs uncorrected, about +0.6 % volume at P = 6) or 'inscribed'"
-        )
-    if profile not in ("area", "inscribed", "circumscribed"):
+    """The profiles of :func:`fast_stitch.stitch` (all give identical seams sharded)."""
+    if profile not in ("volume", "area", "inscribed", "circumscribed"):
         raise ValueError(f"unknown profile {profile!r}")
+
 
 def fill_sharded(
     part: str | os.PathLike[str],
@@ -702,8 +716,8 @@ def fill_sharded(
     prune: bool = True,
     fit: Literal["shrink", "off"] = "shrink",
     min_radius: float | None = None,
-    profile: str = "area",
-    halo: int = 2,
+    profile: str = config.DEFAULT_PROFILE,
+    halo: int | None = None,
     retries: int = 2,
     threads_per_task: int = 1,
     progress: bool = False,
@@ -737,9 +751,10 @@ def fill_sharded(
     fit : {"shrink", "off"}
         ``"shrink"`` checks that the single-process fitting would thin nothing near any
         block (else :class:`ShardingError`).
-    halo : int
-        Cells of overlap on every side of a block (2 suffices for cells whose struts stay
-        inside the cell).
+    halo : int, optional
+        Cells of overlap on every side of a block. For cells whose struts stay inside the
+        cell, 2 suffices with ``profile="area"``, ``"inscribed"`` or ``"circumscribed"``
+        and 3 with ``"volume"`` (whose hub scales reach one strut further); the default.
     retries : int
         Dask retries of a failed task (a worker that dies is replaced and its tasks rerun).
     threads_per_task : int
@@ -776,6 +791,8 @@ def fill_sharded(
         )
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
+    if halo is None:
+        halo = 1 + _hops(profile)
     if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
         raise ValueError(f"halo and shards must be >= 1 and retries >= 0 (got {halo}, "
                          f"{shards}, {retries})")  # fmt: skip
@@ -795,7 +812,7 @@ def fill_sharded(
         path=str(src.resolve()), units=units, cell=cell,
         start=tuple(start.tolist()), h=tuple(h.tolist()), dims=tuple(dims.tolist()),
         counts=tuple(counts.tolist()), size=tuple(size.tolist()), halo=int(halo),
-        prune=bool(prune), tmpdir="", threads=int(threads_per_task),
+        prune=bool(prune), hops=_hops(profile), tmpdir="", threads=int(threads_per_task),
     )  # fmt: skip
     n_shards = int(np.prod(counts))
     result = ShardedResult(path=out, struts=0, triangles=0)
@@ -1014,7 +1031,7 @@ def stitch_sharded(
     *,
     blocks: int = 2,
     seed: int = 0,
-    profile: str = "area",
+    profile: str = config.DEFAULT_PROFILE,
     scheduler: Any = None,
     workers: int | None = None,
     retries: int = 2,
@@ -1027,7 +1044,8 @@ def stitch_sharded(
     The same triangles as ``fast_stitch.stitch(graph, segments, seed=seed)`` (with the
     edges as given, orientation included), written as one binary STL (or 3MF). The box
     of the nodes is cut into ``blocks`` spatial blocks; each gets the struts with an end
-    within the longest strut of its box (so every hub it needs is complete), stitches
+    within the longest strut of its box (twice that with ``profile="volume"``: so every
+    hub and hub scale it needs is complete), stitches
     them and writes the cylinders of the struts whose lower-id end it owns and the hubs
     of its nodes.
 
@@ -1073,8 +1091,11 @@ def stitch_sharded(
         counts = _split(np.maximum(np.round(span / span.max() * 1024), 1).astype(np.int64),
                         int(blocks))  # fmt: skip
         step = span / counts * (1 + 1e-12)
-        # an end within lmax of the box: every strut at a node within lmax is routed too
-        margin = lmax * (1 + 1e-9) + 1e-12 * float(np.abs(np.concatenate([lo, hi])).max())
+        # an end within k lmax of the box (k = _hops): every strut at a node within
+        # k lmax (k struts from an owned node at most) is routed too
+        margin = _hops(profile) * lmax * (1 + 1e-9) + 1e-12 * float(
+            np.abs(np.concatenate([lo, hi])).max()
+        )
         box = (lo, step, counts, margin)
         _run(client, _route, [(p, k, box, str(work)) for k, p in enumerate(srcs)],
              retries=retries, progress=progress, desc="route")  # fmt: skip

@@ -107,7 +107,8 @@ def test_fill_same_triangles_as_one_process(client, tmp_path):
     h = _cell()
     part = conformal.load_part(PART)
     graph = conformal.voxel_lattice(part, "bcc", h, 0.08 * h, fill="inside")
-    ref = single_triangles(fast_stitch.stitch(graph, 6, profile="area"))
+    # the default profile="volume" in both: hub scales reach two struts from a hub
+    ref = single_triangles(fast_stitch.stitch(graph, 6))
     out = tmp_path / "bunny.stl"
     res = fill_sharded(PART, out, "bcc", h, 0.08 * h, shards=4, scheduler=client)
     assert len(res.shards) >= 3  # seams in every direction the grid was cut
@@ -129,7 +130,7 @@ def test_fill_graded_radius_3mf(client, tmp_path):
 
     graph = conformal.voxel_lattice(part, "bcc", h, radius, fill="inside")
     assert np.ptp(graph.radii) > 0
-    ref = fast_stitch.stitch(graph, 6, profile="area")
+    ref = fast_stitch.stitch(graph, 6)
     out = tmp_path / "bunny.3mf"
     res = fill_sharded(PART, out, "bcc", h, radius, shards=3, scheduler=client)
     assert res.triangles == len(ref.faces)
@@ -161,13 +162,15 @@ def tapered_graph() -> LatticeGraph:
     return LatticeGraph(nodes, edges, radii)
 
 
-def test_stitch_sharded_tapered_graded(client, tmp_path):
+@pytest.mark.parametrize("profile", ["volume", "area"])
+def test_stitch_sharded_tapered_graded(client, tmp_path, profile):
     graph = tapered_graph()
     assert graph.is_tapered
-    ref = fast_stitch.stitch(graph, 7, seed=5, profile="area")
+    ref = fast_stitch.stitch(graph, 7, seed=5, profile=profile)
     shards = write_graph_shards(graph, tmp_path / "g", chunks=3)
     out = tmp_path / "g.stl"
-    res = stitch_sharded(shards, out, 7, seed=5, blocks=4, scheduler=client)
+    kw = {} if profile == "volume" else {"profile": profile}  # volume: the default
+    res = stitch_sharded(shards, out, 7, seed=5, blocks=4, scheduler=client, **kw)
     assert len(res.shards) == 4
     assert res.struts == graph.num_edges
     rec = read_stl(out)
@@ -266,8 +269,39 @@ def test_ctrl_c_cancels_cluster_work(client, monkeypatch):
     assert [f.status for f in seen] == ["cancelled", "cancelled"]
 
 
-def test_volume_profile_is_refused_sharded(tmp_path):
-    """The hub volume correction is not yet shard-exact: refused by name, before any work."""
-    with pytest.raises(ShardingError, match="profile='volume'"):
-        fill_sharded(PART, tmp_path / "x.stl", "bcc", 1.0, 0.1, shards=2, profile="volume")
-    assert not (tmp_path / "x.stl").exists()
+def test_volume_hub_scales_need_two_struts_of_halo():
+    """A hub scale depends on the offsets at the far ends of the node's struts (the
+    frustum lengths), i.e. on its neighbours' struts: the node's own struts alone give
+    another scale, those and its neighbours' the same bits. An owned strut's far end is
+    such a neighbour, hence two struts of complete stars beyond the owned nodes (_hops)."""
+    import importlib
+
+    from lattice_cad.distributed import _hops, _within
+
+    st = importlib.import_module("fast_stitch.stitch")
+    from fast_stitch.hubvolume import area_factor
+    from lattice_cad.core.checks import Progress
+
+    graph = tapered_graph()
+    assert _hops("volume") == 2 and _hops("area") == 1
+
+    def scales(g):
+        r = g.radii * area_factor(6)
+        _, _, _, rr = st._stitch(g, r, 6, True, 0, Progress(None, 1), correct_hubs=True)
+        return rr / r  # (M, 2): the scale of each strut end's node
+
+    full = scales(graph)
+    n0 = int(np.argmax(graph.degree))  # an inner node
+    seed = np.zeros(graph.num_nodes, dtype=bool)
+    seed[n0] = True
+    for hops, same in ((0, False), (1, True)):
+        keep = _within(seed, graph.edges, hops)
+        sub = np.flatnonzero(keep[graph.edges].any(axis=1))
+        used = np.zeros(graph.num_nodes, dtype=bool)
+        used[graph.edges[sub].ravel()] = True
+        new_id = np.cumsum(used) - 1
+        g = LatticeGraph(graph.nodes[used], new_id[graph.edges[sub]], graph.radii[sub])
+        at_n0 = graph.edges[sub] == n0
+        assert at_n0.any()
+        got, want = scales(g)[at_n0], full[sub][at_n0]
+        assert np.array_equal(got, want) == same, (hops, np.abs(got - want).max())
