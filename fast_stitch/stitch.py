@@ -133,6 +133,7 @@ def stitch(
     check_clearance: bool = True,
     profile: Profile = "volume",
     volume_preserving: bool | None = None,
+    _report: dict[str, Any] | None = None,
 ) -> Mesh:
     """Build the watertight triangle mesh of a lattice graph.
 
@@ -260,7 +261,7 @@ def stitch(
         radii = graph.radii * profile_factor(P, profile)
         mesh, end_offset, face_start, radii = _stitch(
             graph, radii, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar,
-            correct_hubs=profile == "volume",
+            correct_hubs=profile == "volume", report=_report,
         )  # fmt: skip
         if check_clearance:
             bar("clearance", 0, 1)
@@ -282,11 +283,13 @@ def _stitch(
     progress: Progress,
     *,
     correct_hubs: bool = False,
+    report: dict[str, Any] | None = None,
 ) -> tuple[Mesh, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     """The mesh, its profile offsets (M, 2), hub face starts (N,) and profile radii (M, 2).
 
     With ``correct_hubs`` the hubs are scaled to the exact solid's volume (``radii`` are
-    then the area-preserving profile radii; see :mod:`fast_stitch.hubvolume`)."""
+    then the area-preserving profile radii; see :mod:`fast_stitch.hubvolume`), growth
+    capped by :func:`cap_growth` (its nodes go to ``report["capped"]`` when given)."""
     nodes, edges = graph.nodes, graph.edges
     n_nodes, m = graph.num_nodes, graph.num_edges
     offsets, inc_edge, inc_side = graph.incidence
@@ -382,6 +385,9 @@ def _stitch(
             nodes, edges, graph.incidence, degree, graph.radii, radii, end_offset, length,
             vertices, faces, face_start, node_rep, P,
         )  # fmt: skip
+        scale, capped = cap_growth(nodes, edges, radii, end_offset, scale)
+        if report is not None:
+            report["capped"] = capped
         # similar hubs: same triangles, profiles (radius and offset) scaled about the node
         node_scale = scale[edges]
         radii = radii * node_scale
@@ -390,6 +396,72 @@ def _stitch(
             nodes, edges, axis, sign, fu, fv, radii, end_offset, P, vertices
         )
     return Mesh(vertices=vertices, faces=faces), end_offset, face_start, radii
+
+
+def cap_growth(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    end_offset: NDArray[np.float64],
+    scale: NDArray[np.float64],
+    *,
+    rounds: int = 3,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Limit the growth of hubs (``s_n > 1``) to what their clearance allows.
+
+    Grown hubs (boundary nodes of ``profile="volume"``, :mod:`fast_stitch.hubvolume`) and
+    the strut ends at them reach further than the profiles the fit and the clearance check
+    of the unscaled mesh saw. The bounding capsules and balls of the clearance check
+    (``_clearance_elements``: struts between their profile centres with their larger end
+    radius, joints to their farthest profile vertex) are computed with every node scaled;
+    every grown node of an element that overlaps an element sharing no node with it has
+    its growth halved (``rounds`` times, then removed: ``s_n = 1``), and the check is
+    repeated until no overlapping element has a grown node. The mesh inside the capsules
+    then meets nothing that the unscaled or shrunk mesh did not already meet.
+
+    Parameters
+    ----------
+    nodes : (N, 3) float64
+    edges : (M, 2) int64
+    radii, end_offset : (M, 2) float64
+        Profile circumradii and offsets before scaling.
+    scale : (N,) float64
+        ``s_n`` of :func:`fast_stitch.hubvolume.hub_scales`.
+
+    Returns
+    -------
+    scale : (N,) float64
+        The capped scales (a copy when changed).
+    capped : (K,) int64
+        The nodes whose growth was reduced, ascending.
+    """
+    from fast_stitch.fit import _clashes, _incidence
+
+    grown = scale > 1.0
+    if not grown.any():
+        return scale, np.zeros(0, dtype=np.int64)
+    scale = scale.copy()
+    start = scale.copy()
+    m, n_nodes = len(edges), len(nodes)
+    inc = _incidence(edges, n_nodes)
+    halvings = np.zeros(n_nodes, dtype=np.int64)
+    while True:
+        node_scale = scale[edges]
+        pairs, _, _ = _clashes(
+            nodes, edges, radii * node_scale, end_offset * node_scale, inc, 1e-9
+        )
+        el = np.unique(pairs.ravel())
+        hit = np.zeros(n_nodes, dtype=bool)
+        hit[edges[el[el < m]].ravel()] = True
+        hit[el[el >= m] - m] = True
+        hit &= scale > 1.0
+        if not hit.any():
+            break
+        halvings[hit] += 1
+        less = hit & (halvings <= rounds)
+        scale[less] = 1.0 + 0.5 * (scale[less] - 1.0)
+        scale[hit & ~less] = 1.0
+    return scale, np.flatnonzero(scale != start).astype(np.int64)
 
 
 def _edges_at(graph: LatticeGraph, n: int) -> list[int]:

@@ -349,9 +349,18 @@ def _stitch_owned(
 
     graph = LatticeGraph(nodes, edges, radii)
     graph.check_precision("float32")
+    report: dict[str, Any] = {}
     mesh = fast_stitch.stitch(
-        graph, segments, seed=seed, profile=profile, workers=None
+        graph, segments, seed=seed, profile=profile, workers=None, _report=report
     )
+    capped = report.get("capped", np.zeros(0, dtype=np.int64))
+    if len(capped) and _within(owned_node, edges, _hops(profile))[capped].any():
+        k = int(capped[_within(owned_node, edges, _hops(profile))[capped]][0])
+        raise ShardingError(
+            f"{where}: the hub at {nodes[k].tolist()} may not grow to the exact solid's "
+            "volume without overlapping a strut (fast_stitch.stitch.cap_growth); that limit "
+            "depends on struts beyond the halo: run in one process, or use profile='area'"
+        )
     records, n = _owned_records(graph, mesh, owned_node, owned_strut, segments, where)
     _write_piece(piece, records)
     return n

@@ -13,6 +13,7 @@ from reference_stitch import canonical_faces, reference_stitch
 import fast_stitch
 from conformal.cells import block
 from fast_stitch import ExportError, StitchError
+from fast_stitch.hubvolume import area_factor
 from lattice_cad import LatticeGraph, LatticeWarning
 
 
@@ -439,7 +440,6 @@ def test_fit_checks_the_profile_polygons():
     ones can be too short for them; both agree with the stitch."""
     from conformal.radius import check_fit
     from fast_stitch.fit import end_offsets, misfits
-    from fast_stitch.hubvolume import area_factor
 
     g = tight_v(20.0, r=0.05, L=0.30)
     off_in = end_offsets(g.nodes, g.edges, g.radii, profile="inscribed")
@@ -455,3 +455,57 @@ def test_fit_checks_the_profile_polygons():
     # P changes the polygon: at P = 12 the area-preserving polygon is 1.0236 r wide
     assert len(misfits(g.nodes, g.edges, g.radii, segments=12)[0]) == 0
     assert_valid(fast_stitch.stitch(g, 12))
+
+
+def _grown_v_and_a_strut_above() -> tuple[LatticeGraph, int]:
+    """A 30-degree V (its node's hub grows ~22 % with profile="volume": the hull misses
+    the back of the ball) and a strut 2.1 profile radii above the V's first strut: clear of
+    it at the unscaled size (P = 24: the polygons reach at most 1 profile radius), into it
+    once the V's end grows (> 1.2 x 0.99 + 0.99 > 2.1)."""
+    P, r = 24, 0.1
+    rho = r * area_factor(P)
+    t, D = math.radians(30.0), 2.1 * rho
+    nodes = [[0, 0, 0], [2, 0, 0], [2 * math.cos(t), 2 * math.sin(t), 0], [0.2, 0, D],
+             [1.6, 0, D]]  # fmt: skip
+    return LatticeGraph(nodes, [[0, 1], [0, 2], [3, 4]], r), P
+
+
+def test_hub_growth_is_capped_by_clearance(monkeypatch):
+    """Issue 11: boundary hubs grown to the exact volume overlapped a neighbouring strut
+    that the unscaled mesh (and the fit) cleared; their growth is now limited."""
+    import importlib
+
+    st = importlib.import_module("fast_stitch.stitch")
+    g, P = _grown_v_and_a_strut_above()
+    assert_valid(fast_stitch.stitch(g, P, profile="area"))
+    report: dict = {}
+    mesh = fast_stitch.stitch(g, P, _report=report)  # the default profile="volume"
+    assert report["capped"].tolist() == [0]
+    assert independent_check(mesh)["self_intersecting_faces"] == 0
+    # without the cap: the grown hub and strut overlap the strut above (exact check, and
+    # an independent checker agrees)
+    monkeypatch.setattr(st, "cap_growth", lambda n, e, r, o, s: (s, np.zeros(0, np.int64)))
+    with pytest.raises(StitchError, match=r"strut [01] \(nodes 0, [12]\) and strut 2"):
+        fast_stitch.stitch(g, P)
+    grown = fast_stitch.stitch(g, P, check_clearance=False)
+    assert independent_check(grown)["self_intersecting_faces"] > 0
+    assert grown.volume > mesh.volume
+
+
+def test_cap_growth_leaves_free_hubs_alone():
+    """Grown hubs with nothing near keep their growth (the V alone), shrunk ones too."""
+    from fast_stitch.fit import end_offsets
+    from fast_stitch.stitch import cap_growth
+
+    g, P = _grown_v_and_a_strut_above()
+    nodes, edges = g.nodes[:3], g.edges[:2]
+    rho = np.full((2, 2), 0.1 * area_factor(P))
+    off = end_offsets(nodes, edges, 0.1, segments=P)
+    scale = np.array([1.2, 1.0, 1.0])
+    out, capped = cap_growth(nodes, edges, rho, off, scale)
+    assert np.array_equal(out, scale) and len(capped) == 0
+    # with the strut above: halved three times, then no growth
+    off3 = np.vstack([off, np.zeros((1, 2))])
+    out, capped = cap_growth(g.nodes, g.edges, np.full((3, 2), rho[0, 0]), off3,
+                             np.array([1.2, 1.0, 1.0, 1.0, 1.0]))  # fmt: skip
+    assert capped.tolist() == [0] and out[0] == 1.0
