@@ -14,8 +14,9 @@ default P = 6 with ``"volume"``/``"area"``): offsets and clearances are those of
 enlarged polygons. With ``profile="volume"`` the stitch then scales each hub about its
 node (:mod:`fast_stitch.hubvolume`) by ``s_n <= 1`` where the hub is fuller than the
 exact solid (the mesh shrinks inside the one checked here), and grows boundary hubs by
-at most what keeps ``config.FIT_SLACK`` of each strut free; the offsets returned are
-those before that scaling.
+at most what keeps ``config.FIT_SLACK`` of each strut free and what the clearance check
+allows (``fast_stitch.stitch.cap_growth``: a grown hub never makes a graph that clears
+here fail the stitch's check); the offsets returned are those before that scaling.
 
 :func:`clashes` lists the elements that share no node but whose bounding
 capsules would overlap (:func:`fast_stitch.stitch`'s ``check_clearance``):

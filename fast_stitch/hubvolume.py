@@ -47,9 +47,16 @@ leaves), which is what :func:`reference_boolean.build_reference` builds. Two ste
    :mod:`fast_stitch.fit` checks the unscaled ones. Hubs lighter than the exact solid
    (boundary nodes whose struts all lie on one side: the hull misses the back of the
    ball) grow, ``s_n > 1``, bounded so that every strut keeps ``config.FIT_SLACK`` of its
-   length as open cylinder; :func:`fast_stitch.stitch`'s clearance check runs on the
-   final mesh. Typical ``|1 - s_n|`` is a few percent (the surface moves by that
-   fraction of ``r``).
+   length as open cylinder, and by what their clearance allows
+   (:func:`fast_stitch.stitch.cap_growth`: the clearance check's capsules with the scaled
+   profiles may not overlap an element sharing no node); :func:`fast_stitch.stitch`'s
+   clearance check runs on the final mesh. Typical ``|1 - s_n|`` is a few percent (the
+   surface moves by that fraction of ``r``).
+
+   ``s_n`` depends on the struts at node n and at its neighbours (the offsets at the far
+   ends give the frustum lengths ``l_i`` and the bound on growth), nothing else: every
+   node's Newton iteration stops on its own step, so a subgraph holding those struts gives
+   the same bits (the sharded pipeline, :mod:`lattice_cad.distributed`).
 
 Tapered struts: the strut prisms run between the end radii, the exact struts are
 frustums along the whole strut; that (small) difference is not corrected.

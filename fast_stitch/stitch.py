@@ -178,8 +178,10 @@ def stitch(
         degree >= 2, flat at leaves): profiles of the circle's area (circumradius
         ``r * sqrt(2 pi / (P sin(2 pi / P)))``, so struts keep the cylinder's
         volume) and every hub, with the strut ends at it, scaled about its node by
-        ``s_n <= 1`` so that the hub has the exact solid's volume there (see
-        :mod:`fast_stitch.hubvolume`; typically ``1 - s_n < 2 %``).
+        ``s_n`` so that the hub has the exact solid's volume there (see
+        :mod:`fast_stitch.hubvolume`; typically ``|1 - s_n| < 2 %``; ``s_n > 1`` at
+        boundary nodes whose struts all leave on one side, capped so that grown hubs
+        overlap nothing: :func:`cap_growth`).
         ``"area"``: profiles of the circle's area, no hub correction (hubs are
         a little fuller than the exact solid). ``"inscribed"``: vertices on the
         circle (the mesh is thinner than the design, e.g. -16 % of the volume at

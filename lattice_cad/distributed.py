@@ -21,10 +21,17 @@ Why the pieces fit together exactly
   direction and ``seed`` (not from its index) and a node's hub only from the struts at
   that node (hubs are shared between nodes only when their inputs are bit-identical), so a
   profile shared by two shards has the same vertices in both. A shard's hubs are correct
-  when the shard graph has *all* struts at its own nodes and at their neighbours: two
-  cells of halo give that for every cell whose struts stay in the cell (all built-in
-  cells); a shard that finds one of those nodes on the halo's edge raises
-  :class:`ShardingError`.
+  when the shard graph has *all* struts at its own nodes and at their neighbours (two
+  cells of halo give that for every cell whose struts stay in the cell: all built-in
+  cells). With ``profile="volume"`` (the default) each hub is also scaled by ``s_n``,
+  which depends on the offsets at the far ends of its node's struts: the stars must be
+  complete one strut further (three cells of halo, the default; ``stitch_sharded``
+  routes struts within twice the longest strut of a block), and ``s_n`` is iterated per
+  node (:func:`fast_stitch.hubvolume.hub_scales`). A shard that finds one of those nodes
+  on the halo's edge raises :class:`ShardingError`. Hub growth limited by clearance
+  (:func:`fast_stitch.stitch.cap_growth`) depends on struts anywhere near: a shard that
+  caps a hub within reach of its block raises :class:`ShardingError` (run that lattice in
+  one process, or use ``profile="area"``).
 - **Global clean-up, done exactly.** Dangling struts are pruned in each shard twice (halo
   edge kept / halo edge pruned); the true result lies between, so equal answers near the
   block prove it exact (else :class:`ShardingError`). The largest connected piece (per
@@ -354,8 +361,10 @@ def _stitch_owned(
         graph, segments, seed=seed, profile=profile, workers=None, _report=report
     )
     capped = report.get("capped", np.zeros(0, dtype=np.int64))
-    if len(capped) and _within(owned_node, edges, _hops(profile))[capped].any():
-        k = int(capped[_within(owned_node, edges, _hops(profile))[capped]][0])
+    # the owned triangles use the hub scales of the owned nodes and their neighbours
+    near = _within(owned_node, edges, 1)[capped] if len(capped) else np.zeros(0, dtype=bool)
+    if near.any():
+        k = int(capped[near][0])
         raise ShardingError(
             f"{where}: the hub at {nodes[k].tolist()} may not grow to the exact solid's "
             "volume without overlapping a strut (fast_stitch.stitch.cap_growth); that limit "

@@ -305,3 +305,20 @@ def test_volume_hub_scales_need_two_struts_of_halo():
         assert at_n0.any()
         got, want = scales(g)[at_n0], full[sub][at_n0]
         assert np.array_equal(got, want) == same, (hops, np.abs(got - want).max())
+
+
+def test_capped_hub_growth_is_refused_sharded(client, tmp_path):
+    """A hub whose growth the clearance caps (issue 11) depends on struts that need not be
+    in the shard: refused by name, no output; the same graph sharded with "area" works."""
+    from tests.test_stitch import _grown_v_and_a_strut_above
+
+    graph, P = _grown_v_and_a_strut_above()
+    shards = write_graph_shards(graph, tmp_path / "g", chunks=2)
+    out = tmp_path / "v.stl"
+    with pytest.raises(ShardingError, match="may not grow"):
+        stitch_sharded(shards, out, P, blocks=2, scheduler=client)
+    assert not out.exists()
+    stitch_sharded(shards, out, P, blocks=2, scheduler=client, profile="area")
+    rec = read_stl(out)
+    ref = fast_stitch.stitch(graph, P, profile="area")
+    np.testing.assert_array_equal(canonical(rec["v"]), single_triangles(ref))

@@ -135,3 +135,29 @@ def test_gmsh_in_this_process_leaves_sigpipe_ignored(cyl, monkeypatch):
     g = tet_lattice(cyl, 5.0, 0.2)
     assert g.num_edges > 0
     assert disposition() == int(signal.SIG_IGN)
+
+
+@pytest.mark.slow  # gmsh, the fit and the stitch of ~4,000 struts (~30 s)
+def test_tet_face_recognition_part_stitches_with_grown_hubs():
+    """Issue 11: the parts benchmark's "tet" setting (cell = extent / 15, r = cell / 12)
+    on the face-recognition sample part: hubs grown to the exact volume overlapped struts
+    the fit had cleared (strut 211 / strut 1294); their growth is capped now."""
+    part = load_part(DATA / "step" / "pythonocc_face_recognition_sample_part.stp")
+    cell = round(float(max(part.size)) / 15, 6)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "", LatticeWarning)  # struts thinned by the fit
+        g = tet_lattice(part, cell, cell / 12)
+    report: dict = {}
+    mesh = fast_stitch.stitch(g, _report=report)  # the default profile="volume"
+    assert len(report["capped"]) > 0  # the case: growth that had to be limited
+    assert_valid(mesh)
+    # the volume lost to the cap is small: the uncapped mesh (which overlaps) is within 0.1 %
+    import importlib
+
+    st = importlib.import_module("fast_stitch.stitch")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(st, "cap_growth", lambda n, e, r, o, s: (s, np.zeros(0, np.int64)))
+        with pytest.raises(fast_stitch.StitchError, match="overlap although they share no node"):
+            fast_stitch.stitch(g)
+        free = fast_stitch.stitch(g, check_clearance=False)
+    assert 0 < 1 - mesh.volume / free.volume < 1e-3
