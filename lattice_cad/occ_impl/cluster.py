@@ -56,6 +56,8 @@ from lattice_cad.occ_impl.truss import (
     ATTEMPTS,
     HubResult,
     HubSpec,
+    StageClock,
+    _lap,
     circle_loops,
     circles_first,
     make_sphere,
@@ -198,7 +200,12 @@ def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
 
 
 def make_cluster_shape(
-    spec: ClusterSpec, *, construction: str = "fuse", fuzzy: float = 0.0, trim: bool = True
+    spec: ClusterSpec,
+    *,
+    construction: str = "fuse",
+    fuzzy: float = 0.0,
+    trim: bool = True,
+    clock: StageClock | None = None,
 ) -> TopoDS_Shape:
     """The cluster solid: the union of its primitives (one general fuse, or one at a time).
 
@@ -208,6 +215,7 @@ def make_cluster_shape(
         A builder is not done, or a shape is invalid.
     """
     prims = _primitives(spec, trim)
+    _lap(clock, "primitives")
     if len(prims) == 1:
         shape = prims[0]
     elif construction == "fuse":
@@ -219,7 +227,9 @@ def make_cluster_shape(
             check_valid(shape, f"sequential fuse after primitive {j + 1}")
     else:  # pragma: no cover - guarded by the caller
         raise ValueError(f"unknown construction {construction!r}")
+    _lap(clock, "fuse")
     check_valid(shape, "cluster")
+    _lap(clock, "check")
     if count(shape, TopAbs_SOLID) < 1:
         raise OCCTFailure("cluster: the fuse gave no solid")
     return shape
@@ -237,6 +247,7 @@ def tessellate_open(
     scale: float,
     deflection: float,
     angular: float,
+    clock: StageClock | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], list[NDArray[np.int64]]]:
     """Tessellate a solid without its midpoint discs; circle vertices first, in order.
 
@@ -259,7 +270,10 @@ def tessellate_open(
     tris: list[NDArray[np.int64]] = []
     cap_found = np.zeros(len(centres), dtype=bool)
     base = 0
-    for face, pts, t in face_triangulations(shape, deflection, angular, parallel=False):
+    on_meshed = None if clock is None else (lambda: clock.lap("mesh"))
+    for face, pts, t in face_triangulations(
+        shape, deflection, angular, parallel=False, on_meshed=on_meshed
+    ):
         if len(centres) and BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
             proj = pts @ axes.T - plane_off  # (nn, b)
             near = np.linalg.norm(pts[:, None, :] - centres[None, :, :], axis=2)
@@ -287,9 +301,12 @@ def tessellate_open(
         raise OCCTFailure(f"no midpoint disc found for leaving strut(s) {missing}")
     v = np.concatenate(verts)
     f = np.concatenate(tris)
+    _lap(clock, "extract")
     v, f, _ = merge_close(v, f, config.MERGE_RTOL * scale)
     circles = circle_loops(v, f, centres, axes, r_mid, xdirs, ydirs, tol, what="leaving strut")
-    return circles_first(v, f, circles)
+    out = circles_first(v, f, circles)
+    _lap(clock, "circles")
+    return out
 
 
 # ------------------------------------------------------------------- driver
@@ -307,6 +324,7 @@ def build_cluster(
         As for a hub; ``circles[j]`` belongs to leaving strut ``j``.
     """
     t0 = time.perf_counter()
+    clock = StageClock()
     scale = spec.scale
     attempts: list[str] = []
     plan = CLUSTER_ATTEMPTS if len(spec.hubs) > 1 or spec.hubs[0].radius > 0 else ATTEMPTS[:1]
@@ -318,15 +336,16 @@ def build_cluster(
         )
         try:
             shape = make_cluster_shape(
-                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim
+                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim, clock=clock
             )
             vol = volume(shape, eps=config.VOLUME_EPS)
+            clock.lap("volume")
             if not (vol > 0.0 and math.isfinite(vol)):
                 raise OCCTFailure(f"cluster volume {vol!r} is not positive")
             if deflection > 0.0:
                 v, f, circles = tessellate_open(
                     shape, spec.centres, spec.axes, spec.r_mid, spec.xdirs, spec.ydirs,
-                    scale=scale, deflection=deflection, angular=angular,
+                    scale=scale, deflection=deflection, angular=angular, clock=clock,
                 )  # fmt: skip
             else:
                 v, f, circles = np.zeros((0, 3)), np.zeros((0, 3), np.int64), []
@@ -343,9 +362,16 @@ def build_cluster(
             circles=circles,
             brep=to_bytes(shape) if keep_brep or deflection <= 0.0 else b"",
             seconds=time.perf_counter() - t0,
+            stages=_brep_lap(clock),
         )
     return HubResult(
         status=attempts[-1] if attempts else "not attempted",
         attempts=attempts,
         seconds=time.perf_counter() - t0,
+        stages=clock.stages,
     )
+
+
+def _brep_lap(clock: StageClock) -> dict[str, float]:
+    clock.lap("brep")
+    return clock.stages
