@@ -131,7 +131,7 @@ def degree_table(title: str, rows: list[dict]) -> str:
 def ab(specs: list, tol: float, angular: float, rounds: int) -> dict[str, list[float]]:
     """Alternating A/B in this process: A = main's primitives (the sphere always fused), B =
     this branch (the covered sphere left out). Per unit, ABBA order; CPU seconds per build."""
-    from lattice_cad.occ_impl import truss
+    from lattice_cad.occ_impl import cluster, truss
     from reference_boolean.reference import _build_one
 
     real = truss.sphere_is_covered
@@ -140,13 +140,14 @@ def ab(specs: list, tol: float, angular: float, rounds: int) -> dict[str, list[f
         for s in specs:
             vols = {}
             for v in ("AB" if rnd % 2 == 0 else "BA"):
-                truss.sphere_is_covered = real if v == "B" else (lambda *a, **k: False)
+                patch = real if v == "B" else (lambda *a, **k: False)
+                truss.sphere_is_covered = cluster.sphere_is_covered = patch
                 try:
                     c = time.process_time()
                     res = _build_one((s, tol, angular, False))
                     cpu[v].append(time.process_time() - c)
                 finally:
-                    truss.sphere_is_covered = real
+                    truss.sphere_is_covered = cluster.sphere_is_covered = real
                 vols[v] = res.volume
                 if res.status != "ok":
                     print(f"  {v} failed: {res.status}")
@@ -165,6 +166,7 @@ def main() -> None:
     ap.add_argument("--ab", type=int, default=0, metavar="N",
                     help="instead: alternating A/B (main vs branch primitives) on N units")
     ap.add_argument("--max-degree", type=int, default=99, help="with --ab: skip larger")
+    ap.add_argument("--min-degree", type=int, default=0, help="with --ab: skip smaller")
     ap.add_argument("--rounds", type=int, default=1, help="with --ab")
     a = ap.parse_args()
     from lattice_cad.core import config
@@ -189,13 +191,15 @@ def main() -> None:
         rng = np.random.default_rng(a.seed)
         if a.ab:
             idx = [i for i in range(len(u.specs))
-                   if kind_of(u.specs[i]) != "leaf" and degree(u.specs[i]) <= a.max_degree]
+                   if kind_of(u.specs[i]) != "leaf"
+                   and a.min_degree <= degree(u.specs[i]) <= a.max_degree]
             pick = np.sort(rng.choice(idx, size=min(a.ab, len(idx)), replace=False))
             load0 = os.getloadavg()[0]
             cpu = ab([u.specs[int(i)] for i in pick], tol, config.DEFAULT_ANGULAR, a.rounds)
             rows = [[v, str(len(t)), f"{sum(t):.1f}", f"{sum(t) / len(t):.3f}",
                      f"{len(t) / sum(t):.3f}"] for v, t in cpu.items()]  # fmt: skip
-            print(table(f"A/B GE {kind}, {len(pick)} hubs/clusters (degree <= {a.max_degree}) x "
+            print(table(f"A/B GE {kind}, {len(pick)} hubs/clusters (degree "
+                        f"{a.min_degree}-{a.max_degree}) x "
                         f"{a.rounds} round(s), alternating; A = main (sphere always fused), B = "
                         f"covered sphere left out; load {load0:.1f} -> {os.getloadavg()[0]:.1f}",
                         ["variant", "builds", "CPU s", "CPU s per unit", "units per CPU s"],

@@ -7,7 +7,8 @@ numpy (:class:`ClusterSpec`); :func:`build_cluster` turns it into a
 one hub:
 
 * primitives: the sphere of every member of degree >= 2 (radius ``R_n``, its axis from
-  :func:`truss.sphere_axis` so that its poles lie inside the member's stumps), every
+  :func:`truss.sphere_axis` so that its poles lie inside the member's stumps; left out of
+  the fuse where the member's own stumps cover it, :func:`truss.sphere_is_covered`), every
   strut joining two members as one cylinder/cone frustum from node to node (a strut
   ending at a leaf ends there with a flat disc), and every strut leaving the cluster as a
   stump from its member node to its midpoint, built in the strut's canonical frame so that
@@ -61,6 +62,7 @@ from lattice_cad.occ_impl.truss import (
     circle_loops,
     circles_first,
     make_sphere,
+    sphere_is_covered,
     stump_start,
 )
 
@@ -170,8 +172,14 @@ def _frustum(
 def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
     """Spheres, inner struts and leaving stumps of the cluster, each checked."""
     out: list[TopoDS_Shape] = []
+    # a member's sphere inside its own stumps (node to midpoint, contained in the cluster's
+    # struts when they start at that node) is left out, as for a hub (truss.make_primitives)
+    covered = [
+        trim and hub.radius > 0.0 and sphere_is_covered(hub.radius, hub.vecs, hub.r_node, hub.r_mid)
+        for hub in spec.hubs
+    ]
     for i, hub in enumerate(spec.hubs):
-        if hub.radius > 0.0:
+        if hub.radius > 0.0 and not covered[i]:
             (s,) = make_sphere(hub)
             out.append(translated(s, spec.offsets[i]) if np.any(spec.offsets[i]) else s)
     for k, (a, b) in enumerate(spec.inner):
@@ -181,8 +189,8 @@ def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
         u = v / L
         ra, rb = (float(x) for x in spec.inner_radii[k])
         rm = 0.5 * (ra + rb)
-        h0 = stump_start(spec.hubs[a].radius, ra, rm, 0.5 * L) if trim else 0.0
-        h1 = stump_start(spec.hubs[b].radius, rb, rm, 0.5 * L) if trim else 0.0
+        h0 = stump_start(spec.hubs[a].radius, ra, rm, 0.5 * L) if trim and not covered[a] else 0.0
+        h1 = stump_start(spec.hubs[b].radius, rb, rm, 0.5 * L) if trim and not covered[b] else 0.0
         r0 = ra + (rb - ra) * h0 / L
         r1 = rb + (ra - rb) * h1 / L
         out.append(_frustum(pa + h0 * u, u, spec.inner_xdirs[k], r0, r1, L - h0 - h1, f"strut {k}"))
@@ -191,7 +199,7 @@ def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
         h = float(np.linalg.norm(v))
         u = v / h
         r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
-        h0 = stump_start(spec.hubs[m].radius, r0, r1, h) if trim else 0.0
+        h0 = stump_start(spec.hubs[m].radius, r0, r1, h) if trim and not covered[m] else 0.0
         r_start = r0 + (r1 - r0) * (h0 / h)
         out.append(
             _frustum(spec.offsets[m] + h0 * u, u, spec.xdirs[j], r_start, r1, h - h0, f"stump {j}")
