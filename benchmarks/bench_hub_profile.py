@@ -168,11 +168,18 @@ def main() -> None:
     ap.add_argument("--max-degree", type=int, default=99, help="with --ab: skip larger")
     ap.add_argument("--min-degree", type=int, default=0, help="with --ab: skip smaller")
     ap.add_argument("--rounds", type=int, default=1, help="with --ab")
+    ap.add_argument("--main-primitives", action="store_true",
+                    help="profile main's primitives (the sphere always fused): 'before'")
     a = ap.parse_args()
     from lattice_cad.core import config
     from reference_boolean.reference import _unit_specs
 
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}", flush=True)
+    if a.main_primitives:
+        from lattice_cad.occ_impl import cluster, truss
+
+        truss.sphere_is_covered = cluster.sphere_is_covered = lambda *a, **k: False
+        print("main's primitives: the sphere is always fused (before)")
     kinds = ["tet", "voxel"] if a.lattice == "both" else [a.lattice]
     for kind in kinds:
         g = graph(kind, a.graphs)
