@@ -64,6 +64,7 @@ from lattice_cad.occ_impl.truss import (
     make_sphere,
     sphere_is_covered,
     stump_start,
+    tree_fuse,
 )
 
 __all__ = ["ClusterSpec", "build_cluster", "make_cluster_shape"]
@@ -226,6 +227,8 @@ def make_cluster_shape(
     _lap(clock, "primitives")
     if len(prims) == 1:
         shape = prims[0]
+    elif construction == "tree":
+        shape = tree_fuse(prims, fuzzy=fuzzy)
     elif construction == "fuse":
         shape = fuse(prims[:1], prims[1:], fuzzy=fuzzy, parallel=False, check=False)
     elif construction == "sequential":

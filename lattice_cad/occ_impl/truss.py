@@ -16,7 +16,8 @@ where the binding exposes it (OCP 7.9 does not expose it on
 primitive and of the fused hub, a single solid with a positive volume, intact
 midpoint discs. A failure is never an exception leaking out of
 :func:`build_hub`: it becomes ``HubResult.status`` (the message of the last
-attempt) after the retries (fuzzy value, then fusing one stump at a time).
+attempt) after the retries (:data:`ATTEMPTS`: pairwise fuses in a balanced tree, one
+general fuse, a fuzzy value, untrimmed primitives, then fusing one stump at a time).
 
 Midpoint circles (how both hubs of a strut get identical vertices)
 ------------------------------------------------------------------
@@ -79,6 +80,7 @@ __all__ = [
     "make_sphere",
     "build_hub_solid",
     "general_fuse",
+    "tree_fuse",
     "StageClock",
     "cap_heights",
     "sphere_is_covered",
@@ -119,7 +121,7 @@ class HubResult:
     status : str
         ``"ok"`` or the reason of the failure (then the arrays are empty).
     attempts : list of str
-        One line per construction tried (``"fuse: ok"``, ``"fuse: <error>"``, ...).
+        One line per construction tried (``"tree: ok"``, ``"tree: <error>"``, ...).
     volume : float
         Exact volume of the hub solid (GProp).
     vertices : (V, 3) float64
@@ -369,7 +371,9 @@ def make_hub_shape(
     """
     prims = make_primitives(spec, trim=trim)
     _lap(clock, "primitives")
-    if construction == "fuse":
+    if construction == "tree":
+        shape = tree_fuse(prims, fuzzy=fuzzy)
+    elif construction == "fuse":
         shape = general_fuse(prims, fuzzy=fuzzy)
     elif construction == "sequential":
         shape = prims[0]
@@ -423,6 +427,31 @@ def general_fuse(prims: list[TopoDS_Shape], *, fuzzy: float = 0.0) -> TopoDS_Sha
     op.Build()
     check_done(op, "general fuse")
     return op.Shape()
+
+
+def tree_fuse(prims: list[TopoDS_Shape], *, fuzzy: float = 0.0) -> TopoDS_Shape:
+    """The union of ``prims`` by pairwise general fuses, level by level (a balanced tree).
+
+    Neighbours in the list are fused in pairs, then the pairs in pairs, and so on; each
+    fuse is :func:`general_fuse` of two shapes (``IsDone`` checked). The result is the
+    same solid as one general fuse of all of them (the caller checks it with BRepCheck),
+    but far cheaper on hubs: 5-11 times on GE bracket tet hubs of degree 9-18 (issue 14),
+    since each level's fuse splits and classifies only the faces that are still on the
+    boundary, where one general fuse splits every primitive by every other one (the
+    stumps all meet at the node) and classifies every piece.
+
+    Raises
+    ------
+    OCCTFailure
+        A fuse is not done.
+    """
+    level = list(prims)
+    while len(level) > 1:
+        nxt = [general_fuse(level[i : i + 2], fuzzy=fuzzy) for i in range(0, len(level) - 1, 2)]
+        if len(level) % 2:
+            nxt.append(level[-1])
+        level = nxt
+    return level[0]
 
 
 # ------------------------------------------------------------- tessellation
@@ -558,6 +587,7 @@ def circles_first(
 # ------------------------------------------------------------------- driver
 #: Retry plan: (construction, fuzzy value relative to the hub size, trimmed stumps).
 ATTEMPTS: tuple[tuple[str, float, bool], ...] = (
+    ("tree", 0.0, True),
     ("fuse", 0.0, True),
     ("fuse", 1e-7, True),
     ("fuse", 0.0, False),
