@@ -100,5 +100,7 @@ def test_hub_without_its_covered_sphere_is_the_same_solid(seed):
     assert spheres(fast) == 0 and spheres(full) == 0  # no sphere patch shows on the hub
     res = truss.build_hub(spec, deflection=1e-3, angular=0.25, keep_brep=False)
     assert res.status == "ok" and res.attempts == ["tree: ok"]
-    assert res.volume == pytest.approx(volume(full, eps=1e-10), rel=1e-9)
+    # the pairwise tree (the default construction) splits the faces differently: the same
+    # solid up to OCCT's tolerances on the intersection curves (1e-7 mm here)
+    assert res.volume == pytest.approx(volume(full, eps=1e-10), rel=1e-8)
     assert set(res.stages) >= {"primitives", "fuse", "check", "volume", "mesh", "circles"}
