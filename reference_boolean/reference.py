@@ -599,6 +599,11 @@ def _clock(seconds: float) -> str:
     return f"{s} s"
 
 
+#: Build time of a hub ~ degree ** _COST_POWER (pairwise tree fuse; measured on the GE
+#: bracket tet hubs, degree 7 -> 19: 0.31 -> 1.35 CPU s, benchmarks/bench_hub_profile.py).
+_COST_POWER = 1.5
+
+
 def run_with_estimate(
     specs: list[Any],
     template: NDArray[np.int64],
@@ -618,7 +623,7 @@ def run_with_estimate(
     how many are built and how many reused; then builds ``calibration`` hubs of the median
     degree in this process (their results are kept, not built twice) and prints the
     estimated CPU and wall seconds of the rest, assuming the time of a hub grows with the
-    square of its degree (its stump pairs) and that ``workers`` cores are free. A tqdm bar
+    1.5th power of its degree (:data:`_COST_POWER`) and that ``workers`` cores are free. A tqdm bar
     follows the rest. Ctrl-C stops the worker processes and re-raises
     ``KeyboardInterrupt``.
 
@@ -670,8 +675,8 @@ def run_with_estimate(
         results[int(i)] = _build_one((specs[int(i)], deflection, angular, keep))
     cpu = time.process_time() - c0
     rest = [i for i in range(d) if results[i] is None]
-    per_d2 = cpu / float((deg[cal] ** 2).sum())
-    est_cpu = per_d2 * float((deg[rest] ** 2).sum())
+    per_d2 = cpu / float((deg[cal] ** _COST_POWER).sum())
+    est_cpu = per_d2 * float((deg[rest] ** _COST_POWER).sum())
     est_wall = est_cpu / max(workers, 1)
     print(
         f"reference: calibration {k} hub(s) in {cpu:.2f} CPU s; estimate for the other "

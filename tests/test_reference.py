@@ -256,5 +256,5 @@ def test_trimmed_stumps_give_the_same_hub():
     vols = [volume(_occ.make_hub_shape(spec, trim=t), eps=1e-10) for t in (True, False)]
     assert vols[0] == pytest.approx(vols[1], rel=1e-8)
     res = _occ.build_hub(spec, deflection=1e-3, angular=0.25, keep_brep=False)
-    assert res.status == "ok" and res.attempts == ["fuse: ok"]
+    assert res.status == "ok" and res.attempts == ["tree: ok"]
     assert res.volume == pytest.approx(vols[1], rel=1e-8)

@@ -7,7 +7,8 @@ numpy (:class:`ClusterSpec`); :func:`build_cluster` turns it into a
 one hub:
 
 * primitives: the sphere of every member of degree >= 2 (radius ``R_n``, its axis from
-  :func:`truss.sphere_axis` so that its poles lie inside the member's stumps), every
+  :func:`truss.sphere_axis` so that its poles lie inside the member's stumps; left out of
+  the fuse where the member's own stumps cover it, :func:`truss.sphere_is_covered`), every
   strut joining two members as one cylinder/cone frustum from node to node (a strut
   ending at a leaf ends there with a flat disc), and every strut leaving the cluster as a
   stump from its member node to its midpoint, built in the strut's canonical frame so that
@@ -56,10 +57,14 @@ from lattice_cad.occ_impl.truss import (
     ATTEMPTS,
     HubResult,
     HubSpec,
+    StageClock,
+    _lap,
     circle_loops,
     circles_first,
     make_sphere,
+    sphere_is_covered,
     stump_start,
+    tree_fuse,
 )
 
 __all__ = ["ClusterSpec", "build_cluster", "make_cluster_shape"]
@@ -168,8 +173,14 @@ def _frustum(
 def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
     """Spheres, inner struts and leaving stumps of the cluster, each checked."""
     out: list[TopoDS_Shape] = []
+    # a member's sphere inside its own stumps (node to midpoint, contained in the cluster's
+    # struts when they start at that node) is left out, as for a hub (truss.make_primitives)
+    covered = [
+        trim and hub.radius > 0.0 and sphere_is_covered(hub.radius, hub.vecs, hub.r_node, hub.r_mid)
+        for hub in spec.hubs
+    ]
     for i, hub in enumerate(spec.hubs):
-        if hub.radius > 0.0:
+        if hub.radius > 0.0 and not covered[i]:
             (s,) = make_sphere(hub)
             out.append(translated(s, spec.offsets[i]) if np.any(spec.offsets[i]) else s)
     for k, (a, b) in enumerate(spec.inner):
@@ -179,8 +190,8 @@ def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
         u = v / L
         ra, rb = (float(x) for x in spec.inner_radii[k])
         rm = 0.5 * (ra + rb)
-        h0 = stump_start(spec.hubs[a].radius, ra, rm, 0.5 * L) if trim else 0.0
-        h1 = stump_start(spec.hubs[b].radius, rb, rm, 0.5 * L) if trim else 0.0
+        h0 = stump_start(spec.hubs[a].radius, ra, rm, 0.5 * L) if trim and not covered[a] else 0.0
+        h1 = stump_start(spec.hubs[b].radius, rb, rm, 0.5 * L) if trim and not covered[b] else 0.0
         r0 = ra + (rb - ra) * h0 / L
         r1 = rb + (ra - rb) * h1 / L
         out.append(_frustum(pa + h0 * u, u, spec.inner_xdirs[k], r0, r1, L - h0 - h1, f"strut {k}"))
@@ -189,7 +200,7 @@ def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
         h = float(np.linalg.norm(v))
         u = v / h
         r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
-        h0 = stump_start(spec.hubs[m].radius, r0, r1, h) if trim else 0.0
+        h0 = stump_start(spec.hubs[m].radius, r0, r1, h) if trim and not covered[m] else 0.0
         r_start = r0 + (r1 - r0) * (h0 / h)
         out.append(
             _frustum(spec.offsets[m] + h0 * u, u, spec.xdirs[j], r_start, r1, h - h0, f"stump {j}")
@@ -198,7 +209,12 @@ def _primitives(spec: ClusterSpec, trim: bool) -> list[TopoDS_Shape]:
 
 
 def make_cluster_shape(
-    spec: ClusterSpec, *, construction: str = "fuse", fuzzy: float = 0.0, trim: bool = True
+    spec: ClusterSpec,
+    *,
+    construction: str = "fuse",
+    fuzzy: float = 0.0,
+    trim: bool = True,
+    clock: StageClock | None = None,
 ) -> TopoDS_Shape:
     """The cluster solid: the union of its primitives (one general fuse, or one at a time).
 
@@ -208,8 +224,11 @@ def make_cluster_shape(
         A builder is not done, or a shape is invalid.
     """
     prims = _primitives(spec, trim)
+    _lap(clock, "primitives")
     if len(prims) == 1:
         shape = prims[0]
+    elif construction == "tree":
+        shape = tree_fuse(prims, fuzzy=fuzzy)
     elif construction == "fuse":
         shape = fuse(prims[:1], prims[1:], fuzzy=fuzzy, parallel=False, check=False)
     elif construction == "sequential":
@@ -219,7 +238,9 @@ def make_cluster_shape(
             check_valid(shape, f"sequential fuse after primitive {j + 1}")
     else:  # pragma: no cover - guarded by the caller
         raise ValueError(f"unknown construction {construction!r}")
+    _lap(clock, "fuse")
     check_valid(shape, "cluster")
+    _lap(clock, "check")
     if count(shape, TopAbs_SOLID) < 1:
         raise OCCTFailure("cluster: the fuse gave no solid")
     return shape
@@ -237,6 +258,7 @@ def tessellate_open(
     scale: float,
     deflection: float,
     angular: float,
+    clock: StageClock | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], list[NDArray[np.int64]]]:
     """Tessellate a solid without its midpoint discs; circle vertices first, in order.
 
@@ -259,7 +281,10 @@ def tessellate_open(
     tris: list[NDArray[np.int64]] = []
     cap_found = np.zeros(len(centres), dtype=bool)
     base = 0
-    for face, pts, t in face_triangulations(shape, deflection, angular, parallel=False):
+    on_meshed = None if clock is None else (lambda: clock.lap("mesh"))
+    for face, pts, t in face_triangulations(
+        shape, deflection, angular, parallel=False, on_meshed=on_meshed
+    ):
         if len(centres) and BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
             proj = pts @ axes.T - plane_off  # (nn, b)
             near = np.linalg.norm(pts[:, None, :] - centres[None, :, :], axis=2)
@@ -287,9 +312,12 @@ def tessellate_open(
         raise OCCTFailure(f"no midpoint disc found for leaving strut(s) {missing}")
     v = np.concatenate(verts)
     f = np.concatenate(tris)
+    _lap(clock, "extract")
     v, f, _ = merge_close(v, f, config.MERGE_RTOL * scale)
     circles = circle_loops(v, f, centres, axes, r_mid, xdirs, ydirs, tol, what="leaving strut")
-    return circles_first(v, f, circles)
+    out = circles_first(v, f, circles)
+    _lap(clock, "circles")
+    return out
 
 
 # ------------------------------------------------------------------- driver
@@ -307,6 +335,7 @@ def build_cluster(
         As for a hub; ``circles[j]`` belongs to leaving strut ``j``.
     """
     t0 = time.perf_counter()
+    clock = StageClock()
     scale = spec.scale
     attempts: list[str] = []
     plan = CLUSTER_ATTEMPTS if len(spec.hubs) > 1 or spec.hubs[0].radius > 0 else ATTEMPTS[:1]
@@ -318,15 +347,16 @@ def build_cluster(
         )
         try:
             shape = make_cluster_shape(
-                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim
+                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim, clock=clock
             )
             vol = volume(shape, eps=config.VOLUME_EPS)
+            clock.lap("volume")
             if not (vol > 0.0 and math.isfinite(vol)):
                 raise OCCTFailure(f"cluster volume {vol!r} is not positive")
             if deflection > 0.0:
                 v, f, circles = tessellate_open(
                     shape, spec.centres, spec.axes, spec.r_mid, spec.xdirs, spec.ydirs,
-                    scale=scale, deflection=deflection, angular=angular,
+                    scale=scale, deflection=deflection, angular=angular, clock=clock,
                 )  # fmt: skip
             else:
                 v, f, circles = np.zeros((0, 3)), np.zeros((0, 3), np.int64), []
@@ -343,9 +373,16 @@ def build_cluster(
             circles=circles,
             brep=to_bytes(shape) if keep_brep or deflection <= 0.0 else b"",
             seconds=time.perf_counter() - t0,
+            stages=_brep_lap(clock),
         )
     return HubResult(
         status=attempts[-1] if attempts else "not attempted",
         attempts=attempts,
         seconds=time.perf_counter() - t0,
+        stages=clock.stages,
     )
+
+
+def _brep_lap(clock: StageClock) -> dict[str, float]:
+    clock.lap("brep")
+    return clock.stages

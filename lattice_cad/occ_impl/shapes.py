@@ -254,8 +254,12 @@ def face_triangulations(
     angular: float = 0.25,
     *,
     parallel: bool = True,
+    on_meshed: Any = None,
 ) -> Iterator[tuple[TopoDS_Face, NDArray[np.float64], NDArray[np.int64]]]:
     """Triangulate ``shape`` with BRepMesh and yield each face's triangulation.
+
+    ``on_meshed``, if given, is called (without arguments) once BRepMesh is done, before
+    the first face is read (for profiling).
 
     Yields
     ------
@@ -275,6 +279,8 @@ def face_triangulations(
     mesher = BRepMesh_IncrementalMesh(shape, float(deflection), False, float(angular), parallel)
     if not mesher.IsDone():
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
+    if on_meshed is not None:
+        on_meshed()
     exp = TopExp_Explorer(shape, TopAbs_FACE)
     while exp.More():
         face = TopoDS.Face_s(exp.Current())

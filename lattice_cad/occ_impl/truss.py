@@ -16,7 +16,8 @@ where the binding exposes it (OCP 7.9 does not expose it on
 primitive and of the fused hub, a single solid with a positive volume, intact
 midpoint discs. A failure is never an exception leaking out of
 :func:`build_hub`: it becomes ``HubResult.status`` (the message of the last
-attempt) after the retries (fuzzy value, then fusing one stump at a time).
+attempt) after the retries (:data:`ATTEMPTS`: pairwise fuses in a balanced tree, one
+general fuse, a fuzzy value, untrimmed primitives, then fusing one stump at a time).
 
 Midpoint circles (how both hubs of a strut get identical vertices)
 ------------------------------------------------------------------
@@ -79,6 +80,10 @@ __all__ = [
     "make_sphere",
     "build_hub_solid",
     "general_fuse",
+    "tree_fuse",
+    "StageClock",
+    "cap_heights",
+    "sphere_is_covered",
 ]
 
 
@@ -116,7 +121,7 @@ class HubResult:
     status : str
         ``"ok"`` or the reason of the failure (then the arrays are empty).
     attempts : list of str
-        One line per construction tried (``"fuse: ok"``, ``"fuse: <error>"``, ...).
+        One line per construction tried (``"tree: ok"``, ``"tree: <error>"``, ...).
     volume : float
         Exact volume of the hub solid (GProp).
     vertices : (V, 3) float64
@@ -129,6 +134,10 @@ class HubResult:
         The hub solid as binary BREP (``BinTools``) (empty if ``keep_brep`` was false).
     seconds : float
         Build time (construction, checks, tessellation).
+    stages : dict[str, float]
+        CPU seconds of this process per stage (:class:`StageClock`: ``"primitives"``,
+        ``"fuse"``, ``"check"``, ``"volume"``, ``"mesh"``, ``"extract"``, ``"circles"``,
+        ``"brep"``), over every attempt; for profiling.
     """
 
     status: str
@@ -139,6 +148,25 @@ class HubResult:
     circles: list[NDArray[np.int64]] = field(default_factory=list)
     brep: bytes = b""
     seconds: float = 0.0
+    stages: dict[str, float] = field(default_factory=dict)
+
+
+class StageClock:
+    """CPU seconds (``time.process_time``) per named stage; :meth:`lap` ends the stage."""
+
+    def __init__(self) -> None:
+        self.stages: dict[str, float] = {}
+        self._t = time.process_time()
+
+    def lap(self, name: str) -> None:
+        t = time.process_time()
+        self.stages[name] = self.stages.get(name, 0.0) + (t - self._t)
+        self._t = t
+
+
+def _lap(clock: StageClock | None, name: str) -> None:
+    if clock is not None:
+        clock.lap(name)
 
 
 # ------------------------------------------------------------ construction
@@ -231,20 +259,84 @@ def make_sphere(spec: HubSpec) -> list[TopoDS_Shape]:
     return [mk.Shape()]
 
 
+def cap_heights(
+    radius: float,
+    vecs: NDArray[np.float64],
+    r_node: NDArray[np.float64],
+    r_mid: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """(d,) float64: height ``c_j`` along each stump's axis where its side meets the sphere.
+
+    Stump ``j`` (a frustum from radius ``r_node`` at the node to ``r_mid`` at height
+    ``h = |vecs[j]|``) contains exactly the cap ``{p : |p| = R, p . u_j >= c_j}`` of the
+    sphere of radius ``R`` (``c_j`` the positive root of ``s^2 + r(s)^2 = R^2``), provided
+    ``r_node < R < h``; NaN where that does not hold.
+    """
+    h = np.linalg.norm(vecs, axis=1)
+    k = (r_mid - r_node) / h
+    a = 1.0 + k * k
+    b = 2.0 * r_node * k
+    c = r_node * r_node - radius * radius
+    disc = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+    out = (-b + disc) / (2.0 * a)
+    good = (r_node < radius) & (h > radius)
+    return np.where(good, out, np.nan)
+
+
+def sphere_is_covered(
+    radius: float,
+    vecs: NDArray[np.float64],
+    r_node: NDArray[np.float64],
+    r_mid: NDArray[np.float64],
+) -> bool:
+    """Is the ball of radius ``radius`` at the node inside the union of the stumps?
+
+    Each stump (started at the node) is convex and contains the node, so the ball is
+    inside their union as soon as its surface is (a point ``t p``, ``0 <= t <= 1``, lies in
+    the stump that holds ``p``). Stump ``j`` holds the cap ``p . u_j >= c_j``
+    (:func:`cap_heights`), so the sphere's uncovered points are the points of norm ``R``
+    of the polytope ``P = {x : x . u_j <= c_j for all j}``, which contains the node. The
+    sphere is covered iff ``P`` is bounded and inside the open ball: ``P``'s vertices are
+    the polars of the facets of the convex hull of the points ``u_j / c_j``, and a facet
+    at distance ``t`` from the node gives a vertex of norm ``1 / t``. Hence: covered iff
+    the node is inside that hull and every facet is farther than ``1 / R`` (with a
+    relative margin of 1e-6). Rigorous up to rounding; False whenever in doubt (fewer
+    than 4 stumps, a degenerate hull, a stump shorter than ``R``).
+    """
+    if len(vecs) < 4:
+        return False
+    c = cap_heights(radius, vecs, r_node, r_mid)
+    if not np.all(np.isfinite(c)) or np.any(c <= 0.0):
+        return False
+    from scipy.spatial import ConvexHull, QhullError
+
+    u = vecs / np.linalg.norm(vecs, axis=1)[:, None]
+    try:
+        hull = ConvexHull(u / c[:, None])
+    except (QhullError, ValueError):
+        return False
+    dist = -hull.equations[:, 3]  # unit outward normals: offset = -distance of the node
+    return bool(dist.min() * radius > 1.0 + 1e-6)
+
+
 def make_primitives(spec: HubSpec, *, trim: bool = True) -> list[TopoDS_Shape]:
     """The sphere and the stumps (cylinders or cone frustums), each checked.
 
-    With ``trim`` (default) each stump starts at :func:`stump_start` instead of
-    the node: the same hub, a cheaper fuse. The sphere's poles are put inside stumps
+    With ``trim`` (default) the fuse gets cheaper primitives for the same hub (the same
+    point set): where the sphere lies inside the union of the stumps
+    (:func:`sphere_is_covered`, as at every node whose struts point all around it) it is
+    left out and the stumps start at the node; otherwise each stump starts at
+    :func:`stump_start` instead of the node. The sphere's poles are put inside stumps
     (see :func:`sphere_axis`).
     """
     origin = gp_Pnt(0.0, 0.0, 0.0)
-    shapes = make_sphere(spec)
+    covered = trim and sphere_is_covered(spec.radius, spec.vecs, spec.r_node, spec.r_mid)
+    shapes = [] if covered else make_sphere(spec)
     for j, v in enumerate(spec.vecs):
         h = float(np.linalg.norm(v))
         u = v / h
         r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
-        h0 = stump_start(spec.radius, r0, r1, h) if trim else 0.0
+        h0 = stump_start(spec.radius, r0, r1, h) if trim and not covered else 0.0
         ax = gp_Ax2(_pnt(u * h0) if h0 > 0.0 else origin, _dir(u), _dir(spec.xdirs[j]))
         r_start = r0 + (r1 - r0) * (h0 / h)
         # OCCT refuses a cone whose radii differ by less than Precision::Confusion (1e-7 mm;
@@ -263,7 +355,12 @@ def make_primitives(spec: HubSpec, *, trim: bool = True) -> list[TopoDS_Shape]:
 
 
 def make_hub_shape(
-    spec: HubSpec, *, construction: str = "fuse", fuzzy: float = 0.0, trim: bool = True
+    spec: HubSpec,
+    *,
+    construction: str = "fuse",
+    fuzzy: float = 0.0,
+    trim: bool = True,
+    clock: StageClock | None = None,
 ) -> TopoDS_Shape:
     """The hub solid: sphere union stumps (one general fuse, or one stump at a time).
 
@@ -273,7 +370,10 @@ def make_hub_shape(
         A builder is not done, or a shape is invalid.
     """
     prims = make_primitives(spec, trim=trim)
-    if construction == "fuse":
+    _lap(clock, "primitives")
+    if construction == "tree":
+        shape = tree_fuse(prims, fuzzy=fuzzy)
+    elif construction == "fuse":
         shape = general_fuse(prims, fuzzy=fuzzy)
     elif construction == "sequential":
         shape = prims[0]
@@ -282,8 +382,10 @@ def make_hub_shape(
             check_valid(shape, f"sequential fuse after stump {j}")
     else:  # pragma: no cover - guarded by the caller
         raise ValueError(f"unknown construction {construction!r}")
+    _lap(clock, "fuse")
     check_valid(shape, "hub")
     n_solids = count(shape, TopAbs_SOLID)
+    _lap(clock, "check")
     if n_solids != 1:
         raise OCCTFailure(f"hub: the fuse gave {n_solids} solids instead of 1")
     return shape
@@ -327,9 +429,38 @@ def general_fuse(prims: list[TopoDS_Shape], *, fuzzy: float = 0.0) -> TopoDS_Sha
     return op.Shape()
 
 
+def tree_fuse(prims: list[TopoDS_Shape], *, fuzzy: float = 0.0) -> TopoDS_Shape:
+    """The union of ``prims`` by pairwise general fuses, level by level (a balanced tree).
+
+    Neighbours in the list are fused in pairs, then the pairs in pairs, and so on; each
+    fuse is :func:`general_fuse` of two shapes (``IsDone`` checked). The result is the
+    same solid as one general fuse of all of them (the caller checks it with BRepCheck),
+    but far cheaper on hubs: 5-11 times on GE bracket tet hubs of degree 9-18 (issue 14),
+    since each level's fuse splits and classifies only the faces that are still on the
+    boundary, where one general fuse splits every primitive by every other one (the
+    stumps all meet at the node) and classifies every piece.
+
+    Raises
+    ------
+    OCCTFailure
+        A fuse is not done.
+    """
+    level = list(prims)
+    while len(level) > 1:
+        nxt = [general_fuse(level[i : i + 2], fuzzy=fuzzy) for i in range(0, len(level) - 1, 2)]
+        if len(level) % 2:
+            nxt.append(level[-1])
+        level = nxt
+    return level[0]
+
+
 # ------------------------------------------------------------- tessellation
 def _tessellate(
-    shape: TopoDS_Shape, spec: HubSpec, deflection: float, angular: float
+    shape: TopoDS_Shape,
+    spec: HubSpec,
+    deflection: float,
+    angular: float,
+    clock: StageClock | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], list[NDArray[np.int64]]]:
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
     tol = config.GEOM_RTOL * scale
@@ -339,7 +470,10 @@ def _tessellate(
     tris: list[NDArray[np.int64]] = []
     cap_found = np.zeros(len(spec.vecs), dtype=bool)
     base = 0
-    for face, pts, t in face_triangulations(shape, deflection, angular, parallel=False):
+    on_meshed = None if clock is None else (lambda: clock.lap("mesh"))
+    for face, pts, t in face_triangulations(
+        shape, deflection, angular, parallel=False, on_meshed=on_meshed
+    ):
         nn = len(pts)
         # a planar face lying in a midpoint plane is a midpoint disc: dropped
         if BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
@@ -366,8 +500,11 @@ def _tessellate(
         raise OCCTFailure(f"no midpoint disc found for stump(s) {missing}")
     v = np.concatenate(verts)
     f = np.concatenate(tris)
+    _lap(clock, "extract")
     v, f, _ = merge_close(v, f, config.MERGE_RTOL * scale)
-    return circles_first(v, f, _circles(v, f, spec, tol))
+    out = circles_first(v, f, _circles(v, f, spec, tol))
+    _lap(clock, "circles")
+    return out
 
 
 def circle_loops(
@@ -450,6 +587,7 @@ def circles_first(
 # ------------------------------------------------------------------- driver
 #: Retry plan: (construction, fuzzy value relative to the hub size, trimmed stumps).
 ATTEMPTS: tuple[tuple[str, float, bool], ...] = (
+    ("tree", 0.0, True),
     ("fuse", 0.0, True),
     ("fuse", 1e-7, True),
     ("fuse", 0.0, False),
@@ -473,6 +611,7 @@ def build_hub(
         Return the solid as a BREP string (for STEP export).
     """
     t0 = time.perf_counter()
+    clock = StageClock()
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
     attempts: list[str] = []
     for construction, fuzzy_rel, trim in ATTEMPTS:
@@ -483,12 +622,13 @@ def build_hub(
         )
         try:
             shape = make_hub_shape(
-                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim
+                spec, construction=construction, fuzzy=fuzzy_rel * scale, trim=trim, clock=clock
             )
             vol = volume(shape, eps=config.VOLUME_EPS)
+            clock.lap("volume")
             if not (vol > 0.0 and math.isfinite(vol)):
                 raise OCCTFailure(f"hub volume {vol!r} is not positive")
-            v, f, circles = _tessellate(shape, spec, deflection, angular)
+            v, f, circles = _tessellate(shape, spec, deflection, angular, clock)
         except OCCTFailure as exc:
             attempts.append(f"{name}: {exc}")
             continue
@@ -497,6 +637,7 @@ def build_hub(
             continue
         attempts.append(f"{name}: ok")
         brep = to_bytes(shape) if keep_brep else b""
+        clock.lap("brep")
         return HubResult(
             status="ok",
             attempts=attempts,
@@ -506,11 +647,13 @@ def build_hub(
             circles=circles,
             brep=brep,
             seconds=time.perf_counter() - t0,
+            stages=clock.stages,
         )
     return HubResult(
         status=attempts[-1] if attempts else "not attempted",
         attempts=attempts,
         seconds=time.perf_counter() - t0,
+        stages=clock.stages,
     )
 
 
