@@ -377,9 +377,7 @@ def tet_lattice(
         radius = fitted
         if min_radius is None:  # the floor is relative to the radius asked, not the fitted one
             min_radius = 0.1 * float(np.min(r))
-    graph = _finish(
-        nodes, edges, radius, min_radius, fit, rep, segments=segments, profile=profile
-    )
+    graph = _finish(nodes, edges, radius, min_radius, fit, rep, segments=segments, profile=profile)
     if repair:
         rep.radii_reduced = max(rep.radii_reduced, fix.thinned)
     rep.seconds["fit"] = time.perf_counter() - t0
