@@ -27,7 +27,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fast_stitch.fit import clashes, misfits, strut_lengths
+from fast_stitch.hubvolume import Profile, profile_factor
 from lattice_cad.core import config
+from lattice_cad.core.checks import check_segments
 from lattice_cad.core.errors import FitError
 from lattice_cad.core.graph import LatticeGraph
 
@@ -46,9 +48,27 @@ __all__ = [
     "repair_graph",
     "RepairReport",
     "FitError",
+    "Profile",
+    "check_stitch_profile",
 ]
 
 RadiusSpec = Union[float, ArrayLike, Callable[[NDArray[np.float64]], ArrayLike]]  # noqa: UP007
+
+
+def check_stitch_profile(segments: object, profile: object) -> tuple[int, Profile]:
+    """The stitch's ``segments`` and ``profile`` that a builder fits the radii for, checked.
+
+    Raises
+    ------
+    TypeError, ValueError
+        ``segments`` is not an integer >= 3, or ``profile`` is not one of
+        ``fast_stitch.hubvolume.PROFILES`` (the message names the option).
+    """
+    p = check_segments(segments)
+    if not isinstance(profile, str):
+        raise TypeError(f"profile must be a string, got {profile!r}")
+    profile_factor(p, profile)  # ValueError naming the profiles
+    return p, profile  # type: ignore[return-value]
 
 
 def resolve_radii(
@@ -439,6 +459,8 @@ def repair_graph(
     tolerance: float = 0.7,
     max_rounds: int = 60,
     max_change: float = 0.15,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64], RepairReport]:
     """Change the graph, not the radius, where struts cannot be stitched at the radius asked.
 
@@ -460,6 +482,9 @@ def repair_graph(
     max_change : float
         At most this fraction of the struts is collapsed or dropped; what is still unfit
         then is thinned (and counted in ``report.unfit``).
+    segments, profile
+        The stitch's profile polygons, which the graph is repaired and fitted for (as in
+        :func:`fit_radii`).
 
     Returns
     -------
@@ -473,12 +498,13 @@ def repair_graph(
     asked = np.asarray(radii, dtype=np.float64)
     on_surf = np.zeros(len(nodes), bool) if surface is None else np.asarray(surface, bool).copy()
     rep = RepairReport()
+    poly = {"segments": segments, "profile": profile}  # what the stitch will build
     median = float(np.median(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)))
     budget = max_change * len(edges)  # the repair changes the lattice, it must not replace it
     for _ in range(max_rounds):
         if rep.merged + rep.dropped >= budget:
             break
-        bad = _unfit_at(nodes, edges, tolerance * asked)
+        bad = _unfit_at(nodes, edges, tolerance * asked, **poly)
         if not len(bad):
             break
         length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
@@ -491,7 +517,7 @@ def repair_graph(
         drop = np.zeros(len(edges), dtype=bool)
         # struts that would not fit even at a twentieth of the radius (nearly parallel to a
         # neighbour) go whatever the degree of their nodes
-        hopeless = np.intersect1d(bad, misfits(nodes, edges, 0.05 * asked)[0])
+        hopeless = np.intersect1d(bad, misfits(nodes, edges, 0.05 * asked, **poly)[0])
         drop[hopeless] = True
         np.subtract.at(deg, edges[hopeless].ravel(), 1)
         room = int(budget - rep.merged - rep.dropped - len(hopeless))
@@ -510,7 +536,7 @@ def repair_graph(
     # neighbour, or crossing another) go in any case, however much has changed
     floor = 0.1 * float(asked.min())
     for _ in range(10):
-        _, hopeless = fit_radii(nodes, edges, asked, min_radius=floor)
+        _, hopeless = fit_radii(nodes, edges, asked, min_radius=floor, **poly)
         if not len(hopeless):
             break
         keep = np.ones(len(edges), dtype=bool)
@@ -518,9 +544,11 @@ def repair_graph(
         rep.dropped += len(hopeless)
         edges, asked = edges[keep], asked[keep]
     nodes, edges, asked = _largest_piece(nodes, edges, asked)
-    fitted, unfit = fit_radii(nodes, edges, asked, min_radius=tolerance * float(asked.min()))
+    fitted, unfit = fit_radii(
+        nodes, edges, asked, min_radius=tolerance * float(asked.min()), **poly
+    )
     if len(unfit):  # what the repair could not fix is thinned further, and counted
-        fitted, unfit = fit_radii(nodes, edges, fitted, min_radius=floor)
+        fitted, unfit = fit_radii(nodes, edges, fitted, min_radius=floor, **poly)
     low = (fitted < tolerance * asked * (1 - 1e-9)).any(axis=1)
     bad = np.union1d(np.flatnonzero(low), unfit)
     rep.unfit = len(bad)
@@ -531,14 +559,21 @@ def repair_graph(
 
 
 def _unfit_at(
-    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    *,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
 ) -> NDArray[np.int64]:
     """Struts that do not fit at ``radii`` (end profiles meet, or they clash with a strut
-    or joint that shares no node)."""
-    bad, _, _ = misfits(nodes, edges, radii, slack=config.FIT_SLACK)
+    or joint that shares no node), for the stitch's ``segments`` and ``profile``."""
+    bad, _, _ = misfits(
+        nodes, edges, radii, slack=config.FIT_SLACK, segments=segments, profile=profile
+    )
     if len(bad):
         return bad
-    pairs, _, _ = clashes(nodes, edges, radii)
+    pairs, _, _ = clashes(nodes, edges, radii, segments=segments, profile=profile)
     return _clash_struts(pairs, edges, len(edges), len(nodes))
 
 

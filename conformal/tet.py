@@ -26,7 +26,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from conformal.part import Part, PartError
-from conformal.radius import RadiusSpec, repair_graph, resolve_radii
+from conformal.radius import (
+    Profile,
+    RadiusSpec,
+    check_stitch_profile,
+    repair_graph,
+    resolve_radii,
+)
 from conformal.voxel import BuildReport, FitMode, _finish
 from lattice_cad.core import config
 from lattice_cad.core.errors import ExternalCrash, LatticeWarning
@@ -291,6 +297,8 @@ def tet_lattice(
     repair: bool = True,
     tolerance: float = 0.7,
     return_report: bool = False,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: Profile = config.DEFAULT_PROFILE,
 ) -> LatticeGraph | tuple[LatticeGraph, BuildReport]:
     """A lattice whose nodes and struts are the vertices and edges of a tet mesh of ``part``.
 
@@ -316,6 +324,10 @@ def tet_lattice(
         Smallest fraction of the asked radius a strut may be thinned to.
     return_report : bool
         Also return a :class:`~conformal.voxel.BuildReport`.
+    segments, profile
+        The profile polygons the graph will be stitched with (as in
+        :func:`conformal.voxel_lattice`): the repair and the fit are for them (P = 3 or 4
+        needs thinner struts, or more repair, than the default P = 6).
 
     Returns
     -------
@@ -336,6 +348,7 @@ def tet_lattice(
     """
     if not isinstance(part, Part):
         raise TypeError(f"part must be a conformal.Part (see load_part), got {type(part).__name__}")
+    segments, profile = check_stitch_profile(segments, profile)
     rep = BuildReport()
     t0 = time.perf_counter()
     nodes, tets = tet_mesh(part, size, algorithm=algorithm)
@@ -345,8 +358,9 @@ def tet_lattice(
     if repair:
         r = resolve_radii(radius, nodes, edges)
         nodes, edges, fitted, fix = repair_graph(
-            nodes, edges, r, surface=boundary_nodes(tets, len(nodes)), tolerance=tolerance
-        )
+            nodes, edges, r, surface=boundary_nodes(tets, len(nodes)), tolerance=tolerance,
+            segments=segments, profile=profile,
+        )  # fmt: skip
         rep.merged_nodes, rep.removed_short = fix.merged, fix.dropped
         rep.radii_reduced = fix.thinned
         if fix.unfit:
@@ -363,7 +377,7 @@ def tet_lattice(
         radius = fitted
         if min_radius is None:  # the floor is relative to the radius asked, not the fitted one
             min_radius = 0.1 * float(np.min(r))
-    graph = _finish(nodes, edges, radius, min_radius, fit, rep)
+    graph = _finish(nodes, edges, radius, min_radius, fit, rep, segments=segments, profile=profile)
     if repair:
         rep.radii_reduced = max(rep.radii_reduced, fix.thinned)
     rep.seconds["fit"] = time.perf_counter() - t0

@@ -44,7 +44,14 @@ from numpy.typing import ArrayLike, NDArray
 from conformal import _kernels
 from conformal.cells import UnitCell, _resolve, tile_arrays
 from conformal.part import Part
-from conformal.radius import FitError, RadiusSpec, fit_radii, resolve_radii
+from conformal.radius import (
+    FitError,
+    Profile,
+    RadiusSpec,
+    check_stitch_profile,
+    fit_radii,
+    resolve_radii,
+)
 from lattice_cad.core import config
 from lattice_cad.core.errors import FillError, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
@@ -263,6 +270,8 @@ def voxel_lattice(
     min_radius: float | None = None,
     fit: FitMode = "shrink",
     return_report: bool = False,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: Profile = config.DEFAULT_PROFILE,
 ) -> LatticeGraph | tuple[LatticeGraph, BuildReport]:
     """Fill a part with a lattice of unit cells.
 
@@ -304,6 +313,12 @@ def voxel_lattice(
         or nothing.
     return_report : bool
         Also return a :class:`BuildReport`.
+    segments, profile
+        The profile polygons the graph will be stitched with (``fast_stitch.stitch``'s
+        P and ``profile``): the fit is for them. Fewer sides make wider polygons
+        (circumradius ``r * fast_stitch.hubvolume.profile_factor(segments, profile)``:
+        +25 % at P = 4, +55 % at P = 3 with ``"volume"``), so a graph fitted for P = 6
+        may not stitch at P = 3 or 4.
 
     Returns
     -------
@@ -323,6 +338,7 @@ def voxel_lattice(
         raise ValueError(f"fit must be 'shrink', 'raise' or 'off', got {fit!r}")
     if not isinstance(part, Part):
         raise TypeError(f"part must be a conformal.Part (see load_part), got {type(part).__name__}")
+    segments, profile = check_stitch_profile(segments, profile)
     c = _resolve(cell)
     h = _vec3(cell_size, "cell_size")
     if (h <= 0).any():
@@ -371,7 +387,9 @@ def voxel_lattice(
     if rot is not None:
         nodes = nodes @ rot.T
     t0 = time.perf_counter()
-    graph = _finish(nodes, edges, radius, min_radius, fit, rep, owned=True)
+    graph = _finish(
+        nodes, edges, radius, min_radius, fit, rep, owned=True, segments=segments, profile=profile
+    )
     rep.seconds["fit"] = time.perf_counter() - t0
     return (graph, rep) if return_report else graph
 
@@ -414,11 +432,14 @@ def _finish(
     rep: BuildReport,
     *,
     owned: bool = False,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: Profile = config.DEFAULT_PROFILE,
 ) -> LatticeGraph:
     """Radii, fitting and the graph (shared by the voxel and tet builders).
 
     ``owned``: ``nodes`` and ``edges`` are the builder's own arrays; the graph takes them
-    over without copies (they become read-only).
+    over without copies (they become read-only). ``segments``, ``profile``: the stitch's
+    profile polygons, which the radii are fitted for.
     """
     r = resolve_radii(radius, nodes, edges)
     if fit == "shrink":
@@ -426,7 +447,10 @@ def _finish(
         # one radius for all (the usual case): the fit may work on r itself
         same = bool(len(r)) and float(r.min()) == float(r.max())
         r0 = float(r.flat[0]) if same else 0.0
-        new, unfit = fit_radii(nodes, edges, r, min_radius=floor, overwrite_input=same)
+        new, unfit = fit_radii(
+            nodes, edges, r, min_radius=floor, overwrite_input=same, segments=segments,
+            profile=profile,
+        )  # fmt: skip
         if same:
             del r
             r = np.full((1, 2), r0)  # what r held everywhere, for the counts below
@@ -449,7 +473,7 @@ def _finish(
     elif fit == "raise":
         from conformal.radius import fit_problems
 
-        msg = fit_problems(nodes, edges, r)
+        msg = fit_problems(nodes, edges, r, segments=segments, profile=profile)
         if msg:
             raise FitError(
                 f"struts would not stitch with these radii: {msg}; "

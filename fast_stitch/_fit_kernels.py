@@ -3,9 +3,9 @@
 The clearance check of :func:`fast_stitch.fit.clashes` is the same as that of
 ``_kernels.clearance_elements`` + ``element_grid`` + ``fit._clash_pairs``, but the
 element boxes are computed for a list of element ids at a time (one x-slab of the
-grid), so that the check needs memory for one slab, not for all elements. The formulas
-are copied from ``_kernels.clearance_elements`` operation for operation, so that the
-boxes, cells and distances are bit-identical.
+grid), so that the check needs memory for one slab, not for all elements. The capsules,
+balls and boxes are those of ``_kernels.clearance_elements`` (the same inlined helpers),
+so that the boxes, cells and distances are bit-identical.
 """
 
 from __future__ import annotations
@@ -13,7 +13,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from fast_stitch._kernels import _cell_span, _excluded, _seg_seg_dist2
+from fast_stitch._kernels import (
+    _cell_span,
+    _element_box,
+    _grid_sweep,
+    _joint_ball,
+    _pair_d2,
+    _strut_capsule,
+)
 
 
 @njit(cache=True)
@@ -67,34 +74,14 @@ def element_boxes(
             length = np.sqrt(vx * vx + vy * vy + vz * vz)
             if not length > 0:
                 length = 1.0
-            u0 = vx / length
-            u1 = vy / length
-            u2 = vz / length
-            for c in range(3):
-                uc = u0 if c == 0 else (u1 if c == 1 else u2)
-                seg_a[k, c] = nodes[a, c] + end_offset[i, 0] * uc
-                seg_b[k, c] = nodes[b, c] - end_offset[i, 1] * uc
-            rad[k] = max(radii[i, 0], radii[i, 1])
+            _strut_capsule(
+                nodes, edges, radii, end_offset, i, vx / length, vy / length, vz / length, k,
+                seg_a, seg_b, rad,
+            )  # fmt: skip
         else:
-            n = i - m
-            for c in range(3):
-                seg_a[k, c] = nodes[n, c]
-                seg_b[k, c] = nodes[n, c]
-            r = -1.0
-            if offsets[n + 1] - offsets[n] >= 2:
-                for t in range(offsets[n], offsets[n + 1]):
-                    e = inc_edge[t]
-                    s = inc_side[t]
-                    r = max(r, np.sqrt(end_offset[e, s] ** 2 + radii[e, s] ** 2))
-            rad[k] = r
-        w = 0.0
-        for c in range(3):
-            lo_c = min(seg_a[k, c], seg_b[k, c]) - pad * rad[k]
-            hi_c = max(seg_a[k, c], seg_b[k, c]) + pad * rad[k]
-            lo[k, c] = lo_c
-            hi[k, c] = hi_c
-            w = max(w, hi_c - lo_c)
-        extent[k] = w
+            _joint_ball(nodes, radii, end_offset, offsets, inc_edge, inc_side, i - m, k,
+                        seg_a, seg_b, rad)  # fmt: skip
+        extent[k] = _element_box(seg_a, seg_b, rad, pad, k, lo, hi)
 
 
 @njit(cache=True, parallel=True)
@@ -113,35 +100,15 @@ def x_spans(lo, hi, rad, origin, cell, dims, first, last):
 @njit(cache=True, error_model="numpy")
 def slab_grid(lo, hi, rad, cell, origin, dims, x0, x1):
     """``_kernels.element_grid`` restricted to the grid cells with ``x0 <= x <= x1``
-    (local cell ``((x - x0) * ny + y) * nz + z``)."""
-    ny, nz = dims[1], dims[2]
-    n_cells = (x1 - x0 + 1) * ny * nz
+    (local cell ``((x - x0) * ny + y) * nz + z``; members int32)."""
+    n_cells = (x1 - x0 + 1) * dims[1] * dims[2]
     count = np.zeros(n_cells + 1, dtype=np.int64)
     members = np.empty(0, dtype=np.int32)
-    fill = count[:-1]
-    for sweep in range(2):  # sweep 0 counts, sweep 1 fills
-        for i in range(lo.shape[0]):
-            if rad[i] < 0.0:
-                continue
-            xa, xb = _cell_span(lo, hi, i, origin, cell, dims, 0)
-            xa = max(xa, x0)
-            xb = min(xb, x1)
-            y0, y1 = _cell_span(lo, hi, i, origin, cell, dims, 1)
-            z0, z1 = _cell_span(lo, hi, i, origin, cell, dims, 2)
-            for x in range(xa, xb + 1):
-                for y in range(y0, y1 + 1):
-                    for z in range(z0, z1 + 1):
-                        c = ((x - x0) * ny + y) * nz + z
-                        if sweep == 0:
-                            count[c + 1] += 1
-                        else:
-                            members[fill[c]] = i
-                            fill[c] += 1
-        if sweep == 0:
-            for c in range(n_cells):
-                count[c + 1] += count[c]
-            members = np.empty(count[n_cells], dtype=np.int32)
-            fill = count[:-1].copy()
+    _grid_sweep(lo, hi, rad, cell, origin, dims, x0, x1, count, members, count, False)
+    for c in range(n_cells):
+        count[c + 1] += count[c]
+    members = np.empty(count[n_cells], dtype=np.int32)
+    _grid_sweep(lo, hi, rad, cell, origin, dims, x0, x1, count, members, count[:-1].copy(), True)
     return count, members
 
 
@@ -162,9 +129,9 @@ def slab_pairs(
             i = members[u]
             for w in range(u + 1, count[lc + 1]):
                 j = members[w]
-                d2 = _local_d2(
-                    i, j, c, gid, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges,
-                    offsets, inc_edge, scale,
+                d2 = _pair_d2(
+                    i, j, gid[i], gid[j], c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m,
+                    edges, offsets, inc_edge, scale,
                 )  # fmt: skip
                 if d2 < 0.0:
                     continue
@@ -175,32 +142,6 @@ def slab_pairs(
                 k += 1
         if not write:
             n_found[lc] = k
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _local_d2(
-    i, j, c, gid, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets, inc_edge,
-    scale,
-):  # fmt: skip
-    """``_kernels._candidate_d2`` on local rows ``i``, ``j`` (global ids ``gid``)."""
-    for a in range(3):
-        if lo[i, a] > hi[j, a] or lo[j, a] > hi[i, a]:
-            return -1.0
-    ny, nz = dims[1], dims[2]
-    for a in range(3):
-        home = (c // (ny * nz)) if a == 0 else ((c // nz) % ny if a == 1 else c % nz)
-        o = min(dims[a] - 1, max(0, int((max(lo[i, a], lo[j, a]) - origin[a]) / cell)))
-        if o != home:
-            return -1.0
-    a = min(i, j)
-    b = max(i, j)
-    if _excluded(gid[a], gid[b], m, edges, offsets, inc_edge):
-        return -1.0
-    reach = scale * (rad[a] + rad[b])
-    d2 = _seg_seg_dist2(seg_a, seg_b, a, b)
-    if d2 >= reach * reach:
-        return -1.0
-    return d2
 
 
 @njit(cache=True)

@@ -1058,6 +1058,51 @@ def _excluded(i, j, m, edges, offsets, inc_edge):
     return False
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _strut_capsule(nodes, edges, radii, end_offset, e, u0, u1, u2, k, seg_a, seg_b, rad):
+    """Row ``k`` of the clearance elements: strut ``e``'s capsule, its axis between its
+    profile centres (``end_offset`` from its nodes along the unit direction ``u``), its
+    radius the larger end radius (shared by :func:`clearance_elements` and
+    ``_fit_kernels.element_boxes``)."""
+    a = edges[e, 0]
+    b = edges[e, 1]
+    for c in range(3):
+        uc = u0 if c == 0 else (u1 if c == 1 else u2)
+        seg_a[k, c] = nodes[a, c] + end_offset[e, 0] * uc
+        seg_b[k, c] = nodes[b, c] - end_offset[e, 1] * uc
+    rad[k] = max(radii[e, 0], radii[e, 1])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _joint_ball(nodes, radii, end_offset, offsets, inc_edge, inc_side, n, k, seg_a, seg_b, rad):
+    """Row ``k`` of the clearance elements: the ball of the joint at node ``n`` (degenerate
+    axis at the node; radius the distance to its farthest profile vertex, -1 below degree
+    2)."""
+    for c in range(3):
+        seg_a[k, c] = nodes[n, c]
+        seg_b[k, c] = nodes[n, c]
+    r = -1.0
+    if offsets[n + 1] - offsets[n] >= 2:
+        for t in range(offsets[n], offsets[n + 1]):
+            e = inc_edge[t]
+            s = inc_side[t]
+            r = max(r, np.sqrt(end_offset[e, s] ** 2 + radii[e, s] ** 2))
+    rad[k] = r
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _element_box(seg_a, seg_b, rad, pad, k, lo, hi):
+    """Box of element row ``k`` padded by ``pad * rad[k]``; returns its largest side."""
+    w = 0.0
+    for c in range(3):
+        a = min(seg_a[k, c], seg_b[k, c]) - pad * rad[k]
+        b = max(seg_a[k, c], seg_b[k, c]) + pad * rad[k]
+        lo[k, c] = a
+        hi[k, c] = b
+        w = max(w, b - a)
+    return w
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def clearance_elements(
     nodes, edges, radii, end_offset, unit, offsets, inc_edge, inc_side, pad,
@@ -1086,33 +1131,15 @@ def clearance_elements(
     m = edges.shape[0]
     n_nodes = nodes.shape[0]
     for e in prange(m):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        for c in range(3):
-            seg_a[e, c] = nodes[a, c] + end_offset[e, 0] * unit[e, c]
-            seg_b[e, c] = nodes[b, c] - end_offset[e, 1] * unit[e, c]
-        rad[e] = max(radii[e, 0], radii[e, 1])
+        _strut_capsule(
+            nodes, edges, radii, end_offset, e, unit[e, 0], unit[e, 1], unit[e, 2], e,
+            seg_a, seg_b, rad,
+        )  # fmt: skip
     for n in prange(n_nodes):
-        i = m + n
-        for c in range(3):
-            seg_a[i, c] = nodes[n, c]
-            seg_b[i, c] = nodes[n, c]
-        r = -1.0
-        if offsets[n + 1] - offsets[n] >= 2:
-            for t in range(offsets[n], offsets[n + 1]):
-                e = inc_edge[t]
-                s = inc_side[t]
-                r = max(r, np.sqrt(end_offset[e, s] ** 2 + radii[e, s] ** 2))
-        rad[i] = r
+        _joint_ball(nodes, radii, end_offset, offsets, inc_edge, inc_side, n, m + n,
+                    seg_a, seg_b, rad)  # fmt: skip
     for i in prange(m + n_nodes):
-        w = 0.0
-        for c in range(3):
-            a = min(seg_a[i, c], seg_b[i, c]) - pad * rad[i]
-            b = max(seg_a[i, c], seg_b[i, c]) + pad * rad[i]
-            lo[i, c] = a
-            hi[i, c] = b
-            w = max(w, b - a)
-        extent[i] = w
+        extent[i] = _element_box(seg_a, seg_b, rad, pad, i, lo, hi)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -1134,33 +1161,43 @@ def element_grid(lo, hi, rad, cell, origin, dims):
         Members of cell c are ``members[count[c]:count[c + 1]]``.
     members : (K,) int64
     """
-    ny, nz = dims[1], dims[2]
-    n_cells = dims[0] * ny * nz
+    n_cells = dims[0] * dims[1] * dims[2]
     count = np.zeros(n_cells + 1, dtype=np.int64)
     members = np.empty(0, dtype=np.int64)
-    fill = count[:-1]
-    for sweep in range(2):  # sweep 0 counts, sweep 1 fills
-        for i in range(lo.shape[0]):
-            if rad[i] < 0.0:
-                continue
-            x0, x1 = _cell_span(lo, hi, i, origin, cell, dims, 0)
-            y0, y1 = _cell_span(lo, hi, i, origin, cell, dims, 1)
-            z0, z1 = _cell_span(lo, hi, i, origin, cell, dims, 2)
-            for x in range(x0, x1 + 1):
-                for y in range(y0, y1 + 1):
-                    for z in range(z0, z1 + 1):
-                        c = (x * ny + y) * nz + z
-                        if sweep == 0:
-                            count[c + 1] += 1
-                        else:
-                            members[fill[c]] = i
-                            fill[c] += 1
-        if sweep == 0:
-            for c in range(n_cells):
-                count[c + 1] += count[c]
-            members = np.empty(count[n_cells], dtype=np.int64)
-            fill = count[:-1].copy()
+    _grid_sweep(lo, hi, rad, cell, origin, dims, 0, dims[0] - 1, count, members, count, False)
+    for c in range(n_cells):
+        count[c + 1] += count[c]
+    members = np.empty(count[n_cells], dtype=np.int64)
+    _grid_sweep(
+        lo, hi, rad, cell, origin, dims, 0, dims[0] - 1, count, members, count[:-1].copy(), True
+    )
     return count, members
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _grid_sweep(lo, hi, rad, cell, origin, dims, x0, x1, count, members, fill, write):
+    """One sweep of the counting sort of :func:`element_grid` over the grid cells with
+    ``x0 <= x <= x1`` (local cell ``((x - x0) * ny + y) * nz + z``): count the members of
+    each cell in ``count[c + 1]``, or (``write``) put them at ``members[fill[c]]``
+    (shared with ``_fit_kernels.slab_grid``)."""
+    ny, nz = dims[1], dims[2]
+    for i in range(lo.shape[0]):
+        if rad[i] < 0.0:
+            continue
+        xa, xb = _cell_span(lo, hi, i, origin, cell, dims, 0)
+        xa = max(xa, x0)
+        xb = min(xb, x1)
+        y0, y1 = _cell_span(lo, hi, i, origin, cell, dims, 1)
+        z0, z1 = _cell_span(lo, hi, i, origin, cell, dims, 2)
+        for x in range(xa, xb + 1):
+            for y in range(y0, y1 + 1):
+                for z in range(z0, z1 + 1):
+                    c = ((x - x0) * ny + y) * nz + z
+                    if write:
+                        members[fill[c]] = i
+                        fill[c] += 1
+                    else:
+                        count[c + 1] += 1
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -1174,6 +1211,20 @@ def _candidate_d2(
     disjointness the construction guarantees, and pairs at least
     ``scale * (rad_i + rad_j)`` apart.
     """
+    return _pair_d2(
+        i, j, i, j, c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets,
+        inc_edge, scale,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pair_d2(
+    i, j, gi, gj, c, seg_a, seg_b, rad, lo, hi, cell, origin, dims, m, edges, offsets, inc_edge,
+    scale,
+):  # fmt: skip
+    """:func:`_candidate_d2` of rows ``i``, ``j`` of the element arrays, which hold the
+    elements ``gi``, ``gj`` (their ids for the shared-node exclusion; ``c`` is a cell of the
+    whole grid). Shared with ``_fit_kernels.slab_pairs``, whose rows are one slab's."""
     for a in range(3):
         if lo[i, a] > hi[j, a] or lo[j, a] > hi[i, a]:
             return -1.0
@@ -1185,7 +1236,9 @@ def _candidate_d2(
             return -1.0
     a = min(i, j)
     b = max(i, j)
-    if _excluded(a, b, m, edges, offsets, inc_edge):
+    ga = gi if i < j else gj
+    gb = gj if i < j else gi
+    if _excluded(ga, gb, m, edges, offsets, inc_edge):
         return -1.0
     reach = scale * (rad[a] + rad[b])
     d2 = _seg_seg_dist2(seg_a, seg_b, a, b)

@@ -533,7 +533,9 @@ def _fill_stitch(
         r = resolve_radii(radius, nodes, edges)
         if fit == "shrink":
             floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
-            new, _ = fit_radii(nodes, edges, r, min_radius=floor)
+            new, _ = fit_radii(
+                nodes, edges, r, min_radius=floor, segments=segments, profile=profile
+            )
             need = _within(owned, edges, _hops(profile))
             changed = (new != r).any(axis=1) & need[edges].any(axis=1)
             if changed.any():
@@ -744,7 +746,8 @@ def fill_sharded(
     """Fill a part with a lattice on a Dask cluster, one block of cells per task.
 
     The same lattice as ``conformal.voxel_lattice(part, cell, cell_size, radius,
-    fill="inside")`` stitched by ``fast_stitch.stitch(graph, segments, seed=seed)``: the
+    fill="inside", segments=segments, profile=profile)`` stitched by
+    ``fast_stitch.stitch(graph, segments, seed=seed, profile=profile)``: the
     written triangles are those of the single-process result (see the module docstring).
 
     Parameters
@@ -767,8 +770,8 @@ def fill_sharded(
     fill : {"inside", "auto"}
         ``"auto"`` is ``"inside"`` (other fills are refused when no whole cell fits).
     fit : {"shrink", "off"}
-        ``"shrink"`` checks that the single-process fitting would thin nothing near any
-        block (else :class:`ShardingError`).
+        ``"shrink"`` checks that the single-process fitting (for ``segments`` and
+        ``profile``) would thin nothing near any block (else :class:`ShardingError`).
     halo : int, optional
         Cells of overlap on every side of a block. For cells whose struts stay inside the
         cell, 2 suffices with ``profile="area"``, ``"inscribed"`` or ``"circumscribed"``

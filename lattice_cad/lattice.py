@@ -73,8 +73,13 @@ def _fill_graph(
     fill: str,
     origin: Any,
     rotation: Any,
+    segments: int = config.DEFAULT_SEGMENTS,
 ) -> tuple[LatticeGraph, Any]:
-    """Call the conformal engine (imported lazily) for ``method``: the graph and its report."""
+    """Call the conformal engine (imported lazily) for ``method``: the graph and its report.
+
+    The radii are fitted for the profile polygons the lattice will be stitched with
+    (``segments`` sides, the stitch's default profile).
+    """
     import conformal
 
     built: Any
@@ -88,9 +93,12 @@ def _fill_graph(
             origin=origin,
             rotation=rotation,
             return_report=True,
+            segments=segments,
         )
     else:
-        built = conformal.tet_lattice(part, size=cell_size, radius=radius, return_report=True)
+        built = conformal.tet_lattice(
+            part, size=cell_size, radius=radius, return_report=True, segments=segments
+        )
     graph, report = built
     if not isinstance(graph, LatticeGraph):
         raise TypeError(f"the {method} engine returned {type(graph).__name__}, not a graph")
@@ -475,6 +483,7 @@ class Lattice:
             fill=fill,
             origin=origin,
             rotation=rotation,
+            segments=segments,
         )
         removal = None
         if remove_overhangs:
