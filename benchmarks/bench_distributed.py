@@ -69,6 +69,7 @@ def run_sharded(h: float, shards: int, workers: int, out: Path, client=None) -> 
         "halo": res.halo_overhead,
         "seconds": res.seconds,
         "bytes": out.stat().st_size,
+        "client_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
         "load": load(),
     }
 
@@ -132,7 +133,33 @@ def cmd_big(args: argparse.Namespace) -> None:
         print(f"wall {r['wall']:.1f} s ({phases})")
         print(f"{r['rate']:,.0f} struts/s; task CPU {r['task_cpu']:.1f} s, client CPU "
               f"{r['client_cpu']:.1f} s; halo {100 * r['halo']:.1f} %")
-        print(f"peak RSS per worker (GiB): {fmt_rss(r['rss'])}; {r['load']}")  # fmt: skip
+        print(f"peak RSS per worker (GiB): {fmt_rss(r['rss'])}; client peak RSS "
+              f"{r['client_rss'] / 2**30:.2f} GiB; {r['load']}")  # fmt: skip
+        project(r, args.struts / shards)
+
+
+def project(r: dict, shard_struts: float, total: float = 1e9) -> None:
+    """A 1B-strut job on N workers, projected from one measured run (same cell, same
+    shard size): CPU per strut, peak RSS per worker, triangles per strut."""
+    cpu_per_strut = r["task_cpu"] / r["struts"]
+    tri_per_strut = r["triangles"] / r["struts"]
+    rss = max(r["rss"].values())
+    shards = total / shard_struts
+    tris = total * tri_per_strut
+    asm_rate = r["bytes"] / max(r["seconds"].get("assemble", 0.0), 1e-9)
+    print(f"\n## PROJECTION (not a measurement) for a {total:.0e}-strut job, from the run above")
+    print(f"measured: {1e6 * cpu_per_strut:.1f} us task CPU per strut (halo included), "
+          f"{tri_per_strut:.1f} triangles per strut, peak RSS {rss / 2**30:.2f} GiB per worker "
+          f"with ~{shard_struts:,.0f}-strut shards, assembly {asm_rate / 1e6:.0f} MB/s")
+    print(f"job: {shards:,.0f} shards of ~{shard_struts:,.0f} struts, {tris:.3g} triangles "
+          f"({tris * 50 / 1e12:.2f} TB as binary STL: beyond STL's 2^32-triangle count, so the "
+          "output must stay one file per shard or a beam-lattice 3MF)")
+    print("| workers (1 core each) | stitch+build wall (h) | peak RSS per worker GiB | "
+          "cluster RAM GiB |")
+    print("|---|---|---|---|")
+    for n in (2, 16, 64, 256, 1024):
+        wall = -(-shards // n) * shard_struts * cpu_per_strut / 3600  # rounds of shards
+        print(f"| {n} | {wall:.2f} | {rss / 2**30:.2f} | {n * rss / 2**30:.0f} |")
 
 
 def cmd_single(args: argparse.Namespace) -> None:
