@@ -34,11 +34,13 @@ Why the pieces fit together exactly
 Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits) of any
 built-in or user cell without rotation, a scalar or callable radius (a picklable
 function of the (M, 3) strut midpoints), ``fit="shrink"`` when it thins nothing near a
-block and ``fit="off"``; written as binary STL (any size) or 3MF (one merged mesh, up
-to :data:`MAX_3MF_TRIANGLES`). Refused with :class:`ShardingError`: ``"clip"`` and
+block and ``fit="off"``; written as binary STL (up to 2^32 triangles) or 3MF: one merged
+mesh up to :data:`MAX_3MF_TRIANGLES`, beyond (or with ``threemf="shards"``) one object
+per shard in its own model part (Production extension, :mod:`lattice_cad.io.sharded_3mf`),
+also with beams (``beam_lattice=True``). Refused with :class:`ShardingError`: ``"clip"`` and
 ``"conform"`` (their surface clean-up merges nodes by distance across blocks),
 ``rotation``, skins, keep zones, trimming to the part (the output is the stitched
-lattice, ``Lattice.mesh(lattice_only=True)``), beam-lattice 3MF and ``method="lslt"``.
+lattice, ``Lattice.mesh(lattice_only=True)``) and ``method="lslt"``.
 
 :func:`stitch_sharded` does the same for a user graph held as NPZ shards
 (:func:`write_graph_shards`): struts are routed to spatial blocks (those with an end
@@ -87,8 +89,8 @@ __all__ = [
 ]
 
 INSTALL_HINT = "pip install 'lattice-cad[distributed]'"
-#: Largest sharded 3MF (one merged mesh object; a 3MF object must be closed, so the open
-#: shard pieces cannot be objects of their own).
+#: Largest sharded 3MF written as one merged mesh object (welded in the client); beyond,
+#: ``threemf="auto"`` writes one object per shard (``lattice_cad.io.sharded_3mf``).
 MAX_3MF_TRIANGLES = 20_000_000
 _HEADER = b"lattice-cad sharded binary STL"
 _REC = np.dtype([("n", "<f4", 3), ("v", "<f4", 9), ("attr", "<u2")])
@@ -349,6 +351,7 @@ class _FillSpec:
     prune: bool
     tmpdir: str
     threads: int
+    beams: bool = False
 
 
 def _block(spec: _FillSpec, shard: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -516,6 +519,8 @@ def _fill_stitch(
         nodes, owned = _compact(nodes, owned, used)
         edges = (np.cumsum(used) - 1)[edges]
         owned_strut = owned[edges[:, 0]]
+        if spec.beams:  # the owned struts as beams (degrees of the whole lattice)
+            _save_beams(Path(spec.tmpdir) / f"beams-{shard}.npz", nodes, edges, r, owned_strut)
         n = _stitch_owned(
             nodes, edges, r, owned, owned_strut,
             segments=segments, seed=seed, profile=profile,
@@ -531,6 +536,77 @@ def _fill_stitch(
             peak_rss=_peak_rss(),
             worker=_worker_name(),
         )
+
+
+def _save_beams(
+    path: Path,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    owned_strut: NDArray[np.bool_],
+) -> None:
+    """The owned struts of a shard as beams: their nodes, edges, radii, and the degree of
+    each node in the shard graph (complete at the ends of owned struts)."""
+    degree = np.bincount(edges.ravel(), minlength=len(nodes))
+    e = edges[owned_strut]
+    used = np.zeros(len(nodes), dtype=bool)
+    used[e.ravel()] = True
+    np.savez(path, nodes=nodes[used], edges=(np.cumsum(used) - 1)[e],
+             radii=radii[owned_strut], degree=degree[used])  # fmt: skip
+
+
+def _piece_part(tmpdir: str, shard: int, beams: bool) -> dict[str, Any]:
+    """Phase 3 (3MF in shards) of a shard: its STL piece welded by exact coordinates (and
+    its beams) as a one-object 3MF, ``part-K.3mf``."""
+    from lattice_cad.io.sharded_3mf import write_part
+
+    work = Path(tmpdir)
+    recs = np.fromfile(work / f"piece-{shard}.stl", dtype=_REC)
+    corners = np.ascontiguousarray(recs["v"]).reshape(-1, 3)
+    del recs
+    # weld by the exact float32 coordinates (the seams' vertices are bit-identical)
+    keyed = corners.view(np.dtype((np.void, 12))).ravel()
+    _, first, inverse = np.unique(keyed, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")  # vertices in order of first use
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    vertices = corners[first[order]].astype(np.float64)
+    faces = rank[inverse.ravel()].reshape(-1, 3).astype(np.int64)
+    b = None
+    if beams:
+        with np.load(work / f"beams-{shard}.npz") as d:
+            b = {k: d[k] for k in ("nodes", "edges", "radii", "degree")}
+    return write_part(work / f"part-{shard}.3mf", vertices, faces, name=f"shard {shard}",
+                      beams=b)  # fmt: skip
+
+
+def _assemble_3mf_shards(
+    client: Any,
+    out: Path,
+    work: Path,
+    shards: Sequence[int],
+    *,
+    beams: bool,
+    retries: int,
+    progress: bool,
+) -> None:
+    """One 3MF whose build object is made of one component per shard (Production
+    extension ``p:path`` parts), each shard's part written by a worker."""
+    from lattice_cad.io.sharded_3mf import assemble_parts
+
+    metas = _run(client, _piece_part, [(str(work), s, beams) for s in shards],
+                 retries=retries, progress=progress, desc="3mf")  # fmt: skip
+    assemble_parts(out, [work / f"part-{s}.3mf" for s in shards], metas, name="lattice")
+
+
+def _threemf_layout(mode: str, triangles: int, beams: bool) -> str:
+    if mode not in ("auto", "merged", "shards"):
+        raise ValueError(f"threemf={mode!r}: choose 'auto', 'merged' or 'shards'")
+    if beams:
+        return "shards"
+    if mode == "auto":
+        return "shards" if triangles > MAX_3MF_TRIANGLES else "merged"
+    return mode
 
 
 # =============================================================== orchestration
@@ -640,8 +716,9 @@ def _assemble(
 
     if triangles > MAX_3MF_TRIANGLES:
         raise ShardingError(
-            f"{path}: a sharded 3MF is one merged mesh, at most {MAX_3MF_TRIANGLES:,} "
-            f"triangles ({triangles:,} here): write .stl instead"
+            f"{path}: a merged sharded 3MF holds at most {MAX_3MF_TRIANGLES:,} "
+            f"triangles ({triangles:,} here): use threemf='shards' (one object per shard) "
+            "or write .stl"
         )
     recs = np.concatenate([np.fromfile(p, dtype=_REC) for p in pieces]) if pieces else None
     if recs is None or not len(recs):
@@ -708,6 +785,8 @@ def fill_sharded(
     threads_per_task: int = 1,
     progress: bool = False,
     tmpdir: str | os.PathLike[str] | None = None,
+    threemf: Literal["auto", "merged", "shards"] = "auto",
+    beam_lattice: bool = False,
 ) -> ShardedResult:
     """Fill a part with a lattice on a Dask cluster, one block of cells per task.
 
@@ -748,6 +827,16 @@ def fill_sharded(
         A progress bar over the shards of each phase.
     tmpdir : path, optional
         Where shard graphs and pieces go (must be shared by the client and the workers).
+    threemf : {"auto", "merged", "shards"}
+        A ``.3mf`` output as one merged mesh object (``"merged"``, welded in the client),
+        or as one object per shard in its own model part, referenced by one components
+        object of the build (``"shards"``, 3MF Production extension: see
+        :mod:`lattice_cad.io.sharded_3mf`; the workers write the parts, the client only
+        streams them into the zip). ``"auto"``: merged up to :data:`MAX_3MF_TRIANGLES`.
+    beam_lattice : bool
+        With a ``.3mf`` output: each shard's object also holds its struts as beams (3MF
+        Beam Lattice extension, balls at the joints), beside its triangles; always
+        written in shards.
 
     Returns
     -------
@@ -776,6 +865,9 @@ def fill_sharded(
         )
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
+    _threemf_layout(threemf, 0, False)
+    if beam_lattice and fmt != "3mf":
+        raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
         raise ValueError(f"halo and shards must be >= 1 and retries >= 0 (got {halo}, "
                          f"{shards}, {retries})")  # fmt: skip
@@ -796,6 +888,7 @@ def fill_sharded(
         start=tuple(start.tolist()), h=tuple(h.tolist()), dims=tuple(dims.tolist()),
         counts=tuple(counts.tolist()), size=tuple(size.tolist()), halo=int(halo),
         prune=bool(prune), tmpdir="", threads=int(threads_per_task),
+        beams=bool(beam_lattice),
     )  # fmt: skip
     n_shards = int(np.prod(counts))
     result = ShardedResult(path=out, struts=0, triangles=0)
@@ -822,8 +915,13 @@ def fill_sharded(
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
         t0 = time.perf_counter()
-        pieces = [work / f"piece-{s.shard}.stl" for s in result.shards]
-        _assemble(out, pieces, result.triangles, fmt=fmt)
+        if fmt == "3mf" and _threemf_layout(threemf, result.triangles, beam_lattice) == "shards":
+            _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
+                                 beams=bool(beam_lattice), retries=retries,
+                                 progress=progress)  # fmt: skip
+        else:
+            pieces = [work / f"piece-{s.shard}.stl" for s in result.shards]
+            _assemble(out, pieces, result.triangles, fmt=fmt)
         result.seconds["assemble"] = time.perf_counter() - t0
     result.seconds["total"] = time.perf_counter() - t_start
     return result
@@ -1021,6 +1119,7 @@ def stitch_sharded(
     threads_per_task: int = 1,
     progress: bool = False,
     tmpdir: str | os.PathLike[str] | None = None,
+    threemf: Literal["auto", "merged", "shards"] = "auto",
 ) -> ShardedResult:
     """Stitch a graph held as NPZ shards (:func:`write_graph_shards`) on a Dask cluster.
 
@@ -1041,7 +1140,7 @@ def stitch_sharded(
         As for :func:`fast_stitch.stitch` (``method="verma"``).
     blocks : int
         Spatial blocks (stitch tasks), at least.
-    scheduler, workers, retries, threads_per_task, progress, tmpdir
+    scheduler, workers, retries, threads_per_task, progress, tmpdir, threemf
         As for :func:`fill_sharded`.
 
     Returns
@@ -1053,6 +1152,7 @@ def stitch_sharded(
     _check_profile(profile)
     out = check_target(path)
     fmt = _format(out)
+    _threemf_layout(threemf, 0, False)
     srcs = [str(Path(p).resolve()) for p in graph_shards]
     for p in srcs:
         if not Path(p).is_file():
@@ -1094,8 +1194,12 @@ def stitch_sharded(
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
         t0 = time.perf_counter()
-        _assemble(out, [work / f"piece-{s.shard}.stl" for s in result.shards],
-                  result.triangles, fmt=fmt)  # fmt: skip
+        if fmt == "3mf" and _threemf_layout(threemf, result.triangles, False) == "shards":
+            _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
+                                 beams=False, retries=retries, progress=progress)  # fmt: skip
+        else:
+            _assemble(out, [work / f"piece-{s.shard}.stl" for s in result.shards],
+                      result.triangles, fmt=fmt)  # fmt: skip
         result.seconds["assemble"] = time.perf_counter() - t0
     result.seconds["total"] = time.perf_counter() - t_start
     return result
