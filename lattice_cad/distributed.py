@@ -153,6 +153,7 @@ class ShardedResult:
     seconds: dict[str, float] = field(default_factory=dict)
     removed_dangling: int = 0
     removed_islands: int = 0
+    removed_fragments: int = 0
 
     @property
     def peak_rss_per_worker(self) -> dict[str, int]:
@@ -352,6 +353,8 @@ class _FillSpec:
     tmpdir: str
     threads: int
     beams: bool = False
+    fill: str = "inside"
+    min_len: float = 0.0
 
 
 def _block(spec: _FillSpec, shard: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -379,7 +382,8 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         lo, hi = _block(spec, shard)
         r_lo = np.maximum(lo - spec.halo, 0)
         r_hi = np.minimum(hi + spec.halo, dims)
-        inside = conformal.inside_cells(part, start, h, r_lo, r_hi)
+        boundary = spec.fill in ("clip", "conform")
+        inside = conformal.inside_cells(part, start, h, r_lo, r_hi, with_cut=boundary)
         ijk = np.argwhere(inside).astype(np.int64) + r_lo
         where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
         if not len(ijk):
@@ -396,9 +400,15 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
                 incomplete |= nijk[:, a] == r_hi[a] * den
         ncell = np.minimum(nijk // den, dims - 1)
         owned = ((ncell // size) == (lo // size)).all(axis=1)
-        if spec.prune:
-            alive = _prune(n, edges, incomplete)
-            lower = _prune(n, edges, np.zeros(n, dtype=bool))
+        on_surface = np.zeros(n, dtype=bool)
+        bad = None
+        if boundary:
+            nodes, edges, on_surface, bad = _boundary_fill(
+                part, spec, nodes, edges, start, h, r_lo, r_hi, dims
+            )
+        if spec.prune:  # surface nodes are never pruned (as in one process)
+            alive = _prune(n, edges, incomplete | on_surface)
+            lower = _prune(n, edges, on_surface)
         else:
             alive = lower = np.ones(len(edges), dtype=bool)
         # the nodes whose hubs this shard needs: its own and their neighbours
@@ -418,6 +428,16 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
                 f"{where}: pruning dangling struts reaches beyond the halo of {spec.halo} "
                 "cell(s); use a larger halo (or prune=False)"
             )
+        # struts whose state this shard knows exactly: kept in the lower bound of pruning,
+        # and (clip/conform) clear of node merges that may involve nodes beyond the halo
+        trusted = lower[alive]
+        if bad is not None:
+            if (relevant & bad[edges].any(axis=1)).any():
+                raise ShardingError(
+                    f"{where}: merging close surface nodes reaches beyond the halo of "
+                    f"{spec.halo} cell(s); use a larger halo"
+                )
+            trusted &= ~bad[e_alive].any(axis=1)
         pruned_owned = int((~alive & owned[edges[:, 0]]).sum())
         edges = edges[alive]
         used = np.zeros(n, dtype=bool)
@@ -425,14 +445,19 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         if not owned[edges[:, 0]].any() and not (owned & used).any():
             return {"shard": shard, "empty": True, "pruned": pruned_owned}
         new_id = np.cumsum(used) - 1
-        nodes, nijk, owned = nodes[used], nijk[used], owned[used]
+        nodes, nijk, owned, on_surface = nodes[used], nijk[used], owned[used], on_surface[used]
         edges = new_id[edges]
         span = dims * den + 1
         key = _pack(nijk, span)
-        g = coo_matrix(
-            (np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(nodes), len(nodes))
-        )
+        # connected pieces over the struts known exactly (all of them for "inside");
+        # joined across shards by the nodes they share, they give the global pieces
+        te = edges[trusted] if boundary else edges
+        g = coo_matrix((np.ones(len(te)), (te[:, 0], te[:, 1])), shape=(len(nodes), len(nodes)))
         n_lab, label = connected_components(g, directed=False)
+        interior = np.zeros(n_lab, dtype=bool)
+        t_used = np.zeros(len(nodes), dtype=bool)
+        t_used[te.ravel()] = True
+        interior[label[t_used & ~on_surface]] = True
         own_e = owned[edges[:, 0]]
         owned_count = np.bincount(label[edges[own_e, 0]], minlength=n_lab)
         min_key = np.full(n_lab, np.iinfo(np.int64).max, dtype=np.int64)
@@ -463,7 +488,51 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             "rep": rep,
             "link_key": key[link],
             "link_label": label[link],
+            "interior": interior,
         }
+
+
+def _boundary_fill(
+    part: Any,
+    spec: _FillSpec,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    start: NDArray[np.float64],
+    h: NDArray[np.float64],
+    r_lo: NDArray[np.int64],
+    r_hi: NDArray[np.int64],
+    dims: NDArray[np.int64],
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_], NDArray[np.bool_]]:
+    """``fill="conform"`` on a shard's region, as ``conformal.voxel_lattice`` does it on
+    the whole grid: surface nodes, close-node merges, short struts removed.
+
+    Returns nodes, edges (node ids kept: merged nodes lose their struts), ``on_surface``
+    and ``bad`` (N,) bool: nodes whose merge cluster may reach a node beyond the region
+    (one closer to a cut face of the region than the longest strut plus ``min_len``:
+    a node beyond the face moves at most a strut length).
+    """
+    from conformal.voxel import BuildReport, _conform, merge_close
+
+    n = len(nodes)
+    lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
+    if spec.fill != "conform":
+        raise ShardingError(f"fill={spec.fill!r} is not supported sharded")
+    nodes, edges, on_surface = _conform(part, nodes, edges, BuildReport())
+    edges, root = merge_close(nodes, edges, on_surface, spec.min_len)
+    length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+    edges = edges[length >= spec.min_len]
+    margin = lmax + spec.min_len
+    near = np.zeros(n, dtype=bool)
+    for a in range(3):
+        if r_lo[a] > 0:
+            near |= nodes[:, a] < start[a] + r_lo[a] * h[a] + margin
+        if r_hi[a] < dims[a]:
+            near |= nodes[:, a] > start[a] + r_hi[a] * h[a] - margin
+    if root is None:
+        return nodes, edges, on_surface, near
+    bad_root = np.zeros(n, dtype=bool)
+    bad_root[root[near]] = True
+    return nodes, edges, on_surface, bad_root[root]
 
 
 def _fill_stitch(
@@ -771,7 +840,7 @@ def fill_sharded(
     shards: int = 2,
     scheduler: Any = None,
     workers: int | None = None,
-    fill: Literal["inside", "auto"] = "inside",
+    fill: Literal["inside", "auto", "conform"] = "inside",
     segments: int = config.DEFAULT_SEGMENTS,
     seed: int = 0,
     origin: Any = None,
@@ -780,7 +849,8 @@ def fill_sharded(
     fit: Literal["shrink", "off"] = "shrink",
     min_radius: float | None = None,
     profile: str = "area",
-    halo: int = 2,
+    min_strut: float = 0.1,
+    halo: int | None = None,
     retries: int = 2,
     threads_per_task: int = 1,
     progress: bool = False,
@@ -811,14 +881,21 @@ def fill_sharded(
         LocalCluster of ``workers`` processes with one thread each.
     workers : int, optional
         Worker processes of the LocalCluster (default 2; ignored with ``scheduler``).
-    fill : {"inside", "auto"}
+    fill : {"inside", "auto", "conform"}
         ``"auto"`` is ``"inside"`` (other fills are refused when no whole cell fits).
+        ``"conform"``: the cut cells too, outer nodes moved onto the surface, surface
+        nodes closer than ``min_strut`` cells merged (as ``conformal.voxel_lattice``);
+        a shard whose merges could reach beyond its halo raises :class:`ShardingError`.
+    min_strut : float
+        ``"conform"``: merge distance and shortest strut, in cells (as
+        ``conformal.voxel_lattice``).
     fit : {"shrink", "off"}
         ``"shrink"`` checks that the single-process fitting would thin nothing near any
         block (else :class:`ShardingError`).
-    halo : int
-        Cells of overlap on every side of a block (2 suffices for cells whose struts stay
-        inside the cell).
+    halo : int, optional
+        Cells of overlap on every side of a block (default 2 for ``"inside"``, which
+        suffices for cells whose struts stay inside the cell; 3 for ``"conform"``, whose
+        merges of surface nodes reach a strut length plus ``min_strut`` further).
     retries : int
         Dask retries of a failed task (a worker that dies is replaced and its tasks rerun).
     threads_per_task : int
@@ -858,14 +935,17 @@ def fill_sharded(
     _check_profile(profile)
     out = check_target(path)
     fmt = _format(out)
-    if fill not in ("inside", "auto"):
+    if fill not in ("inside", "auto", "conform"):
         raise ShardingError(
-            f"fill={fill!r} is not supported sharded (only 'inside'): 'clip' and 'conform' "
-            "merge surface nodes by distance across blocks; run them in one process"
+            f"fill={fill!r} is not supported sharded ('inside' and 'conform'): 'clip' adds "
+            "nodes at the surface crossings, which have no lattice coordinates to number "
+            "them by; run it in one process"
         )
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
     _threemf_layout(threemf, 0, False)
+    if halo is None:
+        halo = 3 if fill == "conform" else 2
     if beam_lattice and fmt != "3mf":
         raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
@@ -888,7 +968,8 @@ def fill_sharded(
         start=tuple(start.tolist()), h=tuple(h.tolist()), dims=tuple(dims.tolist()),
         counts=tuple(counts.tolist()), size=tuple(size.tolist()), halo=int(halo),
         prune=bool(prune), tmpdir="", threads=int(threads_per_task),
-        beams=bool(beam_lattice),
+        beams=bool(beam_lattice), fill="conform" if fill == "conform" else "inside",
+        min_len=float(min_strut) * float(h.min()),
     )  # fmt: skip
     n_shards = int(np.prod(counts))
     result = ShardedResult(path=out, struts=0, triangles=0)
@@ -954,6 +1035,12 @@ def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult)
     all_rep = np.concatenate([b["rep"] for b in live])
     ok = ~np.isnan(all_rep[:, 0])
     rep[root[ok]] = all_rep[ok]
+    # pieces without an interior node (clip/conform: fragments of surface nodes) go first
+    interior = np.zeros(n_root, dtype=bool)
+    np.logical_or.at(interior, root, np.concatenate([b["interior"] for b in live]))
+    fragments = (size > 0) & ~interior
+    result.removed_fragments = int(size[fragments].sum())
+    size = np.where(fragments, 0, size)
     present = np.flatnonzero(size > 0)
     # the order of conformal's labels: by the smallest global node id of each piece
     present = present[np.argsort(min_key[present], kind="stable")]
