@@ -115,7 +115,9 @@ class ShardStats:
     """What one shard did (returned by its stitch task).
 
     ``struts`` counts the struts of its graph (halo included), ``owned_struts`` those it
-    wrote; ``peak_rss`` is the worker process's peak resident memory (bytes) after it.
+    wrote; ``peak_rss`` is the worker process's peak resident memory (bytes) during this
+    task (the peak is reset when the task starts where Linux allows it, see
+    :func:`_reset_peak`; else the process's lifetime peak).
     """
 
     shard: int
@@ -154,14 +156,22 @@ class ShardedResult:
     removed_dangling: int = 0
     removed_islands: int = 0
     removed_fragments: int = 0
+    build_rss: dict[str, int] = field(default_factory=dict)
 
     @property
     def peak_rss_per_worker(self) -> dict[str, int]:
-        """Peak resident memory (bytes) of each worker process."""
+        """Peak resident memory (bytes) of each worker in the stitch phase (stitch one
+        shard, write its piece; the 3MF parts too when written in shards)."""
         out: dict[str, int] = {}
         for s in self.shards:
             out[s.worker] = max(out.get(s.worker, 0), s.peak_rss)
         return out
+
+    @property
+    def build_peak_rss_per_worker(self) -> dict[str, int]:
+        """Peak resident memory (bytes) of each worker in the build phase
+        (:func:`fill_sharded`; classify, tile, prune one block)."""
+        return dict(self.build_rss)
 
     @property
     def halo_overhead(self) -> float:
@@ -176,13 +186,35 @@ class ShardedResult:
             f"{len(self.shards)} shard(s); halo overhead {100 * self.halo_overhead:.1f} %",
             "  " + ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items()),
         ]
+        build = self.build_rss
         for w, rss in sorted(self.peak_rss_per_worker.items()):
-            lines.append(f"  worker {w}: peak RSS {rss / 2**20:.0f} MiB")
+            b = f", build {build[w] / 2**20:.0f} MiB" if w in build else ""
+            lines.append(f"  worker {w}: peak RSS stitch {rss / 2**20:.0f} MiB{b}")
         return "\n".join(lines)
 
 
 # ===================================================================== helpers
+def _reset_peak() -> bool:
+    """Reset this process's peak resident memory (Linux >= 4.0: ``clear_refs`` 5), so
+    that :func:`_peak_rss` measures one task (a worker runs one task at a time)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
 def _peak_rss() -> int:
+    """Peak resident memory (bytes) since the last :func:`_reset_peak` (VmHWM), or the
+    process's lifetime peak (``ru_maxrss``)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
@@ -367,6 +399,15 @@ def _block(spec: _FillSpec, shard: int) -> tuple[NDArray[np.int64], NDArray[np.i
 def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
     """Phase 1 of a shard: classify, tile, prune; save the shard graph; report its
     connected pieces (for the global largest-piece selection)."""
+    _reset_peak()
+    out = _fill_build_task(spec, shard)
+    if out is not None:
+        out["peak_rss"] = _peak_rss()
+        out["worker"] = _worker_name()
+    return out
+
+
+def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -549,6 +590,7 @@ def _fill_stitch(
     """Phase 2 of a shard: keep the selected pieces, radii, stitch, write owned triangles."""
     from conformal.radius import fit_radii, resolve_radii
 
+    _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     with _threads(spec.threads):
         data = np.load(Path(spec.tmpdir) / f"graph-{shard}.npz")
@@ -980,6 +1022,10 @@ def fill_sharded(
                      retries=retries, progress=progress, desc="build")  # fmt: skip
         result.seconds["build"] = time.perf_counter() - t0
         result.removed_dangling = sum(int(b["pruned"]) for b in built if b is not None)
+        for b in built:
+            if b is not None:
+                w = b["worker"]
+                result.build_rss[w] = max(result.build_rss.get(w, 0), int(b["peak_rss"]))
         live = [b for b in built if b is not None and not b["empty"]]
         if not live:
             raise _nothing_fits(the_part, h, radius if not callable(radius) else 0.0,
@@ -1153,6 +1199,7 @@ def _graph_stitch(
     threads: int,
 ) -> ShardStats | None:
     """Reduce step: one block's struts (halo included), stitched; owned triangles written."""
+    _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     lo, step, counts, _ = (np.asarray(x) for x in box)
     parts = [_read_shard(p) for p in inputs if Path(p).exists()]

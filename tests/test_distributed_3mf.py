@@ -90,6 +90,8 @@ def test_fill_3mf_one_object_per_shard_and_beams(client, tmp_path):
     n = len(res.shards)
     assert n >= 3 and got["build_items"] == 1 and got["components"] == n
     assert len(got["meshes"]) == n and got["beams"] == 0
+    build, stitch = res.build_peak_rss_per_worker, res.peak_rss_per_worker
+    assert set(build) & set(stitch) and min(build.values()) > 0 and min(stitch.values()) > 0
     assert sum(len(f) for _, f in got["meshes"]) == res.triangles == len(ref)
     corners, v, f = merged(got["meshes"])
     np.testing.assert_array_equal(canonical(corners), ref)
@@ -141,3 +143,20 @@ def test_threemf_option_checked(tmp_path):
 
     with pytest.raises(ShardingError, match="beam lattice"):
         fill_sharded(PART, tmp_path / "x.stl", beam_lattice=True)
+
+
+def test_peak_rss_reset_measures_one_phase():
+    """The per-task peak (build and stitch phases are printed apart): after a reset the
+    peak no longer holds an earlier 300 MB allocation."""
+    from lattice_cad.distributed import _peak_rss, _reset_peak
+
+    big = np.ones(300 * 2**20 // 8)
+    before = _peak_rss()
+    del big
+    if not _reset_peak():
+        pytest.skip("this kernel cannot reset the peak RSS (/proc/self/clear_refs)")
+    after = _peak_rss()
+    assert before - after > 200 * 2**20
+    small = np.ones(50 * 2**20 // 8)
+    assert _peak_rss() >= after + 40 * 2**20
+    del small
