@@ -469,8 +469,17 @@ def _finish(
 
 # ------------------------------------------------------------------- clip
 def _clip(
-    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
+    part: Part,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    rep: BuildReport,
+    *,
+    sources: list[NDArray[np.int64]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]:
+    """Cut the struts at the part's surface. The crossing nodes are appended in the order
+    of their struts, then along each strut; ``sources``, if given, receives (K,) int64
+    struts and (K,) int64 crossing numbers of the K new nodes (the sharded path names
+    them by these)."""
     inside = part.contains(nodes)
     a = nodes[edges[:, 0]]
     b = nodes[edges[:, 1]]
@@ -507,6 +516,8 @@ def _clip(
         cross_ids = np.full(t.shape, -1, dtype=np.int64)
         cv = np.argwhere(cols[None, :-1] < k[:, None])
         cross_ids[cv[:, 0], cv[:, 1]] = n0 + np.arange(len(cv))
+        if sources is not None:
+            sources.extend([crossed[cv[:, 0]], cv[:, 1].astype(np.int64)])
         pts = a[crossed][cv[:, 0]] + t[cv[:, 0], cv[:, 1]][:, None] * (
             b[crossed][cv[:, 0]] - a[crossed][cv[:, 0]]
         )

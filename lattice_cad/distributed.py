@@ -443,10 +443,18 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         owned = ((ncell // size) == (lo // size)).all(axis=1)
         on_surface = np.zeros(n, dtype=bool)
         bad = None
+        span = dims * den + 1
+        key = _pack(nijk, span)
         if boundary:
-            nodes, edges, on_surface, bad = _boundary_fill(
-                part, spec, nodes, edges, start, h, r_lo, r_hi, dims
+            nodes, edges, on_surface, bad, src, new_key = _boundary_fill(
+                part, spec, nodes, edges, nijk, key, start, h, r_lo, r_hi, dims, den
             )
+            if len(src):  # clip's crossing nodes: named and owned as their struts
+                owned = np.concatenate([owned, owned[src]])
+                incomplete = np.concatenate([incomplete, np.zeros(len(src), dtype=bool)])
+                nijk = np.concatenate([nijk, nijk[src]])
+                key = np.concatenate([key, new_key])
+                n = len(nodes)
         if spec.prune:  # surface nodes are never pruned (as in one process)
             alive = _prune(n, edges, incomplete | on_surface)
             lower = _prune(n, edges, on_surface)
@@ -487,9 +495,8 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             return {"shard": shard, "empty": True, "pruned": pruned_owned}
         new_id = np.cumsum(used) - 1
         nodes, nijk, owned, on_surface = nodes[used], nijk[used], owned[used], on_surface[used]
+        key = key[used]
         edges = new_id[edges]
-        span = dims * den + 1
-        key = _pack(nijk, span)
         # connected pieces over the struts known exactly (all of them for "inside");
         # joined across shards by the nodes they share, they give the global pieces
         te = edges[trusted] if boundary else edges
@@ -538,27 +545,55 @@ def _boundary_fill(
     spec: _FillSpec,
     nodes: NDArray[np.float64],
     edges: NDArray[np.int64],
+    nijk: NDArray[np.int64],
+    key: NDArray[np.int64],
     start: NDArray[np.float64],
     h: NDArray[np.float64],
     r_lo: NDArray[np.int64],
     r_hi: NDArray[np.int64],
     dims: NDArray[np.int64],
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_], NDArray[np.bool_]]:
-    """``fill="conform"`` on a shard's region, as ``conformal.voxel_lattice`` does it on
-    the whole grid: surface nodes, close-node merges, short struts removed.
+    den: int,
+) -> tuple[
+    NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_], NDArray[np.bool_],
+    NDArray[np.int64], NDArray[np.int64],
+]:  # fmt: skip
+    """``fill="clip"`` or ``"conform"`` on a shard's region, as ``conformal.voxel_lattice``
+    does it on the whole grid: surface nodes, close-node merges, short struts removed.
 
-    Returns nodes, edges (node ids kept: merged nodes lose their struts), ``on_surface``
-    and ``bad`` (N,) bool: nodes whose merge cluster may reach a node beyond the region
-    (one closer to a cut face of the region than the longest strut plus ``min_len``:
-    a node beyond the face moves at most a strut length).
+    Returns nodes, edges (node ids kept: merged nodes lose their struts; clip's crossing
+    nodes appended in the order of their struts, as in one process), ``on_surface``,
+    ``bad`` (N,) bool: nodes whose merge cluster may reach a node beyond the region (one
+    closer to a cut face of the region than the longest strut plus ``min_len``: a node
+    beyond the face moves at most a strut length), and for clip's K crossing nodes the
+    lattice node each inherits its owner from (the strut's first end) and its global id
+    (beyond every lattice id: the strut's first end, direction and crossing number).
     """
-    from conformal.voxel import BuildReport, _conform, merge_close
+    from conformal.voxel import BuildReport, _clip, _conform, merge_close
 
-    n = len(nodes)
     lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
-    if spec.fill != "conform":
+    src = np.zeros(0, dtype=np.int64)
+    new_key = np.zeros(0, dtype=np.int64)
+    if spec.fill == "conform":
+        nodes, edges, on_surface = _conform(part, nodes, edges, BuildReport())
+    elif spec.fill == "clip":
+        sources: list[NDArray[np.int64]] = []
+        n0 = len(nodes)
+        strut_edges = edges
+        nodes, edges, on_surface = _clip(part, nodes, edges, BuildReport(), sources=sources)
+        if sources:
+            strut, j = sources
+            a, b = strut_edges[strut, 0], strut_edges[strut, 1]
+            src = a
+            w = 2 * den + 1
+            d = nijk[b] - nijk[a] + den
+            d_code = (d[:, 0] * w + d[:, 1]) * w + d[:, 2]
+            span = dims * den + 1
+            base = int(np.prod(span))
+            new_key = base + (key[a] * w**3 + d_code) * 9 + j
+        assert len(nodes) == n0 + len(src)
+    else:
         raise ShardingError(f"fill={spec.fill!r} is not supported sharded")
-    nodes, edges, on_surface = _conform(part, nodes, edges, BuildReport())
+    n = len(nodes)
     edges, root = merge_close(nodes, edges, on_surface, spec.min_len)
     length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
     edges = edges[length >= spec.min_len]
@@ -570,10 +605,10 @@ def _boundary_fill(
         if r_hi[a] < dims[a]:
             near |= nodes[:, a] > start[a] + r_hi[a] * h[a] - margin
     if root is None:
-        return nodes, edges, on_surface, near
+        return nodes, edges, on_surface, near, src, new_key
     bad_root = np.zeros(n, dtype=bool)
     bad_root[root[near]] = True
-    return nodes, edges, on_surface, bad_root[root]
+    return nodes, edges, on_surface, bad_root[root], src, new_key
 
 
 def _fill_stitch(
@@ -882,7 +917,7 @@ def fill_sharded(
     shards: int = 2,
     scheduler: Any = None,
     workers: int | None = None,
-    fill: Literal["inside", "auto", "conform"] = "inside",
+    fill: Literal["inside", "auto", "clip", "conform"] = "inside",
     segments: int = config.DEFAULT_SEGMENTS,
     seed: int = 0,
     origin: Any = None,
@@ -977,17 +1012,16 @@ def fill_sharded(
     _check_profile(profile)
     out = check_target(path)
     fmt = _format(out)
-    if fill not in ("inside", "auto", "conform"):
+    if fill not in ("inside", "auto", "clip", "conform"):
         raise ShardingError(
-            f"fill={fill!r} is not supported sharded ('inside' and 'conform'): 'clip' adds "
-            "nodes at the surface crossings, which have no lattice coordinates to number "
-            "them by; run it in one process"
+            f"fill={fill!r} is not supported sharded (choose 'inside', 'auto', 'clip' or "
+            "'conform')"
         )
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
     _threemf_layout(threemf, 0, False)
     if halo is None:
-        halo = 3 if fill == "conform" else 2
+        halo = 3 if fill in ("clip", "conform") else 2
     if beam_lattice and fmt != "3mf":
         raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
@@ -1010,7 +1044,7 @@ def fill_sharded(
         start=tuple(start.tolist()), h=tuple(h.tolist()), dims=tuple(dims.tolist()),
         counts=tuple(counts.tolist()), size=tuple(size.tolist()), halo=int(halo),
         prune=bool(prune), tmpdir="", threads=int(threads_per_task),
-        beams=bool(beam_lattice), fill="conform" if fill == "conform" else "inside",
+        beams=bool(beam_lattice), fill=fill if fill in ("clip", "conform") else "inside",
         min_len=float(min_strut) * float(h.min()),
     )  # fmt: skip
     n_shards = int(np.prod(counts))
