@@ -930,7 +930,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
     if refused:
         raise ShardingError(
             f"{', '.join(refused)} cannot be combined with --shards (the sharded path writes "
-            "the stitched lattice of fill inside or conform as .stl or .3mf, with "
+            "the stitched lattice of fill inside, clip or conform as .stl or .3mf, with "
             "--beam-lattice one object per shard)"
         )
     with con.step(f"sharded fill ({args.shards} shards)"):

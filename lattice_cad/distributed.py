@@ -30,15 +30,25 @@ Why the pieces fit together exactly
   block prove it exact (else :class:`ShardingError`). The largest connected piece (per
   solid of the part) is found by a union-find over the shards' component labels, joined
   by the global ids of the nodes two shards share.
+- **Clip and conform.** The cut cells are tiled too; conform moves outer nodes onto the
+  surface, clip adds a node where a strut crosses it, named by the strut's first end,
+  direction and crossing number (ids beyond every lattice id, in the one-process order)
+  and owned with its strut. Surface nodes closer than ``min_strut`` cells are merged in
+  ascending pair order (``conformal.voxel.merge_close``), so a cluster merges the same
+  way in any block that holds all of it; a shard whose needed clusters come within a
+  strut length plus ``min_strut`` of its region's cut faces raises
+  :class:`ShardingError` (the default halo is 3 cells for these fills). Pieces are
+  joined over the struts a shard knows exactly (kept by the lower pruning bound, clear of
+  unsure merges), and pieces without an interior node (fragments) are dropped globally.
 
-Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits) of any
+Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits), ``"clip"``
+and ``"conform"`` of any
 built-in or user cell without rotation, a scalar or callable radius (a picklable
 function of the (M, 3) strut midpoints), ``fit="shrink"`` when it thins nothing near a
 block and ``fit="off"``; written as binary STL (up to 2^32 triangles) or 3MF: one merged
 mesh up to :data:`MAX_3MF_TRIANGLES`, beyond (or with ``threemf="shards"``) one object
 per shard in its own model part (Production extension, :mod:`lattice_cad.io.sharded_3mf`),
-also with beams (``beam_lattice=True``). Refused with :class:`ShardingError`: ``"clip"`` and
-``"conform"`` (their surface clean-up merges nodes by distance across blocks),
+also with beams (``beam_lattice=True``). Refused with :class:`ShardingError`:
 ``rotation``, skins, keep zones, trimming to the part (the output is the stitched
 lattice, ``Lattice.mesh(lattice_only=True)``) and ``method="lslt"``.
 
@@ -938,7 +948,7 @@ def fill_sharded(
     """Fill a part with a lattice on a Dask cluster, one block of cells per task.
 
     The same lattice as ``conformal.voxel_lattice(part, cell, cell_size, radius,
-    fill="inside")`` stitched by ``fast_stitch.stitch(graph, segments, seed=seed)``: the
+    fill=fill)`` stitched by ``fast_stitch.stitch(graph, segments, seed=seed)``: the
     written triangles are those of the single-process result (see the module docstring).
 
     Parameters
@@ -958,13 +968,14 @@ def fill_sharded(
         LocalCluster of ``workers`` processes with one thread each.
     workers : int, optional
         Worker processes of the LocalCluster (default 2; ignored with ``scheduler``).
-    fill : {"inside", "auto", "conform"}
+    fill : {"inside", "auto", "clip", "conform"}
         ``"auto"`` is ``"inside"`` (other fills are refused when no whole cell fits).
-        ``"conform"``: the cut cells too, outer nodes moved onto the surface, surface
-        nodes closer than ``min_strut`` cells merged (as ``conformal.voxel_lattice``);
-        a shard whose merges could reach beyond its halo raises :class:`ShardingError`.
+        ``"clip"`` / ``"conform"``: the cut cells too, struts cut at the surface / outer
+        nodes moved onto it, surface nodes closer than ``min_strut`` cells merged (as
+        ``conformal.voxel_lattice``); a shard whose merges could reach beyond its halo
+        raises :class:`ShardingError`.
     min_strut : float
-        ``"conform"``: merge distance and shortest strut, in cells (as
+        ``"clip"`` / ``"conform"``: merge distance and shortest strut, in cells (as
         ``conformal.voxel_lattice``).
     fit : {"shrink", "off"}
         ``"shrink"`` checks that the single-process fitting would thin nothing near any
