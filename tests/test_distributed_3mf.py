@@ -160,3 +160,22 @@ def test_peak_rss_reset_measures_one_phase():
     small = np.ones(50 * 2**20 // 8)
     assert _peak_rss() >= after + 40 * 2**20
     del small
+
+
+def test_cli_shards_beam_lattice(client, tmp_path, capsys):
+    from lattice_cad.cli import main
+
+    h = 2 * _cell()
+    out = tmp_path / "cli.3mf"
+    code = main(["-q", "fill", str(PART), "-o", str(out), "--cell-size", str(h),
+                 "--radius", str(0.05 * h), "--shards", "2", "--beam-lattice",
+                 "--scheduler", client.scheduler.address])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    got = read_parts(out)
+    assert got["build_items"] == 1 and got["components"] == len(got["meshes"]) >= 1
+    part = conformal.load_part(PART)
+    graph = conformal.voxel_lattice(part, "bcc", h, 0.05 * h, fill="inside")
+    assert got["beams"] == graph.num_edges
+    code = main(["fill", str(PART), "-o", str(tmp_path / "x.3mf"), "--cell-size", str(h),
+                 "--shards", "2", "--beam-lattice=only"])  # fmt: skip
+    assert code == 1 and "--beam-lattice=only" in capsys.readouterr().err
