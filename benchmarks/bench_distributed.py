@@ -11,9 +11,10 @@ printed with every timing)::
 The part is the Stanford bunny of ../shared/data (a real, curved part), filled with BCC
 cells ("inside" fill, 6-sided struts, radius 8 % of the cell) whose size is chosen for a
 target number of struts. Output is one binary STL (streamed from the shard pieces).
-``struts/s`` counts written struts per wall second; ``peak RSS`` is the worker process's
-resident peak (``ru_maxrss``, it includes the worker's ~0.2 GB of imports); halo overhead
-is the struts stitched beyond the owned ones, in percent.
+``struts/s`` counts written struts per wall second; ``peak RSS`` is a worker process's
+resident peak (VmHWM, reset when each task starts, so the build and the stitch phase are
+measured apart; it includes the worker's ~0.6 GB of imports), the largest over the tasks the
+worker ran; halo overhead is the struts stitched beyond the owned ones, in percent.
 """
 
 from __future__ import annotations
@@ -66,9 +67,11 @@ def run_sharded(h: float, shards: int, workers: int, out: Path, client=None) -> 
         "task_cpu": task_cpu,
         "rate": res.struts / wall,
         "rss": res.peak_rss_per_worker,
+        "build_rss": res.build_peak_rss_per_worker,
         "halo": res.halo_overhead,
         "seconds": res.seconds,
         "bytes": out.stat().st_size,
+        "client_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
         "load": load(),
     }
 
@@ -106,8 +109,9 @@ def cmd_scaling(args: argparse.Namespace) -> None:
     h = cell_for(args.total)
     print(f"# scaling: bunny, BCC cell {h:.5g} mm (~{args.total:.3g} struts), {load()}")
     print("| shard target | workers | shards | struts | wall s | struts/s | task CPU s | "
-          "client CPU s | peak RSS per worker GiB | halo % | load |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "client CPU s | build peak RSS per worker GiB | stitch peak RSS per worker GiB | "
+          "halo % | load |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory(dir=args.tmp) as d:
         for shard in args.shard:
             shards = max(1, round(args.total / shard))
@@ -115,7 +119,8 @@ def cmd_scaling(args: argparse.Namespace) -> None:
                 r = run_sharded(h, shards, workers, Path(d) / "s.stl")
                 print(f"| {shard:.0e} | {workers} | {r['shards']} | {r['struts']:,} | "
                       f"{r['wall']:.1f} | {r['rate']:,.0f} | {r['task_cpu']:.1f} | "
-                      f"{r['client_cpu']:.1f} | {fmt_rss(r['rss'])} | {100 * r['halo']:.1f} | "
+                      f"{r['client_cpu']:.1f} | {fmt_rss(r['build_rss'])} | {fmt_rss(r['rss'])} | "
+                      f"{100 * r['halo']:.1f} | "
                       f"{r['load']} |", flush=True)  # fmt: skip
 
 
@@ -132,7 +137,34 @@ def cmd_big(args: argparse.Namespace) -> None:
         print(f"wall {r['wall']:.1f} s ({phases})")
         print(f"{r['rate']:,.0f} struts/s; task CPU {r['task_cpu']:.1f} s, client CPU "
               f"{r['client_cpu']:.1f} s; halo {100 * r['halo']:.1f} %")
-        print(f"peak RSS per worker (GiB): {fmt_rss(r['rss'])}; {r['load']}")  # fmt: skip
+        print(f"peak RSS per worker (GiB): build {fmt_rss(r['build_rss'])}; stitch "
+              f"{fmt_rss(r['rss'])}; client peak RSS "
+              f"{r['client_rss'] / 2**30:.2f} GiB; {r['load']}")  # fmt: skip
+        project(r, args.struts / shards)
+
+
+def project(r: dict, shard_struts: float, total: float = 1e9) -> None:
+    """A 1B-strut job on N workers, projected from one measured run (same cell, same
+    shard size): CPU per strut, peak RSS per worker, triangles per strut."""
+    cpu_per_strut = r["task_cpu"] / r["struts"]
+    tri_per_strut = r["triangles"] / r["struts"]
+    rss = max(max(r["rss"].values()), max(r["build_rss"].values(), default=0))
+    shards = total / shard_struts
+    tris = total * tri_per_strut
+    asm_rate = r["bytes"] / max(r["seconds"].get("assemble", 0.0), 1e-9)
+    print(f"\n## PROJECTION (not a measurement) for a {total:.0e}-strut job, from the run above")
+    print(f"measured: {1e6 * cpu_per_strut:.1f} us task CPU per strut (halo included), "
+          f"{tri_per_strut:.1f} triangles per strut, peak RSS {rss / 2**30:.2f} GiB per worker "
+          f"with ~{shard_struts:,.0f}-strut shards, assembly {asm_rate / 1e6:.0f} MB/s")
+    print(f"job: {shards:,.0f} shards of ~{shard_struts:,.0f} struts, {tris:.3g} triangles "
+          f"({tris * 50 / 1e12:.2f} TB as binary STL: beyond STL's 2^32-triangle count, so the "
+          "output must stay one file per shard or a beam-lattice 3MF)")
+    print("| workers (1 core each) | stitch+build wall (h) | peak RSS per worker GiB | "
+          "cluster RAM GiB |")
+    print("|---|---|---|---|")
+    for n in (2, 16, 64, 256, 1024):
+        wall = -(-shards // n) * shard_struts * cpu_per_strut / 3600  # rounds of shards
+        print(f"| {n} | {wall:.2f} | {rss / 2**30:.2f} | {n * rss / 2**30:.0f} |")
 
 
 def cmd_single(args: argparse.Namespace) -> None:

@@ -220,11 +220,15 @@ def inside_cells(
     h: NDArray[np.float64],
     lo: ArrayLike,
     hi: ArrayLike,
+    *,
+    with_cut: bool = False,
 ) -> NDArray[np.bool_]:
     """Inside cells of the block ``lo <= (i, j, k) < hi`` of the grid ``(start, h)``.
 
     Bit-identical to ``voxelize(...).inside[lo:hi]`` of the whole grid (the same
-    arithmetic per point and cell), in memory proportional to the block.
+    arithmetic per point and cell), in memory proportional to the block. With
+    ``with_cut``: the inside and the cut cells (``inside | cut``, the cells that
+    ``fill="clip"`` and ``"conform"`` tile).
 
     Returns
     -------
@@ -244,6 +248,8 @@ def inside_cells(
         & corner[:-1, 1:, 1:]
         & corner[1:, 1:, 1:]
     )
+    if with_cut:
+        return all_in | cut
     return all_in & ~cut
 
 
@@ -487,8 +493,17 @@ def _finish(
 
 # ------------------------------------------------------------------- clip
 def _clip(
-    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
+    part: Part,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    rep: BuildReport,
+    *,
+    sources: list[NDArray[np.int64]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]:
+    """Cut the struts at the part's surface. The crossing nodes are appended in the order
+    of their struts, then along each strut; ``sources``, if given, receives (K,) int64
+    struts and (K,) int64 crossing numbers of the K new nodes (the sharded path names
+    them by these)."""
     inside = part.contains(nodes)
     a = nodes[edges[:, 0]]
     b = nodes[edges[:, 1]]
@@ -525,6 +540,8 @@ def _clip(
         cross_ids = np.full(t.shape, -1, dtype=np.int64)
         cv = np.argwhere(cols[None, :-1] < k[:, None])
         cross_ids[cv[:, 0], cv[:, 1]] = n0 + np.arange(len(cv))
+        if sources is not None:
+            sources.extend([crossed[cv[:, 0]], cv[:, 1].astype(np.int64)])
         pts = a[crossed][cv[:, 0]] + t[cv[:, 0], cv[:, 1]][:, None] * (
             b[crossed][cv[:, 0]] - a[crossed][cv[:, 0]]
         )
@@ -578,29 +595,7 @@ def _cleanup(
     n = len(nodes)
     if boundary and len(edges):
         # merge surface nodes closer than min_len to another node (conform: projections can meet)
-        surf = np.flatnonzero(on_surface)
-        if len(surf):
-            from scipy.spatial import cKDTree
-
-            tree = cKDTree(nodes)
-            pairs = tree.query_pairs(min_len, output_type="ndarray")
-            pairs = pairs[on_surface[pairs].any(axis=1)]
-            if len(pairs):
-                parent = np.arange(n)
-                # a surface node merges into its partner (an interior node wins)
-                for i, j in pairs.tolist():
-                    ri, rj = _find(parent, i), _find(parent, j)
-                    if ri == rj:
-                        continue
-                    if on_surface[ri] and not on_surface[rj]:
-                        parent[ri] = rj
-                    else:
-                        parent[rj] = ri
-                root = np.array([_find(parent, i) for i in range(n)])
-                rep.merged_nodes = int((root != np.arange(n)).sum())
-                edges = root[edges]
-                edges = edges[edges[:, 0] != edges[:, 1]]
-                edges = np.unique(np.sort(edges, axis=1), axis=0)
+        edges, _ = merge_close(nodes, edges, on_surface, min_len, rep)
         length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
         short = length < min_len
         rep.removed_short = int(short.sum())
@@ -642,6 +637,56 @@ def _cleanup(
     used[np.ascontiguousarray(edges).ravel()] = True
     rep.removed_isolated = int((~used).sum())
     return _renumber(nodes, edges, used)
+
+
+def merge_close(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    on_surface: NDArray[np.bool_],
+    min_len: float,
+    rep: BuildReport | None = None,
+) -> tuple[NDArray[np.int64], NDArray[np.int64] | None]:
+    """Merge every surface node closer than ``min_len`` to another node into it (an
+    interior node wins; between two surface nodes the lower id wins).
+
+    The pairs are taken in ascending (i, j) order, so the result depends only on the
+    nodes' relative order, not on the k-d tree's traversal (a block of the lattice with
+    the nodes in the same order merges a cluster the same way).
+
+    Returns
+    -------
+    edges : (M', 2) int64
+        Renamed onto the surviving nodes, loops dropped, unique, ``edges[:, 0] <
+        edges[:, 1]`` (unchanged when nothing merges).
+    root : (N,) int64 or None
+        The node each node merged into (itself if none); None when nothing merged.
+    """
+    n = len(nodes)
+    if not on_surface.any() or not len(edges):
+        return edges, None
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(nodes).query_pairs(min_len, output_type="ndarray")
+    pairs = pairs[on_surface[pairs].any(axis=1)]
+    if not len(pairs):
+        return edges, None
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    parent = np.arange(n)
+    for i, j in pairs.tolist():
+        ri, rj = _find(parent, i), _find(parent, j)
+        if ri == rj:
+            continue
+        if on_surface[ri] and not on_surface[rj]:
+            parent[ri] = rj
+        else:
+            parent[rj] = ri
+    root = np.array([_find(parent, i) for i in range(n)], dtype=np.int64)
+    if rep is not None:
+        rep.merged_nodes = int((root != np.arange(n)).sum())
+    edges = root[edges]
+    edges = edges[edges[:, 0] != edges[:, 1]]
+    edges = np.unique(np.sort(edges, axis=1), axis=0)
+    return edges, root
 
 
 _BLOCK = 1 << 16

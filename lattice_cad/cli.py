@@ -919,7 +919,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
             ("--skin", args.skin is not None),
             ("--keep", args.keep is not None),
             ("--escape-holes/--escape-at", args.escape_holes is not None or args.escape_at),
-            ("--beam-lattice", bool(args.beam_lattice)),
+            ("--beam-lattice=only", args.beam_lattice == "only"),
             ("--report", args.report is not None),
             ("--remove-overhangs", args.remove_overhangs),
             ("--self-supporting", args.self_supporting),
@@ -930,7 +930,8 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
     if refused:
         raise ShardingError(
             f"{', '.join(refused)} cannot be combined with --shards (the sharded path writes "
-            "the stitched lattice of fill inside as .stl or .3mf)"
+            "the stitched lattice of fill inside, clip or conform as .stl or .3mf, with "
+            "--beam-lattice one object per shard)"
         )
     with con.step(f"sharded fill ({args.shards} shards)"):
         res = fill_sharded(
@@ -945,6 +946,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
             fill=args.fill or "inside",
             segments=args.segments,
             progress=not con.quiet,
+            beam_lattice=bool(args.beam_lattice),
         )
     con.say(res.summary())
     return 0

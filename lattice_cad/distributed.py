@@ -37,15 +37,27 @@ Why the pieces fit together exactly
   block prove it exact (else :class:`ShardingError`). The largest connected piece (per
   solid of the part) is found by a union-find over the shards' component labels, joined
   by the global ids of the nodes two shards share.
+- **Clip and conform.** The cut cells are tiled too; conform moves outer nodes onto the
+  surface, clip adds a node where a strut crosses it, named by the strut's first end,
+  direction and crossing number (ids beyond every lattice id, in the one-process order)
+  and owned with its strut. Surface nodes closer than ``min_strut`` cells are merged in
+  ascending pair order (``conformal.voxel.merge_close``), so a cluster merges the same
+  way in any block that holds all of it; a shard whose needed clusters come within a
+  strut length plus ``min_strut`` of its region's cut faces raises
+  :class:`ShardingError` (the default halo is 3 cells for these fills). Pieces are
+  joined over the struts a shard knows exactly (kept by the lower pruning bound, clear of
+  unsure merges), and pieces without an interior node (fragments) are dropped globally.
 
-Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits) of any
+Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits), ``"clip"``
+and ``"conform"`` of any
 built-in or user cell without rotation, a scalar or callable radius (a picklable
 function of the (M, 3) strut midpoints), ``fit="shrink"`` when it thins nothing near a
-block and ``fit="off"``; written as binary STL (any size) or 3MF (one merged mesh, up
-to :data:`MAX_3MF_TRIANGLES`). Refused with :class:`ShardingError`: ``"clip"`` and
-``"conform"`` (their surface clean-up merges nodes by distance across blocks),
+block and ``fit="off"``; written as binary STL (up to 2^32 triangles) or 3MF: one merged
+mesh up to :data:`MAX_3MF_TRIANGLES`, beyond (or with ``threemf="shards"``) one object
+per shard in its own model part (Production extension, :mod:`lattice_cad.io.sharded_3mf`),
+also with beams (``beam_lattice=True``). Refused with :class:`ShardingError`:
 ``rotation``, skins, keep zones, trimming to the part (the output is the stitched
-lattice, ``Lattice.mesh(lattice_only=True)``), beam-lattice 3MF and ``method="lslt"``.
+lattice, ``Lattice.mesh(lattice_only=True)``) and ``method="lslt"``.
 
 :func:`stitch_sharded` does the same for a user graph held as NPZ shards
 (:func:`write_graph_shards`): struts are routed to spatial blocks (those with an end
@@ -94,8 +106,8 @@ __all__ = [
 ]
 
 INSTALL_HINT = "pip install 'lattice-cad[distributed]'"
-#: Largest sharded 3MF (one merged mesh object; a 3MF object must be closed, so the open
-#: shard pieces cannot be objects of their own).
+#: Largest sharded 3MF written as one merged mesh object (welded in the client); beyond,
+#: ``threemf="auto"`` writes one object per shard (``lattice_cad.io.sharded_3mf``).
 MAX_3MF_TRIANGLES = 20_000_000
 _HEADER = b"lattice-cad sharded binary STL"
 _REC = np.dtype([("n", "<f4", 3), ("v", "<f4", 9), ("attr", "<u2")])
@@ -120,7 +132,9 @@ class ShardStats:
     """What one shard did (returned by its stitch task).
 
     ``struts`` counts the struts of its graph (halo included), ``owned_struts`` those it
-    wrote; ``peak_rss`` is the worker process's peak resident memory (bytes) after it.
+    wrote; ``peak_rss`` is the worker process's peak resident memory (bytes) during this
+    task (the peak is reset when the task starts where Linux allows it, see
+    :func:`_reset_peak`; else the process's lifetime peak).
     """
 
     shard: int
@@ -158,14 +172,23 @@ class ShardedResult:
     seconds: dict[str, float] = field(default_factory=dict)
     removed_dangling: int = 0
     removed_islands: int = 0
+    removed_fragments: int = 0
+    build_rss: dict[str, int] = field(default_factory=dict)
 
     @property
     def peak_rss_per_worker(self) -> dict[str, int]:
-        """Peak resident memory (bytes) of each worker process."""
+        """Peak resident memory (bytes) of each worker in the stitch phase (stitch one
+        shard, write its piece; the 3MF parts too when written in shards)."""
         out: dict[str, int] = {}
         for s in self.shards:
             out[s.worker] = max(out.get(s.worker, 0), s.peak_rss)
         return out
+
+    @property
+    def build_peak_rss_per_worker(self) -> dict[str, int]:
+        """Peak resident memory (bytes) of each worker in the build phase
+        (:func:`fill_sharded`; classify, tile, prune one block)."""
+        return dict(self.build_rss)
 
     @property
     def halo_overhead(self) -> float:
@@ -180,13 +203,35 @@ class ShardedResult:
             f"{len(self.shards)} shard(s); halo overhead {100 * self.halo_overhead:.1f} %",
             "  " + ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items()),
         ]
+        build = self.build_rss
         for w, rss in sorted(self.peak_rss_per_worker.items()):
-            lines.append(f"  worker {w}: peak RSS {rss / 2**20:.0f} MiB")
+            b = f", build {build[w] / 2**20:.0f} MiB" if w in build else ""
+            lines.append(f"  worker {w}: peak RSS stitch {rss / 2**20:.0f} MiB{b}")
         return "\n".join(lines)
 
 
 # ===================================================================== helpers
+def _reset_peak() -> bool:
+    """Reset this process's peak resident memory (Linux >= 4.0: ``clear_refs`` 5), so
+    that :func:`_peak_rss` measures one task (a worker runs one task at a time)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
 def _peak_rss() -> int:
+    """Peak resident memory (bytes) since the last :func:`_reset_peak` (VmHWM), or the
+    process's lifetime peak (``ru_maxrss``)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
@@ -391,6 +436,9 @@ class _FillSpec:
     hops: int
     tmpdir: str
     threads: int
+    beams: bool = False
+    fill: str = "inside"
+    min_len: float = 0.0
 
 
 def _block(spec: _FillSpec, shard: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -403,6 +451,15 @@ def _block(spec: _FillSpec, shard: int) -> tuple[NDArray[np.int64], NDArray[np.i
 def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
     """Phase 1 of a shard: classify, tile, prune; save the shard graph; report its
     connected pieces (for the global largest-piece selection)."""
+    _reset_peak()
+    out = _fill_build_task(spec, shard)
+    if out is not None:
+        out["peak_rss"] = _peak_rss()
+        out["worker"] = _worker_name()
+    return out
+
+
+def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -418,7 +475,8 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         lo, hi = _block(spec, shard)
         r_lo = np.maximum(lo - spec.halo, 0)
         r_hi = np.minimum(hi + spec.halo, dims)
-        inside = conformal.inside_cells(part, start, h, r_lo, r_hi)
+        boundary = spec.fill in ("clip", "conform")
+        inside = conformal.inside_cells(part, start, h, r_lo, r_hi, with_cut=boundary)
         ijk = np.argwhere(inside).astype(np.int64) + r_lo
         where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
         if not len(ijk):
@@ -435,9 +493,23 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
                 incomplete |= nijk[:, a] == r_hi[a] * den
         ncell = np.minimum(nijk // den, dims - 1)
         owned = ((ncell // size) == (lo // size)).all(axis=1)
-        if spec.prune:
-            alive = _prune(n, edges, incomplete)
-            lower = _prune(n, edges, np.zeros(n, dtype=bool))
+        on_surface = np.zeros(n, dtype=bool)
+        bad = None
+        span = dims * den + 1
+        key = _pack(nijk, span)
+        if boundary:
+            nodes, edges, on_surface, bad, src, new_key = _boundary_fill(
+                part, spec, nodes, edges, nijk, key, start, h, r_lo, r_hi, dims, den
+            )
+            if len(src):  # clip's crossing nodes: named and owned as their struts
+                owned = np.concatenate([owned, owned[src]])
+                incomplete = np.concatenate([incomplete, np.zeros(len(src), dtype=bool)])
+                nijk = np.concatenate([nijk, nijk[src]])
+                key = np.concatenate([key, new_key])
+                n = len(nodes)
+        if spec.prune:  # surface nodes are never pruned (as in one process)
+            alive = _prune(n, edges, incomplete | on_surface)
+            lower = _prune(n, edges, on_surface)
         else:
             alive = lower = np.ones(len(edges), dtype=bool)
         # the nodes whose hubs this shard needs: its own, their neighbours (and theirs
@@ -455,6 +527,16 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
                 f"{where}: pruning dangling struts reaches beyond the halo of {spec.halo} "
                 "cell(s); use a larger halo (or prune=False)"
             )
+        # struts whose state this shard knows exactly: kept in the lower bound of pruning,
+        # and (clip/conform) clear of node merges that may involve nodes beyond the halo
+        trusted = lower[alive]
+        if bad is not None:
+            if (relevant & bad[edges].any(axis=1)).any():
+                raise ShardingError(
+                    f"{where}: merging close surface nodes reaches beyond the halo of "
+                    f"{spec.halo} cell(s); use a larger halo"
+                )
+            trusted &= ~bad[edges[alive]].any(axis=1)
         pruned_owned = int((~alive & owned[edges[:, 0]]).sum())
         edges = edges[alive]
         used = np.zeros(n, dtype=bool)
@@ -462,14 +544,18 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         if not owned[edges[:, 0]].any() and not (owned & used).any():
             return {"shard": shard, "empty": True, "pruned": pruned_owned}
         new_id = np.cumsum(used) - 1
-        nodes, nijk, owned = nodes[used], nijk[used], owned[used]
+        nodes, nijk, owned, on_surface = nodes[used], nijk[used], owned[used], on_surface[used]
+        key = key[used]
         edges = new_id[edges]
-        span = dims * den + 1
-        key = _pack(nijk, span)
-        g = coo_matrix(
-            (np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(nodes), len(nodes))
-        )
+        # connected pieces over the struts known exactly (all of them for "inside");
+        # joined across shards by the nodes they share, they give the global pieces
+        te = edges[trusted] if boundary else edges
+        g = coo_matrix((np.ones(len(te)), (te[:, 0], te[:, 1])), shape=(len(nodes), len(nodes)))
         n_lab, label = connected_components(g, directed=False)
+        interior = np.zeros(n_lab, dtype=bool)
+        t_used = np.zeros(len(nodes), dtype=bool)
+        t_used[te.ravel()] = True
+        interior[label[t_used & ~on_surface]] = True
         own_e = owned[edges[:, 0]]
         owned_count = np.bincount(label[edges[own_e, 0]], minlength=n_lab)
         min_key = np.full(n_lab, np.iinfo(np.int64).max, dtype=np.int64)
@@ -500,7 +586,79 @@ def _fill_build(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             "rep": rep,
             "link_key": key[link],
             "link_label": label[link],
+            "interior": interior,
         }
+
+
+def _boundary_fill(
+    part: Any,
+    spec: _FillSpec,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    nijk: NDArray[np.int64],
+    key: NDArray[np.int64],
+    start: NDArray[np.float64],
+    h: NDArray[np.float64],
+    r_lo: NDArray[np.int64],
+    r_hi: NDArray[np.int64],
+    dims: NDArray[np.int64],
+    den: int,
+) -> tuple[
+    NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_], NDArray[np.bool_],
+    NDArray[np.int64], NDArray[np.int64],
+]:  # fmt: skip
+    """``fill="clip"`` or ``"conform"`` on a shard's region, as ``conformal.voxel_lattice``
+    does it on the whole grid: surface nodes, close-node merges, short struts removed.
+
+    Returns nodes, edges (node ids kept: merged nodes lose their struts; clip's crossing
+    nodes appended in the order of their struts, as in one process), ``on_surface``,
+    ``bad`` (N,) bool: nodes whose merge cluster may reach a node beyond the region (one
+    closer to a cut face of the region than the longest strut plus ``min_len``: a node
+    beyond the face moves at most a strut length), and for clip's K crossing nodes the
+    lattice node each inherits its owner from (the strut's first end) and its global id
+    (beyond every lattice id: the strut's first end, direction and crossing number).
+    """
+    from conformal.voxel import BuildReport, _clip, _conform, merge_close
+
+    lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
+    src = np.zeros(0, dtype=np.int64)
+    new_key = np.zeros(0, dtype=np.int64)
+    if spec.fill == "conform":
+        nodes, edges, on_surface = _conform(part, nodes, edges, BuildReport())
+    elif spec.fill == "clip":
+        sources: list[NDArray[np.int64]] = []
+        n0 = len(nodes)
+        strut_edges = edges
+        nodes, edges, on_surface = _clip(part, nodes, edges, BuildReport(), sources=sources)
+        if sources:
+            strut, j = sources
+            a, b = strut_edges[strut, 0], strut_edges[strut, 1]
+            src = a
+            w = 2 * den + 1
+            d = nijk[b] - nijk[a] + den
+            d_code = (d[:, 0] * w + d[:, 1]) * w + d[:, 2]
+            span = dims * den + 1
+            base = int(np.prod(span))
+            new_key = base + (key[a] * w**3 + d_code) * 9 + j
+        assert len(nodes) == n0 + len(src)
+    else:
+        raise ShardingError(f"fill={spec.fill!r} is not supported sharded")
+    n = len(nodes)
+    edges, root = merge_close(nodes, edges, on_surface, spec.min_len)
+    length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+    edges = edges[length >= spec.min_len]
+    margin = lmax + spec.min_len
+    near = np.zeros(n, dtype=bool)
+    for a in range(3):
+        if r_lo[a] > 0:
+            near |= nodes[:, a] < start[a] + r_lo[a] * h[a] + margin
+        if r_hi[a] < dims[a]:
+            near |= nodes[:, a] > start[a] + r_hi[a] * h[a] - margin
+    if root is None:
+        return nodes, edges, on_surface, near, src, new_key
+    bad_root = np.zeros(n, dtype=bool)
+    bad_root[root[near]] = True
+    return nodes, edges, on_surface, bad_root[root], src, new_key
 
 
 def _fill_stitch(
@@ -517,6 +675,7 @@ def _fill_stitch(
     """Phase 2 of a shard: keep the selected pieces, radii, stitch, write owned triangles."""
     from conformal.radius import fit_radii, resolve_radii
 
+    _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     with _threads(spec.threads):
         data = np.load(Path(spec.tmpdir) / f"graph-{shard}.npz")
@@ -556,6 +715,8 @@ def _fill_stitch(
         nodes, owned = _compact(nodes, owned, used)
         edges = (np.cumsum(used) - 1)[edges]
         owned_strut = owned[edges[:, 0]]
+        if spec.beams:  # the owned struts as beams (degrees of the whole lattice)
+            _save_beams(Path(spec.tmpdir) / f"beams-{shard}.npz", nodes, edges, r, owned_strut)
         n = _stitch_owned(
             nodes, edges, r, owned, owned_strut,
             segments=segments, seed=seed, profile=profile,
@@ -571,6 +732,77 @@ def _fill_stitch(
             peak_rss=_peak_rss(),
             worker=_worker_name(),
         )
+
+
+def _save_beams(
+    path: Path,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    owned_strut: NDArray[np.bool_],
+) -> None:
+    """The owned struts of a shard as beams: their nodes, edges, radii, and the degree of
+    each node in the shard graph (complete at the ends of owned struts)."""
+    degree = np.bincount(edges.ravel(), minlength=len(nodes))
+    e = edges[owned_strut]
+    used = np.zeros(len(nodes), dtype=bool)
+    used[e.ravel()] = True
+    np.savez(path, nodes=nodes[used], edges=(np.cumsum(used) - 1)[e],
+             radii=radii[owned_strut], degree=degree[used])  # fmt: skip
+
+
+def _piece_part(tmpdir: str, shard: int, beams: bool) -> dict[str, Any]:
+    """Phase 3 (3MF in shards) of a shard: its STL piece welded by exact coordinates (and
+    its beams) as a one-object 3MF, ``part-K.3mf``."""
+    from lattice_cad.io.sharded_3mf import write_part
+
+    work = Path(tmpdir)
+    recs = np.fromfile(work / f"piece-{shard}.stl", dtype=_REC)
+    corners = np.ascontiguousarray(recs["v"]).reshape(-1, 3)
+    del recs
+    # weld by the exact float32 coordinates (the seams' vertices are bit-identical)
+    keyed = corners.view(np.dtype((np.void, 12))).ravel()
+    _, first, inverse = np.unique(keyed, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")  # vertices in order of first use
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    vertices = corners[first[order]].astype(np.float64)
+    faces = rank[inverse.ravel()].reshape(-1, 3).astype(np.int64)
+    b = None
+    if beams:
+        with np.load(work / f"beams-{shard}.npz") as d:
+            b = {k: d[k] for k in ("nodes", "edges", "radii", "degree")}
+    return write_part(work / f"part-{shard}.3mf", vertices, faces, name=f"shard {shard}",
+                      beams=b)  # fmt: skip
+
+
+def _assemble_3mf_shards(
+    client: Any,
+    out: Path,
+    work: Path,
+    shards: Sequence[int],
+    *,
+    beams: bool,
+    retries: int,
+    progress: bool,
+) -> None:
+    """One 3MF whose build object is made of one component per shard (Production
+    extension ``p:path`` parts), each shard's part written by a worker."""
+    from lattice_cad.io.sharded_3mf import assemble_parts
+
+    metas = _run(client, _piece_part, [(str(work), s, beams) for s in shards],
+                 retries=retries, progress=progress, desc="3mf")  # fmt: skip
+    assemble_parts(out, [work / f"part-{s}.3mf" for s in shards], metas, name="lattice")
+
+
+def _threemf_layout(mode: str, triangles: int, beams: bool) -> str:
+    if mode not in ("auto", "merged", "shards"):
+        raise ValueError(f"threemf={mode!r}: choose 'auto', 'merged' or 'shards'")
+    if beams:
+        return "shards"
+    if mode == "auto":
+        return "shards" if triangles > MAX_3MF_TRIANGLES else "merged"
+    return mode
 
 
 # =============================================================== orchestration
@@ -680,8 +912,9 @@ def _assemble(
 
     if triangles > MAX_3MF_TRIANGLES:
         raise ShardingError(
-            f"{path}: a sharded 3MF is one merged mesh, at most {MAX_3MF_TRIANGLES:,} "
-            f"triangles ({triangles:,} here): write .stl instead"
+            f"{path}: a merged sharded 3MF holds at most {MAX_3MF_TRIANGLES:,} "
+            f"triangles ({triangles:,} here): use threemf='shards' (one object per shard) "
+            "or write .stl"
         )
     recs = np.concatenate([np.fromfile(p, dtype=_REC) for p in pieces]) if pieces else None
     if recs is None or not len(recs):
@@ -728,7 +961,7 @@ def fill_sharded(
     shards: int = 2,
     scheduler: Any = None,
     workers: int | None = None,
-    fill: Literal["inside", "auto"] = "inside",
+    fill: Literal["inside", "auto", "clip", "conform"] = "inside",
     segments: int = config.DEFAULT_SEGMENTS,
     seed: int = 0,
     origin: Any = None,
@@ -737,16 +970,19 @@ def fill_sharded(
     fit: Literal["shrink", "off"] = "shrink",
     min_radius: float | None = None,
     profile: str = config.DEFAULT_PROFILE,
+    min_strut: float = 0.1,
     halo: int | None = None,
     retries: int = 2,
     threads_per_task: int = 1,
     progress: bool = False,
     tmpdir: str | os.PathLike[str] | None = None,
+    threemf: Literal["auto", "merged", "shards"] = "auto",
+    beam_lattice: bool = False,
 ) -> ShardedResult:
     """Fill a part with a lattice on a Dask cluster, one block of cells per task.
 
     The same lattice as ``conformal.voxel_lattice(part, cell, cell_size, radius,
-    fill="inside", segments=segments, profile=profile)`` stitched by
+    fill=fill, segments=segments, profile=profile)`` stitched by
     ``fast_stitch.stitch(graph, segments, seed=seed, profile=profile)``: the
     written triangles are those of the single-process result (see the module docstring).
 
@@ -767,15 +1003,24 @@ def fill_sharded(
         LocalCluster of ``workers`` processes with one thread each.
     workers : int, optional
         Worker processes of the LocalCluster (default 2; ignored with ``scheduler``).
-    fill : {"inside", "auto"}
+    fill : {"inside", "auto", "clip", "conform"}
         ``"auto"`` is ``"inside"`` (other fills are refused when no whole cell fits).
+        ``"clip"`` / ``"conform"``: the cut cells too, struts cut at the surface / outer
+        nodes moved onto it, surface nodes closer than ``min_strut`` cells merged (as
+        ``conformal.voxel_lattice``); a shard whose merges could reach beyond its halo
+        raises :class:`ShardingError`.
+    min_strut : float
+        ``"clip"`` / ``"conform"``: merge distance and shortest strut, in cells (as
+        ``conformal.voxel_lattice``).
     fit : {"shrink", "off"}
         ``"shrink"`` checks that the single-process fitting (for ``segments`` and
         ``profile``) would thin nothing near any block (else :class:`ShardingError`).
     halo : int, optional
-        Cells of overlap on every side of a block. For cells whose struts stay inside the
-        cell, 2 suffices with ``profile="area"``, ``"inscribed"`` or ``"circumscribed"``
-        and 3 with ``"volume"`` (whose hub scales reach one strut further); the default.
+        Cells of overlap on every side of a block. The default: 1 cell for the struts of
+        cells that stay inside the cell (2 for ``"clip"`` / ``"conform"``, whose merges of
+        surface nodes reach a strut length plus ``min_strut`` further), plus 1 for the
+        neighbours' hubs (2 with ``profile="volume"``, whose hub scales reach one strut
+        further). A halo too small for what a shard finds raises :class:`ShardingError`.
     retries : int
         Dask retries of a failed task (a worker that dies is replaced and its tasks rerun).
     threads_per_task : int
@@ -784,6 +1029,16 @@ def fill_sharded(
         A progress bar over the shards of each phase.
     tmpdir : path, optional
         Where shard graphs and pieces go (must be shared by the client and the workers).
+    threemf : {"auto", "merged", "shards"}
+        A ``.3mf`` output as one merged mesh object (``"merged"``, welded in the client),
+        or as one object per shard in its own model part, referenced by one components
+        object of the build (``"shards"``, 3MF Production extension: see
+        :mod:`lattice_cad.io.sharded_3mf`; the workers write the parts, the client only
+        streams them into the zip). ``"auto"``: merged up to :data:`MAX_3MF_TRIANGLES`.
+    beam_lattice : bool
+        With a ``.3mf`` output: each shard's object also holds its struts as beams (3MF
+        Beam Lattice extension, balls at the joints), beside its triangles; always
+        written in shards.
 
     Returns
     -------
@@ -805,15 +1060,18 @@ def fill_sharded(
     _check_profile(profile)
     out = check_target(path)
     fmt = _format(out)
-    if fill not in ("inside", "auto"):
+    if fill not in ("inside", "auto", "clip", "conform"):
         raise ShardingError(
-            f"fill={fill!r} is not supported sharded (only 'inside'): 'clip' and 'conform' "
-            "merge surface nodes by distance across blocks; run them in one process"
+            f"fill={fill!r} is not supported sharded (choose 'inside', 'auto', 'clip' or "
+            "'conform')"
         )
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
+    _threemf_layout(threemf, 0, False)
     if halo is None:
-        halo = 1 + _hops(profile)
+        halo = (2 if fill in ("clip", "conform") else 1) + _hops(profile)
+    if beam_lattice and fmt != "3mf":
+        raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
         raise ValueError(f"halo and shards must be >= 1 and retries >= 0 (got {halo}, "
                          f"{shards}, {retries})")  # fmt: skip
@@ -834,6 +1092,8 @@ def fill_sharded(
         start=tuple(start.tolist()), h=tuple(h.tolist()), dims=tuple(dims.tolist()),
         counts=tuple(counts.tolist()), size=tuple(size.tolist()), halo=int(halo),
         prune=bool(prune), hops=_hops(profile), tmpdir="", threads=int(threads_per_task),
+        beams=bool(beam_lattice), fill=fill if fill in ("clip", "conform") else "inside",
+        min_len=float(min_strut) * float(h.min()),
     )  # fmt: skip
     n_shards = int(np.prod(counts))
     result = ShardedResult(path=out, struts=0, triangles=0)
@@ -844,6 +1104,10 @@ def fill_sharded(
                      retries=retries, progress=progress, desc="build")  # fmt: skip
         result.seconds["build"] = time.perf_counter() - t0
         result.removed_dangling = sum(int(b["pruned"]) for b in built if b is not None)
+        for b in built:
+            if b is not None:
+                w = b["worker"]
+                result.build_rss[w] = max(result.build_rss.get(w, 0), int(b["peak_rss"]))
         live = [b for b in built if b is not None and not b["empty"]]
         if not live:
             raise _nothing_fits(the_part, h, radius if not callable(radius) else 0.0,
@@ -860,8 +1124,13 @@ def fill_sharded(
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
         t0 = time.perf_counter()
-        pieces = [work / f"piece-{s.shard}.stl" for s in result.shards]
-        _assemble(out, pieces, result.triangles, fmt=fmt)
+        if fmt == "3mf" and _threemf_layout(threemf, result.triangles, beam_lattice) == "shards":
+            _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
+                                 beams=bool(beam_lattice), retries=retries,
+                                 progress=progress)  # fmt: skip
+        else:
+            pieces = [work / f"piece-{s.shard}.stl" for s in result.shards]
+            _assemble(out, pieces, result.triangles, fmt=fmt)
         result.seconds["assemble"] = time.perf_counter() - t0
     result.seconds["total"] = time.perf_counter() - t_start
     return result
@@ -894,6 +1163,12 @@ def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult)
     all_rep = np.concatenate([b["rep"] for b in live])
     ok = ~np.isnan(all_rep[:, 0])
     rep[root[ok]] = all_rep[ok]
+    # pieces without an interior node (clip/conform: fragments of surface nodes) go first
+    interior = np.zeros(n_root, dtype=bool)
+    np.logical_or.at(interior, root, np.concatenate([b["interior"] for b in live]))
+    fragments = (size > 0) & ~interior
+    result.removed_fragments = int(size[fragments].sum())
+    size = np.where(fragments, 0, size)
     present = np.flatnonzero(size > 0)
     # the order of conformal's labels: by the smallest global node id of each piece
     present = present[np.argsort(min_key[present], kind="stable")]
@@ -1006,6 +1281,7 @@ def _graph_stitch(
     threads: int,
 ) -> ShardStats | None:
     """Reduce step: one block's struts (halo included), stitched; owned triangles written."""
+    _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     lo, step, counts, _ = (np.asarray(x) for x in box)
     parts = [_read_shard(p) for p in inputs if Path(p).exists()]
@@ -1059,6 +1335,7 @@ def stitch_sharded(
     threads_per_task: int = 1,
     progress: bool = False,
     tmpdir: str | os.PathLike[str] | None = None,
+    threemf: Literal["auto", "merged", "shards"] = "auto",
 ) -> ShardedResult:
     """Stitch a graph held as NPZ shards (:func:`write_graph_shards`) on a Dask cluster.
 
@@ -1080,7 +1357,7 @@ def stitch_sharded(
         As for :func:`fast_stitch.stitch` (``method="verma"``).
     blocks : int
         Spatial blocks (stitch tasks), at least.
-    scheduler, workers, retries, threads_per_task, progress, tmpdir
+    scheduler, workers, retries, threads_per_task, progress, tmpdir, threemf
         As for :func:`fill_sharded`.
 
     Returns
@@ -1092,6 +1369,7 @@ def stitch_sharded(
     _check_profile(profile)
     out = check_target(path)
     fmt = _format(out)
+    _threemf_layout(threemf, 0, False)
     srcs = [str(Path(p).resolve()) for p in graph_shards]
     for p in srcs:
         if not Path(p).is_file():
@@ -1136,8 +1414,12 @@ def stitch_sharded(
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
         t0 = time.perf_counter()
-        _assemble(out, [work / f"piece-{s.shard}.stl" for s in result.shards],
-                  result.triangles, fmt=fmt)  # fmt: skip
+        if fmt == "3mf" and _threemf_layout(threemf, result.triangles, False) == "shards":
+            _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
+                                 beams=False, retries=retries, progress=progress)  # fmt: skip
+        else:
+            _assemble(out, [work / f"piece-{s.shard}.stl" for s in result.shards],
+                      result.triangles, fmt=fmt)  # fmt: skip
         result.seconds["assemble"] = time.perf_counter() - t0
     result.seconds["total"] = time.perf_counter() - t_start
     return result

@@ -234,8 +234,8 @@ def test_cli_shards(client, tmp_path, capsys):
 def test_refusals(tmp_path, monkeypatch, capsys):
     from lattice_cad.cli import main
 
-    with pytest.raises(ShardingError, match="'clip'"):
-        fill_sharded(PART, tmp_path / "a.stl", fill="clip")  # type: ignore[arg-type]
+    with pytest.raises(ShardingError, match="'tet'.*not supported sharded"):
+        fill_sharded(PART, tmp_path / "a.stl", fill="tet")  # type: ignore[arg-type]
     with pytest.raises(ShardingError, match=r"\.stl or \.3mf"):
         fill_sharded(PART, tmp_path / "a.ply")
     code = main(["fill", str(PART), "-o", str(tmp_path / "b.stl"), "--shards", "2",

@@ -625,12 +625,16 @@ def _set_beams(
     offset: int,
     balls: bool,
     digest: Any,
+    *,
+    degree: NDArray[np.int64] | None = None,
 ) -> None:
     """The beams (and balls) of ``graph`` on ``obj``, whose vertex ``offset + i`` is the
-    ``i``-th used node. used : (U,) int64 node ids, edges : (M, 2) int64 into ``used``."""
+    ``i``-th used node. used : (U,) int64 node ids, edges : (M, 2) int64 into ``used``;
+    degree : (U,) int64, optional: the nodes' degrees in a larger lattice (a shard's part
+    of it: caps and balls follow the whole lattice), default the graph's own."""
     bl = obj.BeamLattice()
     bl.SetMinLength(float(min(1e-4, 0.5 * graph.edge_lengths.min())))
-    degree = graph.degree[used]
+    degree = graph.degree[used] if degree is None else np.asarray(degree)
     caps = np.where(
         degree[edges] >= 2,
         int(lib3mf.BeamLatticeCapMode.Sphere),

@@ -1,0 +1,83 @@
+"""Sharded ``fill="conform"`` and ``"clip"`` on a LocalCluster: the same oriented triangles as
+``conformal.voxel_lattice(fill=...)`` + ``fast_stitch.stitch`` in one process, on real
+parts, and one closed solid across the seams (trimesh, manifold3d)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from tests.conftest import DATA
+
+distributed = pytest.importorskip("distributed")
+
+import conformal  # noqa: E402
+import fast_stitch  # noqa: E402
+from lattice_cad.core.errors import ShardingError  # noqa: E402
+from lattice_cad.distributed import fill_sharded  # noqa: E402
+from tests.test_distributed import assert_closed, canonical, read_stl, single_triangles  # noqa: E402
+
+MESHES = DATA / "meshes"
+
+
+@pytest.fixture(scope="module")
+def client():
+    """Two worker processes with one thread each, as in CI."""
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+        scheduler_kwargs={"dashboard_address": ":0"},
+    )  # fmt: skip
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+@pytest.mark.parametrize(
+    ("fill", "name", "cells", "merged"),
+    [
+        ("conform", "bunny_closed_odedstein.obj", 12, 1),
+        ("conform", "wingnut.obj", 16, 4),
+        ("clip", "wingnut.obj", 14, 120),
+        pytest.param("clip", "bunny_closed_odedstein.obj", 14, 387, marks=pytest.mark.slow),
+    ],
+)
+def test_boundary_fill_same_triangles_as_one_process(client, tmp_path, fill, name, cells,
+                                                     merged):
+    src = MESHES / name
+    part = conformal.load_part(src)
+    h = float((part.bounds[1] - part.bounds[0]).max()) / cells
+    r = 0.012 * h  # thin enough that no strut is thinned (radius fitting is global)
+    with warnings.catch_warnings(record=True) as w1:  # loose pieces removed: warned
+        warnings.simplefilter("always")
+        graph, rep = conformal.voxel_lattice(part, "bcc", h, r, fill=fill,
+                                             return_report=True)  # fmt: skip
+    assert rep.fill == fill and rep.radii_reduced == 0
+    assert (rep.moved_nodes if fill == "conform" else rep.clipped_struts) > 0
+    assert rep.merged_nodes == merged  # surface nodes merged: the cross-block case is real
+    ref = single_triangles(fast_stitch.stitch(graph, 6))
+    out = tmp_path / "c.stl"
+    with warnings.catch_warnings(record=True) as w2:
+        warnings.simplefilter("always")
+        res = fill_sharded(src, out, "bcc", h, r, shards=4, scheduler=client, fill=fill)
+    assert [str(x.message) for x in w2] == [str(x.message) for x in w1]
+    assert len(res.shards) == 4
+    assert res.struts == graph.num_edges
+    assert res.removed_islands == rep.removed_islands
+    assert res.removed_fragments == rep.removed_fragments
+    rec = read_stl(out)
+    assert len(rec) == res.triangles == len(ref)
+    np.testing.assert_array_equal(canonical(rec["v"]), ref)
+    assert_closed(rec)
+
+
+def test_conform_halo_too_small_is_refused(client, tmp_path):
+    src = MESHES / "bunny_closed_odedstein.obj"
+    part = conformal.load_part(src)
+    h = float((part.bounds[1] - part.bounds[0]).max()) / 12
+    with pytest.raises(ShardingError, match="merging close surface nodes.*larger halo"):
+        fill_sharded(src, tmp_path / "x.stl", "bcc", h, 0.012 * h, shards=4,
+                     scheduler=client, fill="conform", halo=2)  # fmt: skip
+    assert not (tmp_path / "x.stl").exists()
