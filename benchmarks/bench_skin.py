@@ -143,7 +143,8 @@ def main() -> None:
             )
     say()
     labels = [s[0] for s in STAGES] + ["TOTAL (in process)"]
-    head = f"{'stage (median wall / CPU s)':28s}" + "".join(f" | {Path(t).name:>18s}" for t in args.trees)
+    names = "".join(f" | {Path(t).name:>18s}" for t in args.trees)
+    head = f"{'stage (median wall / CPU s)':28s}" + names
     say(head)
     say("-" * len(head))
 
