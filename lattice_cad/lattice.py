@@ -113,9 +113,10 @@ def _collapse_folds(mesh: Mesh, report: Any) -> Mesh:
 
     v, f = mesh.vertices, mesh.faces
     pairs = np.asarray(report.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)
-    t = v[f]
-    area = np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
-    smaller = np.where(area[pairs[:, 0]] <= area[pairs[:, 1]], pairs[:, 0], pairs[:, 1])
+    t = v[f[pairs]]  # (P, 2, 3, 3): only the faces of the pairs
+    e1, e2 = t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]
+    area = np.linalg.norm(np.cross(e1, e2), axis=-1)
+    smaller = np.where(area[:, 0] <= area[:, 1], pairs[:, 0], pairs[:, 1])
     which = np.union1d(np.asarray(report.zero_area_faces, dtype=np.int64), smaller)
     v2, f2 = io.collapse_faces(v, f, which)
     return Mesh(vertices=v2, faces=f2)
@@ -177,6 +178,7 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
 def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
     """:func:`_checked_single_precision` without the sliver collapse."""
     import fast_stitch
+    from fast_stitch.recheck import recheck
     from lattice_cad import io
     from lattice_cad.core.mesh import Mesh, weld
 
@@ -192,8 +194,9 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
         for _ in range(20):  # tiny folds where the booleans left needles: collapse them
             if report.valid:
                 break
-            out = _collapse_folds(out, report)
-            report = fast_stitch.check(out)
+            before, out = out, _collapse_folds(out, report)
+            # self-intersections only near the collapsed faces: the rest is as checked
+            report = recheck(before, report, out)
         if not report.valid:
             raise ExportError(
                 f"{name} cannot be written in single precision (STL, 3MF): rounding its "

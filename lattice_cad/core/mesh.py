@@ -94,10 +94,17 @@ def weld(
     if len(vertices) == 0:
         return vertices, faces
     key = vertices if tol == 0 else np.round(vertices / tol)
-    uniq, inv = np.unique(key, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
-    first = np.full(len(uniq), len(vertices), dtype=np.int64)
-    np.minimum.at(first, inv, np.arange(len(vertices)))
+    # rows in lexicographic order (as np.unique(axis=0), several times faster): a stable
+    # sort, so the first of each group of equal rows is the vertex of lowest index
+    order = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
+    ks = key[order]
+    new = np.empty(len(order), dtype=bool)
+    new[0] = True
+    np.any(ks[1:] != ks[:-1], axis=1, out=new[1:])
+    group = np.cumsum(new) - 1
+    inv = np.empty(len(order), dtype=np.int64)
+    inv[order] = group
+    first = order[new]
     f2 = inv[faces]
     if drop_degenerate:
         keep = (f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])

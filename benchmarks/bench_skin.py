@@ -1,0 +1,179 @@
+"""End-to-end speed of ``lattice-cad fill ... --skin`` on the GE bracket, with a stage table.
+
+Each run is a fresh process (``--child``) that wraps the main stages (functions of the
+package, looked up by name; a stage a tree does not have is skipped) with a timer of wall
+and process CPU seconds, then runs the CLI command. Trees are compared by alternating
+A/B runs; the load average is printed with every run, since the machine is shared.
+
+Usage::
+
+    PYTHONPATH=$PWD python benchmarks/bench_skin.py --trees /work/main $PWD --repeat 3 \
+        --out benchmarks/results/bench_skin.txt
+
+Times of nested stages are inclusive (``booleans`` is ``build_skin`` minus its surfaces,
+lattice conversion, island check and wall measurement).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import importlib
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+PART = "/work/shared/data/step/dolfiny_ge_bracket_rotated_nonds.step"
+ARGS = ["--cell", "octet", "--cell-size", "6", "--radius", "0.5", "--skin", "1.5"]
+
+#: (label, module, attribute path): the stages timed (inclusive).
+STAGES = [
+    ("load part", "lattice_cad.lattice", "_load_part"),
+    ("lattice graph", "lattice_cad.lattice", "_fill_graph"),
+    ("stitch", "fast_stitch", "stitch"),
+    ("skin: build_skin", "conformal.skin", "build_skin"),
+    ("skin: OCCT surfaces", "conformal.skin", "_occt_surfaces"),
+    ("skin: OCCT offset", "lattice_cad.occ_impl.shapes", "offset_solid_isolated"),
+    ("skin: voxel surfaces", "conformal.skin", "_voxel_surfaces"),
+    ("skin: distance field", "conformal.skin", "_distance_field"),
+    ("skin: marching tets", "conformal.skin", "marching_tets"),
+    ("skin: part_solid", "conformal.skin", "part_solid"),
+    ("skin: islands", "conformal.skin", "_keep_attached"),
+    ("skin: wall measure", "conformal.skin", "wall_thickness"),
+    ("escape drill", "lattice_cad.lattice", "Lattice._drill"),
+    ("escape verify", "lattice_cad.lattice", "Lattice._verify_escape"),
+    ("float32 check (all)", "lattice_cad.lattice", "_checked_single_precision"),
+    ("  fast_stitch.check", "fast_stitch", "check"),
+    ("  single_precision", "lattice_cad.io", "single_precision"),
+    ("write", "lattice_cad.io", "save_mesh"),
+]
+
+
+def _wrap(acc: dict, label: str, fn):
+    @functools.wraps(fn)
+    def timed(*a, **k):
+        w0, c0 = time.perf_counter(), time.process_time()
+        try:
+            return fn(*a, **k)
+        finally:
+            rec = acc.setdefault(label, [0.0, 0.0, 0])
+            rec[0] += time.perf_counter() - w0
+            rec[1] += time.process_time() - c0
+            rec[2] += 1
+
+    return timed
+
+
+def child(out: str) -> None:
+    """Run the CLI command in this process with the stages timed; write JSON to ``out``."""
+    w0, c0 = time.perf_counter(), time.process_time()
+    acc: dict = {}
+    import lattice_cad.cli as cli
+
+    for label, mod, attr in STAGES:
+        try:
+            m = importlib.import_module(mod)
+        except ImportError:
+            continue
+        owner, name = m, attr
+        if "." in attr:
+            cls, name = attr.split(".")
+            owner = getattr(m, cls, None)
+        fn = getattr(owner, name, None) if owner is not None else None
+        if fn is None:
+            continue
+        setattr(owner, name, _wrap(acc, label, fn))
+    target = "/tmp/bench_skin_out.stl"
+    rc = cli.main(["--quiet", "fill", PART, *ARGS, "-o", target])
+    wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    acc["TOTAL (in process)"] = [wall, cpu + ru.ru_utime + ru.ru_stime, 1]
+    Path(out).write_text(json.dumps({"rc": rc, "stages": acc}))
+
+
+def run_once(tree: str) -> dict:
+    env = dict(os.environ, PYTHONPATH=tree)
+    out = f"/tmp/bench_skin_{os.getpid()}.json"
+    load = os.getloadavg()[0]
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    w0 = time.perf_counter()
+    subprocess.run(
+        [sys.executable, __file__, "--child", out], env=env, check=True, cwd="/tmp",
+        stdout=subprocess.DEVNULL,
+    )  # fmt: skip
+    wall = time.perf_counter() - w0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    data = json.loads(Path(out).read_text())
+    data["wall"], data["cpu"], data["load"] = wall, cpu, load
+    data["load_after"] = os.getloadavg()[0]
+    return data
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trees", nargs="+", default=[str(Path(__file__).resolve().parents[1])])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--out", default=None, help="also write the tables to this file")
+    ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        child(args.child)
+        return
+    lines: list[str] = []
+
+    def say(s: str = "") -> None:
+        print(s, flush=True)
+        lines.append(s)
+
+    say(f"bench_skin: lattice-cad fill {Path(PART).name} {' '.join(ARGS)} -o x.stl")
+    say(f"machine: {os.cpu_count()} cores; {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())}")
+    runs: dict[str, list[dict]] = {t: [] for t in args.trees}
+    for i in range(args.repeat):
+        for t in args.trees:  # alternating A/B
+            d = run_once(t)
+            runs[t].append(d)
+            say(
+                f"run {i + 1} {t}: wall {d['wall']:.2f} s, CPU {d['cpu']:.2f} s "
+                f"(load avg {d['load']:.2f} -> {d['load_after']:.2f})"
+            )
+    say()
+    labels = [s[0] for s in STAGES] + ["TOTAL (in process)"]
+    names = "".join(f" | {Path(t).name:>18s}" for t in args.trees)
+    head = f"{'stage (median wall / CPU s)':28s}" + names
+    say(head)
+    say("-" * len(head))
+
+    def med(xs: list[float]) -> float:
+        xs = sorted(xs)
+        return xs[len(xs) // 2]
+
+    for lab in labels:
+        cells = []
+        for t in args.trees:
+            vals = [d["stages"].get(lab) for d in runs[t]]
+            if any(v is None for v in vals):
+                cells.append(f"{'-':>18s}")
+            else:
+                w = med([v[0] for v in vals])
+                c = med([v[1] for v in vals])
+                n = vals[0][2]
+                cells.append(f"{w:7.2f} / {c:6.2f} x{n:<2d}")
+        say(f"{lab:28s}" + "".join(f" | {c}" for c in cells))
+    for t in args.trees:
+        ws = [d["wall"] for d in runs[t]]
+        cs = [d["cpu"] for d in runs[t]]
+        say(
+            f"{Path(t).name}: process wall median {med(ws):.2f} s (min {min(ws):.2f}), "
+            f"CPU median {med(cs):.2f} s (min {min(cs):.2f})"
+        )
+    if args.out:
+        Path(args.out).write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()

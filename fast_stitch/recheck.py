@@ -1,0 +1,181 @@
+"""Re-check a mesh after a few of its faces were collapsed, self-intersections near them only.
+
+The float32 export of a boolean result (``lattice_cad.lattice._checked_single_precision``)
+checks the rounded mesh in full, collapses the faces of the problems found (zero-area
+faces, the smaller face of each self-intersecting pair) and checks again, until valid.
+The checks after a collapse need not look for self-intersections everywhere: a pair of
+faces that intersects after the collapse and did not before has a face that changed, and
+when the previous report listed *all* its problems, every pair of unchanged faces is as
+the previous check found it. :func:`recheck` checks the topology of the whole mesh (cheap)
+and the self-intersections of the faces near the changes, and returns a report equivalent
+to :func:`fast_stitch.check` of the whole mesh (the counts of self-intersections are of
+that region); otherwise (an incomplete previous report, or a large changed region) it is
+the full check.
+
+Changed faces: the faces that use a vertex at the position of a vertex of a face the
+previous report named (a collapse keeps one vertex of an edge in place and moves every
+face of the other to it; the faces that keep all their vertices elsewhere keep their
+geometry and their neighbours).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fast_stitch.check import CheckReport, check
+
+__all__ = ["recheck"]
+
+#: Above this fraction of the faces near the changes, the full check is run instead.
+MAX_LOCAL_FRACTION = 0.25
+#: At most this many changed faces for the local check.
+MAX_CHANGED = 5000
+
+
+def _arrays(mesh: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    if isinstance(mesh, tuple):
+        v, f = mesh
+    else:
+        v, f = mesh.vertices, mesh.faces
+    return (
+        np.ascontiguousarray(v, dtype=np.float64).reshape(-1, 3),
+        np.ascontiguousarray(f, dtype=np.int64).reshape(-1, 3),
+    )
+
+
+def _row_hash(v: NDArray[np.float64]) -> NDArray[np.uint64]:
+    """(V,) uint64: a hash of the exact bits of each row of (V, 3) float64 (collisions only
+    make the changed region larger)."""
+    b = np.ascontiguousarray(v, dtype=np.float64).view(np.uint64).reshape(-1, 3)
+    with np.errstate(over="ignore"):
+        h = b[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+        h ^= b[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F) + (h >> np.uint64(29))
+        h ^= b[:, 2] * np.uint64(0x165667B19E3779F9) + (h >> np.uint64(31))
+    return h
+
+
+def _scale(v: NDArray[np.float64], f: NDArray[np.int64]) -> float:
+    """The coordinate scale :func:`fast_stitch.check` uses (over the vertices faces use)."""
+    if len(f) == 0:
+        return 0.0
+    used = np.zeros(len(v), dtype=bool)
+    used[f.ravel()] = True
+    u = v[used]
+    lo, hi = u.min(axis=0), u.max(axis=0)
+    return max(float(np.abs(u).max()), float(np.linalg.norm(hi - lo)))
+
+
+def _near(
+    lo: NDArray[np.float64], hi: NDArray[np.float64], which: NDArray[np.int64], eps: float
+) -> NDArray[np.int64]:
+    """(N,) int64, sorted: the faces whose box (lo, hi: (F, 3)) meets a box of ``which``.
+
+    The changed boxes mark the cells of a coarse grid (cells as large as 99 % of the faces);
+    a face that fits in a cell overlaps at most 2 cells per axis, so it can meet a changed
+    box only if one of the 8 cells at its box corners is marked; the longer faces and those
+    candidates are then tested box against box.
+    """
+    qlo, qhi = lo[which] - eps, hi[which] + eps
+    ext = (hi - lo).max(axis=1)
+    g0 = lo.min(axis=0)
+    span = float((hi.max(axis=0) - g0).max())
+    cell = max(float(np.quantile(ext, 0.99)), span / 256.0, 1e-300)
+    dims = np.floor((hi.max(axis=0) - g0) / cell).astype(np.int64) + 1
+    marked = np.zeros(tuple(dims), dtype=bool)
+    a = np.clip(np.floor((qlo - g0) / cell).astype(np.int64), 0, dims - 1)
+    b = np.clip(np.floor((qhi - g0) / cell).astype(np.int64), 0, dims - 1)
+    for k in range(len(which)):
+        marked[a[k, 0] : b[k, 0] + 1, a[k, 1] : b[k, 1] + 1, a[k, 2] : b[k, 2] + 1] = True
+    big = ext > cell
+    clo = np.clip(np.floor((lo - g0) / cell).astype(np.int64), 0, dims - 1)
+    chi = np.clip(np.floor((hi - g0) / cell).astype(np.int64), 0, dims - 1)
+    hit = big.copy()
+    for cx in (clo[:, 0], chi[:, 0]):
+        for cy in (clo[:, 1], chi[:, 1]):
+            for cz in (clo[:, 2], chi[:, 2]):
+                hit |= marked[cx, cy, cz]
+    cand = np.flatnonzero(hit)
+    clo_, chi_ = lo[cand], hi[cand]
+    mask = np.zeros(len(cand), dtype=bool)
+    for k in range(len(which)):
+        mask |= np.all(clo_ <= qhi[k], axis=1) & np.all(chi_ >= qlo[k], axis=1)
+    out = np.zeros(len(lo), dtype=bool)
+    out[cand[mask]] = True
+    out[which] = True
+    return np.flatnonzero(out)
+
+
+def recheck(
+    before: Any,
+    report: CheckReport,
+    after: Any,
+    *,
+    max_report: int = 100,
+    coplanar_rtol: float = 1e-12,
+) -> CheckReport:
+    """The :func:`fast_stitch.check` report of ``after``, made from ``before`` (whose check
+    was ``report``) by collapsing faces that ``report`` names.
+
+    Parameters
+    ----------
+    before, after : Mesh or (vertices, faces)
+        ``vertices : (V, 3) float64``, ``faces : (F, 3) int64``.
+    report : CheckReport
+        The full check of ``before`` (self-intersections included).
+    max_report, coplanar_rtol
+        As :func:`fast_stitch.check` (the fold tolerance is relative to the scale of the
+        whole of ``after``, also in the local check).
+
+    Returns
+    -------
+    CheckReport
+        The topology of the whole of ``after``; the self-intersections of the faces near
+        the changed ones (all of ``after``'s, see the module docstring), face indices of
+        ``after``.
+    """
+    vb, fb = _arrays(before)
+    va, fa = _arrays(after)
+    zero = np.asarray(report.zero_area_faces, dtype=np.int64).ravel()
+    pairs = np.asarray(report.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)
+    complete = (
+        report.n_self_intersections is not None
+        and len(pairs) == report.n_self_intersections
+        and len(zero) == report.n_zero_area
+    )
+    opts = {"max_report": max_report, "coplanar_rtol": coplanar_rtol}
+    if not complete or len(fa) == 0:
+        return check((va, fa), **opts)
+    named = np.union1d(zero, pairs.ravel())
+    marked = np.isin(_row_hash(va), _row_hash(vb[fb[named]].reshape(-1, 3)))
+    changed = np.flatnonzero(marked[fa].any(axis=1))
+    if len(changed) > MAX_CHANGED:
+        return check((va, fa), **opts)
+    topo = check((va, fa), self_intersections=False, **opts)
+    if len(changed) == 0:
+        return dataclasses.replace(
+            topo,
+            n_self_intersections=0,
+            n_self_intersecting_faces=0,
+            self_intersection_pairs=np.zeros((0, 2), np.int64),
+        )
+    t = va[fa]
+    lo, hi = t.min(axis=1), t.max(axis=1)
+    scale = _scale(va, fa)
+    near = _near(lo, hi, changed, 1e-9 * max(scale, 1.0))
+    if len(near) > MAX_LOCAL_FRACTION * len(fa):
+        return check((va, fa), **opts)
+    sub = fa[near]
+    sub_scale = _scale(va, sub)
+    rtol = coplanar_rtol * scale / sub_scale if sub_scale > 0 else coplanar_rtol
+    local = check((va, sub), max_report=max_report, coplanar_rtol=rtol)
+    found = near[np.asarray(local.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)]
+    return dataclasses.replace(
+        topo,
+        n_self_intersections=local.n_self_intersections,
+        n_self_intersecting_faces=local.n_self_intersecting_faces,
+        self_intersection_pairs=np.sort(found, axis=1),
+    )
