@@ -80,7 +80,7 @@ class SkinReport:
         Grid spacing of the voxel method (NaN for ``"occt"``).
     wall : dict
         Measured wall thickness (mm): ``min``, ``p01``, ``median``, ``p99``, ``max`` over
-        the inner surface's vertices.
+        the inner surface's vertices and face centres (distance to the outer surface).
     accurate : bool
         Every measured thickness is within ``max(WALL_RTOL * t, WALL_ATOL)`` of ``t``.
     bodies : int
@@ -257,6 +257,22 @@ def _as_part(part: Any) -> Any:
 
 
 # ---------------------------------------------------------------- OCCT offsets
+def _fused_solids(solids: Any) -> list[Any]:
+    """The solids of a part fused where they touch (OCCT's general fuse), so that the
+    offset of an assembly leaves no partition wall of twice the thickness between its
+    solids; the solids as they are when there is one or the fuse fails."""
+    from lattice_cad.occ_impl import shapes as occ
+
+    solids = list(solids)
+    if len(solids) <= 1:
+        return solids
+    try:
+        fused = occ.solids(occ.fuse(solids, simplify=True))
+    except Exception:  # OCCT raises Standard_Failure as RuntimeError & co; OCCTFailure
+        return solids
+    return fused or solids
+
+
 def _occt_surfaces(part: Any, thickness: float, mid_wall: bool = False) -> tuple[Any, ...]:
     """Outer and inner surfaces of a B-rep part from OCCT's offset (Manifolds).
 
@@ -273,7 +289,7 @@ def _occt_surfaces(part: Any, thickness: float, mid_wall: bool = False) -> tuple
     tol = max(WALL_RTOL * thickness, WALL_ATOL)
     dists = (thickness, 0.5 * thickness) if mid_wall else (thickness,)
     out = [manifold3d.Manifold() for _ in range(1 + len(dists))]
-    for k, solid in enumerate(part.shape):
+    for k, solid in enumerate(_fused_solids(part.shape)):
         vol = occ.volume(solid)
         shapes = [solid, *occ.offset_solid_isolated(solid, tuple(-d for d in dists))]
         meshes = []

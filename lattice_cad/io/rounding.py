@@ -97,29 +97,42 @@ def _flip_or_collapse(
     f = f.copy()
     changed = False
     # caps: flip the longest edge (a, b) of face (a, b, c) with its neighbour (b, a, d)
-    nv = len(v)
-    edge_faces: dict[tuple[int, int], int] = {}
-    for i, face in enumerate(f.tolist()):
-        for k in range(3):
-            edge_faces[(face[k], face[(k + 1) % 3])] = i
+    nv = np.int64(len(v))
+    he_key = np.concatenate([f[:, k] * nv + f[:, (k + 1) % 3] for k in range(3)])
+    he_face = np.tile(np.arange(len(f)), 3)
+    order = np.argsort(he_key)
+    he_key, he_face = he_key[order], he_face[order]
+    und = np.unique(
+        np.minimum(he_key // nv, he_key % nv) * nv + np.maximum(he_key // nv, he_key % nv)
+    )
+
+    def face_of(a: int, b: int) -> int | None:
+        i = int(np.searchsorted(he_key, a * nv + b))
+        return int(he_face[i]) if i < len(he_key) and he_key[i] == a * nv + b else None
+
+    def has_edge(a: int, b: int) -> bool:
+        key = min(a, b) * nv + max(a, b)
+        i = int(np.searchsorted(und, key))
+        return i < len(und) and und[i] == key
+
     done = np.zeros(len(f), dtype=bool)
-    existing = {(min(x, y), max(x, y)) for x, y in edge_faces}
-    for i, k in zip(bad[~needle].tolist(), np.argmax(lengths[:, ~needle], axis=0).tolist()):
+    added: set[tuple[int, int]] = set()
+    longest = np.argmax(lengths[:, ~needle], axis=0)
+    for i, k in zip(bad[~needle].tolist(), longest.tolist(), strict=True):
         if done[i]:
             continue
         a, b, c = int(f[i, k]), int(f[i, (k + 1) % 3]), int(f[i, (k + 2) % 3])
-        j = edge_faces.get((b, a))
+        j = face_of(b, a)
         if j is None or done[j]:
             continue
         d = int(next(x for x in f[j].tolist() if x not in (a, b)))
-        if d == c or (min(c, d), max(c, d)) in existing:
+        if d == c or has_edge(c, d) or (min(c, d), max(c, d)) in added:
             continue
         f[i] = (c, a, d)
         f[j] = (c, d, b)
         done[i] = done[j] = True
-        existing.add((min(c, d), max(c, d)))
+        added.add((min(c, d), max(c, d)))
         changed = True
-    del nv
     if needle.any():
         v, f = collapse_faces(v, f, bad[needle])
         changed = True
