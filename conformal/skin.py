@@ -412,7 +412,95 @@ def _project_to_offset(inner: Any, surface: Any, thickness: float, steps: int = 
         if not bad.any():
             break
         v[f[bad].ravel()] = v0[f[bad].ravel()]
+    tol = 0.5 * max(WALL_RTOL * thickness, WALL_ATOL)
+    v, f = _refine_to_offset(v, f, surface, thickness, tol)
     return _manifold(v, f, "the inner surface")
+
+
+def _newton_to_offset(
+    p: NDArray[np.float64], surface: Any, thickness: float, steps: int = 3
+) -> NDArray[np.float64]:
+    """(P, 3) float64: points moved along the direction to their closest points on
+    ``surface`` until they lie at ``thickness`` from it (points far off stay)."""
+    p = np.array(p, dtype=np.float64)
+    for _ in range(steps):
+        d, c = surface.closest(p, max_distance=2.0 * thickness)
+        ok = np.isfinite(d) & (d > 0.5 * thickness)
+        p[ok] += (thickness - d[ok])[:, None] * (p[ok] - c[ok]) / d[ok][:, None]
+    return p
+
+
+def _refine_to_offset(
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    surface: Any,
+    thickness: float,
+    tol: float,
+    rounds: int = 24,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Split the longest edge of every face whose centre is more than ``tol`` off the
+    offset (a face across a crease of it, or across several facets of the part's mesh),
+    at its midpoint moved onto the offset; both faces of the edge are halved, so the
+    surface stays closed and 2-manifold. Up to ``rounds`` passes.
+
+    v : (V, 3) float64, f : (F, 3) int64; returns the refined (V', 3), (F', 3).
+    """
+    v = np.asarray(v, dtype=np.float64)
+    f = np.asarray(f, dtype=np.int64)
+
+    def normal(a: Any, b: Any, c: Any) -> Any:
+        return np.cross(b - a, c - a)
+
+    for _ in range(rounds):
+        d = surface.distance(v[f].mean(axis=1), max_distance=2.0 * thickness)
+        bad = np.flatnonzero(np.isfinite(d) & (np.abs(d - thickness) > tol))
+        if not len(bad):
+            break
+        t = v[f[bad]]
+        lengths = np.stack(
+            [np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)], axis=1
+        )
+        k = np.argmax(lengths, axis=1)
+        a, b = f[bad, k], f[bad, (k + 1) % 3]
+        nv = np.int64(len(v))
+        he_key = np.concatenate([f[:, m] * nv + f[:, (m + 1) % 3] for m in range(3)])
+        he_face = np.tile(np.arange(len(f)), 3)
+        he_k = np.repeat(np.arange(3), len(f))
+        order = np.argsort(he_key)
+        he_key, he_face, he_k = he_key[order], he_face[order], he_k[order]
+        twin = b * nv + a
+        pos = np.minimum(np.searchsorted(he_key, twin), len(he_key) - 1)
+        has = he_key[pos] == twin
+        fi, ki, fj, kj = bad[has], k[has], he_face[pos[has]], he_k[pos[has]]
+        used = np.zeros(len(f), dtype=bool)  # every face is split at most once a pass
+        sel = []
+        for n, (i, j) in enumerate(zip(fi.tolist(), fj.tolist(), strict=True)):
+            if not (used[i] or used[j]):
+                used[i] = used[j] = True
+                sel.append(n)
+        if not sel:
+            break
+        fi, ki, fj, kj = fi[sel], ki[sel], fj[sel], kj[sel]
+        va, vb = f[fi, ki], f[fi, (ki + 1) % 3]
+        vc, vd = f[fi, (ki + 2) % 3], f[fj, (kj + 2) % 3]
+        mid = 0.5 * (v[va] + v[vb])
+        proj = _newton_to_offset(mid, surface, thickness)
+        ni, nj = normal(v[va], v[vb], v[vc]), normal(v[vb], v[va], v[vd])
+        keep = np.ones(len(mid), dtype=bool)  # no new face may turn over
+        for tri, n0 in (
+            ((v[va], proj, v[vc]), ni),
+            ((proj, v[vb], v[vc]), ni),
+            ((v[vb], proj, v[vd]), nj),
+            ((proj, v[va], v[vd]), nj),
+        ):
+            keep &= np.einsum("ij,ij->i", normal(*tri), n0) > 0
+        vm = nv + np.arange(len(mid))
+        v = np.vstack([v, np.where(keep[:, None], proj, mid)])
+        f = f.copy()
+        f[fi] = np.stack([va, vm, vc], axis=1)
+        f[fj] = np.stack([vb, vm, vd], axis=1)
+        f = np.vstack([f, np.stack([vm, vb, vc], axis=1), np.stack([vm, va, vd], axis=1)])
+    return v, f
 
 
 def wall_thickness(inner: Any, outer: Any) -> NDArray[np.float64]:
