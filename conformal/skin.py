@@ -436,12 +436,15 @@ def _refine_to_offset(
     surface: Any,
     thickness: float,
     tol: float,
-    rounds: int = 24,
+    rounds: int = 16,
+    growth: float = 2.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Split the longest edge of every face whose centre is more than ``tol`` off the
     offset (a face across a crease of it, or across several facets of the part's mesh),
     at its midpoint moved onto the offset; both faces of the edge are halved, so the
-    surface stays closed and 2-manifold. Up to ``rounds`` passes.
+    surface stays closed and 2-manifold. Up to ``rounds`` passes, and no more than
+    ``growth`` times the faces it started with (a sharp crease of the offset is never
+    within ``tol`` of a face across it, only closer).
 
     v : (V, 3) float64, f : (F, 3) int64; returns the refined (V', 3), (F', 3).
     """
@@ -451,11 +454,14 @@ def _refine_to_offset(
     def normal(a: Any, b: Any, c: Any) -> Any:
         return np.cross(b - a, c - a)
 
+    limit = int(growth * len(f))
+    check = np.arange(len(f))  # the faces whose centres are measured (new ones after a pass)
     for _ in range(rounds):
-        d = surface.distance(v[f].mean(axis=1), max_distance=2.0 * thickness)
-        bad = np.flatnonzero(np.isfinite(d) & (np.abs(d - thickness) > tol))
-        if not len(bad):
+        d = surface.distance(v[f[check]].mean(axis=1), max_distance=2.0 * thickness)
+        bad = check[np.isfinite(d) & (np.abs(d - thickness) > tol)]
+        if not len(bad) or len(f) >= limit:
             break
+        bad = bad[: max(1, (limit - len(f)) // 2)]
         t = v[f[bad]]
         lengths = np.stack(
             [np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)], axis=1
@@ -472,13 +478,14 @@ def _refine_to_offset(
         pos = np.minimum(np.searchsorted(he_key, twin), len(he_key) - 1)
         has = he_key[pos] == twin
         fi, ki, fj, kj = bad[has], k[has], he_face[pos[has]], he_k[pos[has]]
-        used = np.zeros(len(f), dtype=bool)  # every face is split at most once a pass
-        sel = []
-        for n, (i, j) in enumerate(zip(fi.tolist(), fj.tolist(), strict=True)):
-            if not (used[i] or used[j]):
-                used[i] = used[j] = True
-                sel.append(n)
-        if not sel:
+        # every face is split at most once a pass: an edge is split when it is the first
+        # candidate of both its faces
+        first = np.full(len(f), len(fi), dtype=np.int64)
+        idx = np.arange(len(fi))
+        np.minimum.at(first, fi, idx)
+        np.minimum.at(first, fj, idx)
+        sel = np.flatnonzero((first[fi] == idx) & (first[fj] == idx))
+        if not len(sel):
             break
         fi, ki, fj, kj = fi[sel], ki[sel], fj[sel], kj[sel]
         va, vb = f[fi, ki], f[fi, (ki + 1) % 3]
@@ -499,7 +506,9 @@ def _refine_to_offset(
         f = f.copy()
         f[fi] = np.stack([va, vm, vc], axis=1)
         f[fj] = np.stack([vb, vm, vd], axis=1)
+        n0 = len(f)
         f = np.vstack([f, np.stack([vm, vb, vc], axis=1), np.stack([vm, va, vd], axis=1)])
+        check = np.concatenate([fi, fj, np.arange(n0, len(f))])
     return v, f
 
 
