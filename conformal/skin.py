@@ -383,7 +383,9 @@ def _voxel_surfaces(
     return tuple(out)
 
 
-def _project_to_offset(inner: Any, surface: Any, thickness: float, steps: int = 3) -> Any:
+def _project_to_offset(
+    inner: Any, surface: Any, thickness: float, steps: int = 3, *, refine: bool = True
+) -> Any:
     """The inner surface (a Manifold) with every vertex moved along the direction to its
     closest point on ``surface`` (a Part) until it lies at ``thickness`` from it.
 
@@ -412,8 +414,9 @@ def _project_to_offset(inner: Any, surface: Any, thickness: float, steps: int = 
         if not bad.any():
             break
         v[f[bad].ravel()] = v0[f[bad].ravel()]
-    tol = 0.5 * max(WALL_RTOL * thickness, WALL_ATOL)
-    v, f = _refine_to_offset(v, f, surface, thickness, tol)
+    if refine:  # (the voxel method's creases do not converge: measured no better there)
+        tol = 0.5 * max(WALL_RTOL * thickness, WALL_ATOL)
+        v, f = _refine_to_offset(v, f, surface, thickness, tol)
     return _manifold(v, f, "the inner surface")
 
 
@@ -703,7 +706,7 @@ def build_skin(
             f"skin thinner than about {0.4 * thick:.3g} mm leaves a cavity"
         )
     surface = _as_part(outer)  # one distance structure for the islands and the wall
-    inner = _project_to_offset(inner, surface, thickness)
+    inner = _project_to_offset(inner, surface, thickness, refine=used == "occt")
     t1 = time.perf_counter()
     lat = as_manifold(lattice, name="lattice mesh")
     # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
