@@ -80,7 +80,7 @@ class SkinReport:
         Grid spacing of the voxel method (NaN for ``"occt"``).
     wall : dict
         Measured wall thickness (mm): ``min``, ``p01``, ``median``, ``p99``, ``max`` over
-        the inner surface's vertices.
+        the inner surface's vertices and face centres (distance to the outer surface).
     accurate : bool
         Every measured thickness is within ``max(WALL_RTOL * t, WALL_ATOL)`` of ``t``.
     bodies : int
@@ -257,6 +257,22 @@ def _as_part(part: Any) -> Any:
 
 
 # ---------------------------------------------------------------- OCCT offsets
+def _fused_solids(solids: Any) -> list[Any]:
+    """The solids of a part fused where they touch (OCCT's general fuse), so that the
+    offset of an assembly leaves no partition wall of twice the thickness between its
+    solids; the solids as they are when there is one or the fuse fails."""
+    from lattice_cad.occ_impl import shapes as occ
+
+    solids = list(solids)
+    if len(solids) <= 1:
+        return solids
+    try:
+        fused = occ.solids(occ.fuse(solids, simplify=True))
+    except Exception:  # OCCT raises Standard_Failure as RuntimeError & co; OCCTFailure
+        return solids
+    return fused or solids
+
+
 def _occt_surfaces(part: Any, thickness: float, mid_wall: bool = False) -> tuple[Any, ...]:
     """Outer and inner surfaces of a B-rep part from OCCT's offset (Manifolds).
 
@@ -273,7 +289,7 @@ def _occt_surfaces(part: Any, thickness: float, mid_wall: bool = False) -> tuple
     tol = max(WALL_RTOL * thickness, WALL_ATOL)
     dists = (thickness, 0.5 * thickness) if mid_wall else (thickness,)
     out = [manifold3d.Manifold() for _ in range(1 + len(dists))]
-    for k, solid in enumerate(part.shape):
+    for k, solid in enumerate(_fused_solids(part.shape)):
         vol = occ.volume(solid)
         shapes = [solid, *occ.offset_solid_isolated(solid, tuple(-d for d in dists))]
         meshes = []
@@ -369,15 +385,148 @@ def _voxel_surfaces(
     return tuple(out)
 
 
+def _project_to_offset(
+    inner: Any, surface: Any, thickness: float, steps: int = 3, *, refine: bool = True
+) -> Any:
+    """The inner surface (a Manifold) with every vertex moved along the direction to its
+    closest point on ``surface`` (a Part) until it lies at ``thickness`` from it.
+
+    The offset of the part's mesh is exactly the set of points at that distance; a vertex
+    of the marching tetrahedra (linear interpolation of a sampled distance) or of OCCT's
+    offset of the exact B-rep (whose faces lie within the tessellation's deflection of
+    the part's mesh) is off it by up to a few percent of the wall. Newton steps on the
+    distance move it there; a vertex whose move would turn a face over stays where it was.
+    """
+    v0, f = to_arrays(inner)
+    if len(f) == 0:
+        return inner
+    t0 = v0[f]
+    n0 = np.cross(t0[:, 1] - t0[:, 0], t0[:, 2] - t0[:, 0])
+    v = v0.copy()
+    for _ in range(steps):
+        d, c = surface.closest(v, max_distance=2.0 * thickness)
+        ok = np.isfinite(d) & (d > 0.5 * thickness)
+        move = np.zeros_like(v)
+        move[ok] = (thickness - d[ok])[:, None] * (v[ok] - c[ok]) / d[ok][:, None]
+        v = v + move
+    for _ in range(10):  # faces turned over (or flattened): their vertices go back
+        t = v[f]
+        n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        bad = np.einsum("ij,ij->i", n, n0) <= 0.0
+        if not bad.any():
+            break
+        v[f[bad].ravel()] = v0[f[bad].ravel()]
+    if refine:  # (the voxel method's creases do not converge: measured no better there)
+        tol = 0.5 * max(WALL_RTOL * thickness, WALL_ATOL)
+        v, f = _refine_to_offset(v, f, surface, thickness, tol)
+    return _manifold(v, f, "the inner surface")
+
+
+def _newton_to_offset(
+    p: NDArray[np.float64], surface: Any, thickness: float, steps: int = 3
+) -> NDArray[np.float64]:
+    """(P, 3) float64: points moved along the direction to their closest points on
+    ``surface`` until they lie at ``thickness`` from it (points far off stay)."""
+    p = np.array(p, dtype=np.float64)
+    for _ in range(steps):
+        d, c = surface.closest(p, max_distance=2.0 * thickness)
+        ok = np.isfinite(d) & (d > 0.5 * thickness)
+        p[ok] += (thickness - d[ok])[:, None] * (p[ok] - c[ok]) / d[ok][:, None]
+    return p
+
+
+def _refine_to_offset(
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    surface: Any,
+    thickness: float,
+    tol: float,
+    rounds: int = 16,
+    growth: float = 2.0,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Split the longest edge of every face whose centre is more than ``tol`` off the
+    offset (a face across a crease of it, or across several facets of the part's mesh),
+    at its midpoint moved onto the offset; both faces of the edge are halved, so the
+    surface stays closed and 2-manifold. Up to ``rounds`` passes, and no more than
+    ``growth`` times the faces it started with (a sharp crease of the offset is never
+    within ``tol`` of a face across it, only closer).
+
+    v : (V, 3) float64, f : (F, 3) int64; returns the refined (V', 3), (F', 3).
+    """
+    v = np.asarray(v, dtype=np.float64)
+    f = np.asarray(f, dtype=np.int64)
+
+    def normal(a: Any, b: Any, c: Any) -> Any:
+        return np.cross(b - a, c - a)
+
+    limit = int(growth * len(f))
+    check = np.arange(len(f))  # the faces whose centres are measured (new ones after a pass)
+    for _ in range(rounds):
+        d = surface.distance(v[f[check]].mean(axis=1), max_distance=2.0 * thickness)
+        bad = check[np.isfinite(d) & (np.abs(d - thickness) > tol)]
+        if not len(bad) or len(f) >= limit:
+            break
+        bad = bad[: max(1, (limit - len(f)) // 2)]
+        t = v[f[bad]]
+        lengths = np.stack(
+            [np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)], axis=1
+        )
+        k = np.argmax(lengths, axis=1)
+        a, b = f[bad, k], f[bad, (k + 1) % 3]
+        nv = np.int64(len(v))
+        he_key = np.concatenate([f[:, m] * nv + f[:, (m + 1) % 3] for m in range(3)])
+        he_face = np.tile(np.arange(len(f)), 3)
+        he_k = np.repeat(np.arange(3), len(f))
+        order = np.argsort(he_key)
+        he_key, he_face, he_k = he_key[order], he_face[order], he_k[order]
+        twin = b * nv + a
+        pos = np.minimum(np.searchsorted(he_key, twin), len(he_key) - 1)
+        has = he_key[pos] == twin
+        fi, ki, fj, kj = bad[has], k[has], he_face[pos[has]], he_k[pos[has]]
+        # every face is split at most once a pass: an edge is split when it is the first
+        # candidate of both its faces
+        first = np.full(len(f), len(fi), dtype=np.int64)
+        idx = np.arange(len(fi))
+        np.minimum.at(first, fi, idx)
+        np.minimum.at(first, fj, idx)
+        sel = np.flatnonzero((first[fi] == idx) & (first[fj] == idx))
+        if not len(sel):
+            break
+        fi, ki, fj, kj = fi[sel], ki[sel], fj[sel], kj[sel]
+        va, vb = f[fi, ki], f[fi, (ki + 1) % 3]
+        vc, vd = f[fi, (ki + 2) % 3], f[fj, (kj + 2) % 3]
+        mid = 0.5 * (v[va] + v[vb])
+        proj = _newton_to_offset(mid, surface, thickness)
+        ni, nj = normal(v[va], v[vb], v[vc]), normal(v[vb], v[va], v[vd])
+        keep = np.ones(len(mid), dtype=bool)  # no new face may turn over
+        for tri, n0 in (
+            ((v[va], proj, v[vc]), ni),
+            ((proj, v[vb], v[vc]), ni),
+            ((v[vb], proj, v[vd]), nj),
+            ((proj, v[va], v[vd]), nj),
+        ):
+            keep &= np.einsum("ij,ij->i", normal(*tri), n0) > 0
+        vm = nv + np.arange(len(mid))
+        v = np.vstack([v, np.where(keep[:, None], proj, mid)])
+        f = f.copy()
+        f[fi] = np.stack([va, vm, vc], axis=1)
+        f[fj] = np.stack([vb, vm, vd], axis=1)
+        n0 = len(f)
+        f = np.vstack([f, np.stack([vm, vb, vc], axis=1), np.stack([vm, va, vd], axis=1)])
+        check = np.concatenate([fi, fj, np.arange(n0, len(f))])
+    return v, f
+
+
 def wall_thickness(inner: Any, outer: Any) -> NDArray[np.float64]:
-    """(V,) float64: distance from each vertex of the inner surface to the outer surface.
+    """(V + F,) float64: distance from each vertex and each face centre of the inner
+    surface to the outer surface (the centres see where a face cuts across a crease).
 
     ``outer`` may be a Manifold, a mesh or a Part (whose distance bins are then reused).
     """
-    iv, _ = to_arrays(inner)
+    iv, fi = to_arrays(inner)
     if len(iv) == 0:
         return np.zeros(0)
-    return _as_part(outer).distance(iv)
+    return _as_part(outer).distance(np.vstack([iv, iv[fi].mean(axis=1)]))
 
 
 # ------------------------------------------------------------------- public API
@@ -452,7 +601,10 @@ def _surfaces(
     fallback = ""
     if method in ("auto", "occt") and part.shape is not None:
         try:
-            return _occt_surfaces(part, thickness, mid_wall), "occt", "", float("nan")
+            occt = _occt_surfaces(part, thickness, mid_wall)
+            # the outer surface is the part's own mesh, which every other fill mode cuts
+            # by: OCCT's finer tessellation of a convex face lies outside its chords
+            return (part_solid(part), *occt[1:]), "occt", "", float("nan")
         except (OCCTFailure, SkinError) as exc:
             if method == "occt":
                 raise SkinError(f"OpenCascade's offset failed: {exc}") from exc
@@ -555,11 +707,12 @@ def build_skin(
             f"no room for a lattice; its greatest thickness is about {thick:.3g} mm, so a "
             f"skin thinner than about {0.4 * thick:.3g} mm leaves a cavity"
         )
+    surface = _as_part(outer)  # one distance structure for the islands and the wall
+    inner = _project_to_offset(inner, surface, thickness, refine=used == "occt")
     t1 = time.perf_counter()
     lat = as_manifold(lattice, name="lattice mesh")
     # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
     solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
-    surface = _as_part(outer)  # one distance structure for the islands and the wall
     solid, bodies, islands = _keep_attached(solid, surface)
     t2 = time.perf_counter()
     wall = wall_thickness(inner, surface)

@@ -188,6 +188,10 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
     # so that a mesh needing no repair is checked once
     v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
     if len(v2) != len(out.vertices):
+        from lattice_cad.io.rounding import pinched_vertices, repair_rounded
+
+        if len(pinched_vertices(f2, len(v2))):  # two sheets merged there: separated again
+            v2, f2 = repair_rounded(v2, f2)
         out = Mesh(vertices=v2, faces=f2)
     for attempt in range(2):
         report = fast_stitch.check(out)

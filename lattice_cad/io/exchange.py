@@ -113,18 +113,33 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
     v2, f2 = weld(v32, f)
     merged = len(f) - len(f2)  # triangles that lost a vertex to rounding
     bad = _flat_triangles(v2, f2)
+    from lattice_cad.io.rounding import pinched_vertices, repair_rounded
+
     if bad.any():
+        v3, f3 = v2, f2
         v2, f2 = _collapse_flat(v2, f2)
         if _flat_triangles(v2, f2).any() or not _closed_manifold(f2) or len(f2) == 0:
-            where = v32[f[np.flatnonzero(bad)[0]]].mean(axis=0)
+            # caps flip their longest edge instead, pinched vertices are separated
+            v2, f2 = repair_rounded(v3, f3)
+    pinched = np.zeros(0, dtype=np.int64)
+    if bad.any() or len(v2) < len(v):
+        # vertices of two sheets less than a float32 step apart became one: separate them
+        pinched = pinched_vertices(f2, len(v2))
+        if len(pinched):
+            where_pinch = v2[pinched[0]]
+            v2, f2 = repair_rounded(v2, f2)
+    if bad.any() or len(pinched):
+        if _flat_triangles(v2, f2).any() or not _closed_manifold(f2) or len(f2) == 0:
+            where = v32[f[np.flatnonzero(bad)[0]]].mean(axis=0) if bad.any() else where_pinch
             raise ExportError(
-                f"{name}: {int(bad.sum())} triangle(s) collapse when coordinates are rounded to "
+                f"{name}: {int(bad.sum())} triangle(s) collapse and {len(pinched)} vertex(es) "
+                f"are pinched when coordinates are rounded to "
                 f"single precision (as STL and 3MF store them), e.g. near "
                 f"({where[0]:.6g}, {where[1]:.6g}, {where[2]:.6g}); the struts are too thin "
                 "for coordinates this far from the origin: move the lattice closer to the "
                 "origin or use thicker struts"
             )
-    return Mesh(vertices=v2, faces=f2), merged + int(bad.sum())
+    return Mesh(vertices=v2, faces=f2), merged + int(bad.sum()) + len(pinched)
 
 
 def _collapse_flat(
