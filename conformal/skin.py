@@ -708,7 +708,8 @@ def build_skin(
             f"skin thinner than about {0.4 * thick:.3g} mm leaves a cavity"
         )
     surface = _as_part(outer)  # one distance structure for the islands and the wall
-    inner = _project_to_offset(inner, surface, thickness, refine=used == "occt")
+    if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
+        inner = _project_to_offset(inner, surface, thickness, refine=True)
     t1 = time.perf_counter()
     lat = as_manifold(lattice, name="lattice mesh")
     # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
