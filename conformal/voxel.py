@@ -465,7 +465,8 @@ def _finish(
             raise FitError(
                 f"{len(unfit)} strut(s) cannot be thinned enough to stitch (min radius {floor:g}); "
                 f"e.g. strut {int(unfit[0])} (nodes {edges[unfit[0]].tolist()}); "
-                "lower min_radius or use larger cells"
+                "use larger cells, a smaller radius or more segments (--segments), or a lower "
+                "min_radius (conformal.voxel_lattice)"
             )
         if changed:
             warnings.warn(
