@@ -7,7 +7,7 @@ A/B runs; the load average is printed with every run, since the machine is share
 
 Usage::
 
-    PYTHONPATH=$PWD python benchmarks/bench_skin.py --trees /work/main $PWD --repeat 3 \
+    PYTHONPATH=$PWD python benchmarks/bench_skin.py --trees ../main-before $PWD --repeat 3 \
         --out benchmarks/results/bench_skin.txt
 
 Times of nested stages are inclusive (``booleans`` is ``build_skin`` minus its surfaces,
@@ -27,7 +27,9 @@ import sys
 import time
 from pathlib import Path
 
-PART = "/work/shared/data/step/dolfiny_ge_bracket_rotated_nonds.step"
+#: the repository root; shared data lies beside it (../shared), as in CI
+ROOT = Path(__file__).resolve().parents[1]
+PART = str(ROOT.parent / "shared" / "data" / "step" / "dolfiny_ge_bracket_rotated_nonds.step")
 ARGS = ["--cell", "octet", "--cell-size", "6", "--radius", "0.5", "--skin", "1.5"]
 
 #: (label, module, attribute path): the stages timed (inclusive).
@@ -121,6 +123,8 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="also write the tables to this file")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if not Path(PART).is_file():
+        sys.exit(f"bench_skin: {PART} is missing: the shared data must lie beside the repository")
     if args.child:
         child(args.child)
         return
