@@ -754,13 +754,7 @@ def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None =
 
 
 # ---------------------------------------------------------- marching tetrahedra
-# Freudenthal split of the unit cube: 6 tets along the main diagonal, corner codes
-# are bit masks (x=1, y=2, z=4); every tet runs 0 -> a -> a|b -> 7.
-_TETS = np.array(
-    [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]],
-    dtype=np.int64,
-)
-_TET_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]], dtype=np.int64)
+# (the Freudenthal split and the per-voxel work: conformal._skin_kernels)
 
 
 def marching_tets(
