@@ -466,7 +466,7 @@ def _finish(
                 f"{len(unfit)} strut(s) cannot be thinned enough to stitch (min radius {floor:g}); "
                 f"e.g. strut {int(unfit[0])} (nodes {edges[unfit[0]].tolist()}); "
                 "use larger cells, a smaller radius or more segments (--segments), or a lower "
-                "min_radius (conformal.voxel_lattice)"
+                "min_radius (--min-radius)"
             )
         if changed:
             warnings.warn(

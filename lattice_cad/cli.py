@@ -315,6 +315,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             fill=args.fill,
             skin=args.skin,
             segments=args.segments,
+            min_radius=args.min_radius,
             **_print_kwargs(args),
             escape_holes=args.escape_holes,
             escape_at=args.escape_at,
@@ -571,6 +572,13 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
         default=config.DEFAULT_SEGMENTS,
         metavar="P",
         help="sides of each strut's polygon profile (default 6)",
+    )
+    g.add_argument(
+        "--min-radius",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="thinnest a strut may be made so that it stitches (default radius / 10)",
     )
 
 

@@ -74,6 +74,7 @@ def _fill_graph(
     origin: Any,
     rotation: Any,
     segments: int = config.DEFAULT_SEGMENTS,
+    min_radius: float | None = None,
 ) -> tuple[LatticeGraph, Any]:
     """Call the conformal engine (imported lazily) for ``method``: the graph and its report.
 
@@ -94,10 +95,16 @@ def _fill_graph(
             rotation=rotation,
             return_report=True,
             segments=segments,
+            min_radius=min_radius,
         )
     else:
         built = conformal.tet_lattice(
-            part, size=cell_size, radius=radius, return_report=True, segments=segments
+            part,
+            size=cell_size,
+            radius=radius,
+            return_report=True,
+            segments=segments,
+            min_radius=min_radius,
         )
     graph, report = built
     if not isinstance(graph, LatticeGraph):
@@ -350,6 +357,7 @@ class Lattice:
         fill: Fill | None = None,
         skin: float | None = None,
         segments: int = config.DEFAULT_SEGMENTS,
+        min_radius: float | None = None,
         origin: Any = None,
         rotation: Any = None,
         trim: bool = True,
@@ -388,6 +396,10 @@ class Lattice:
             Hollow the part to this wall thickness and unite the wall with the lattice.
         segments : int
             Profile sides of the stitched struts.
+        min_radius : float, optional
+            Thinnest a strut may be made so that it stitches where struts meet at small
+            angles (default a tenth of ``radius``); struts that would need less raise
+            ``FitError`` naming them.
         origin, rotation : optional
             Placement of the cell grid (passed to ``conformal.voxel_lattice``; voxel only).
             ``cell`` is ignored by ``method="tet"``.
@@ -491,6 +503,7 @@ class Lattice:
             origin=origin,
             rotation=rotation,
             segments=segments,
+            min_radius=min_radius,
         )
         removal = None
         if remove_overhangs:

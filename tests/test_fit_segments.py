@@ -136,3 +136,23 @@ def test_ge_bracket_tet_at_four_segments(ge_bracket):
     lat = Lattice.fill(ge_bracket, method="tet", cell_size=5.0, radius=0.6, segments=4)
     assert check_fit(lat.graph, 4) == []
     assert_valid(lat.mesh(lattice_only=True), self_intersections=False)
+
+
+def test_fill_and_cli_take_min_radius(ge_bracket, tmp_path, capsys):
+    """``Lattice.fill(min_radius=)`` / ``--min-radius``: the thinnest a strut may be made.
+    The P = 3 octet needs thinning (above); forbidding any thinning is a FitError that
+    names the option, a floor below what the fit needs is kept by every strut."""
+    with pytest.raises(FitError, match="--min-radius"):
+        Lattice.fill(ge_bracket, "octet", 8.0, 1.15, fill="inside", segments=3,
+                     min_radius=1.15)  # fmt: skip
+    lat = Lattice.fill(ge_bracket, "octet", 8.0, 1.15, fill="inside", segments=3,
+                       min_radius=0.5)  # fmt: skip
+    r = lat.graph.radii
+    assert r.min() >= 0.5 and r.min() < 1.15
+    out = tmp_path / "g.npz"
+    argv = ["fill", str(GE_BRACKET), "-o", str(out), "--cell", "octet", "--cell-size", "8",
+            "--radius", "1.15", "--fill", "inside", "--segments", "3", "--min-radius",
+            "1.15", "-q"]  # fmt: skip
+    assert main(argv) == 1
+    assert "--min-radius" in capsys.readouterr().err
+    assert not out.exists()
