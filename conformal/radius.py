@@ -502,7 +502,7 @@ def repair_graph(
     median = float(np.median(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)))
     budget = max_change * len(edges)  # the repair changes the lattice, it must not replace it
     for _ in range(max_rounds):
-        if rep.merged + rep.dropped >= budget:
+        if rep.merged + rep.dropped >= budget or not len(edges):
             break
         bad = _unfit_at(nodes, edges, tolerance * asked, **poly)
         if not len(bad):
@@ -534,8 +534,11 @@ def repair_graph(
         edges, asked = edges[~drop], asked[~drop]
     # struts that cannot be stitched even at a tenth of their radius (nearly parallel to a
     # neighbour, or crossing another) go in any case, however much has changed
-    floor = 0.1 * float(asked.min())
+    n_asked, r_asked = len(radii), float(np.min(radii)) if len(radii) else 0.0
+    floor = 0.1 * r_asked
     for _ in range(10):
+        if not len(edges):
+            break
         _, hopeless = fit_radii(nodes, edges, asked, min_radius=floor, **poly)
         if not len(hopeless):
             break
@@ -543,6 +546,12 @@ def repair_graph(
         keep[hopeless] = False
         rep.dropped += len(hopeless)
         edges, asked = edges[keep], asked[keep]
+    if not len(edges):
+        raise FitError(
+            f"none of the {n_asked} strut(s) can be stitched at radius {r_asked:g} even when "
+            f"thinned to {floor:g}: the radius is too large for the strut lengths (median "
+            f"{median:g}); use a smaller radius or a larger size"
+        )
     nodes, edges, asked = _largest_piece(nodes, edges, asked)
     fitted, unfit = fit_radii(
         nodes, edges, asked, min_radius=tolerance * float(asked.min()), **poly

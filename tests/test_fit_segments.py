@@ -156,3 +156,19 @@ def test_fill_and_cli_take_min_radius(ge_bracket, tmp_path, capsys):
     assert main(argv) == 1
     assert "--min-radius" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_repair_of_struts_far_too_thick_names_the_radius():
+    """Regression (`lattice-cad fill rocker-arm.off --method tet --segments 3` with the
+    default 5 mm cell and radius 0.4 on a part 1 unit tall): every strut was hopeless, the
+    repair dropped them all and a raw numpy error ("zero-size array to reduction operation
+    minimum") reached the user. It is a FitError naming the radius now."""
+    rng = np.random.default_rng(7)
+    nodes = rng.random((40, 3))
+    tri = __import__("scipy.spatial", fromlist=["Delaunay"]).Delaunay(nodes)
+    from conformal.tet import tet_edges
+
+    edges = tet_edges(np.asarray(tri.simplices, dtype=np.int64))
+    # struts of length <= 1.7 at radius 4: none fits even at a tenth of it
+    with pytest.raises(FitError, match="radius 4 .*smaller radius"):
+        repair_graph(nodes, edges, np.full((len(edges), 2), 4.0), segments=3)
