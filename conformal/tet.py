@@ -189,7 +189,12 @@ def _gmsh_tets(
         gmsh.option.setNumber("Mesh.MeshSizeMax", float(size))
         gmsh.option.setNumber("Mesh.MeshSizeMin", 0.1 * float(size))
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
+        # the size asked, not the input's: a mesh part's re-parametrised points carry the
+        # spacing of its triangles (a fine scan would give struts a fifth of ``size``, most
+        # of them too short for the radius), and extending boundary sizes into the volume
+        # would carry it inside
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1 if how == "brep" else 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 1 if how == "brep" else 0)
         gmsh.option.setNumber("Mesh.Algorithm3D", _ALGO[algorithm])
         gmsh.option.setNumber("Mesh.Optimize", 1)
         gmsh.model.mesh.generate(2)
