@@ -322,13 +322,6 @@ def _within(
     return out
 
 
-def _compact(
-    nodes: NDArray[np.float64], owned: NDArray[np.bool_], used: NDArray[np.bool_]
-) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """The used nodes (order kept, so local order stays global order)."""
-    return nodes[used], owned[used]
-
-
 def _write_piece(path: Path, records: Iterator[NDArray[Any]]) -> None:
     """Write STL records to ``path`` via a temp file and rename (a retried task
     overwrites a half-written piece of a killed attempt)."""
@@ -576,6 +569,7 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             edges=edges,
             owned=owned,
             label=label,
+            key=key,
         )
         return {
             "shard": shard,
@@ -680,12 +674,13 @@ def _fill_stitch(
     with _threads(spec.threads):
         data = np.load(Path(spec.tmpdir) / f"graph-{shard}.npz")
         nodes, edges, owned, label = data["nodes"], data["edges"], data["owned"], data["label"]
+        key = data["key"]
         edges = edges[keep_label[label[edges[:, 0]]]]
         used = np.zeros(len(nodes), dtype=bool)
         used[edges.ravel()] = True
         if not (owned & used).any():
             return None
-        nodes, owned = _compact(nodes, owned, used)
+        nodes, owned, key = nodes[used], owned[used], key[used]
         edges = (np.cumsum(used) - 1)[edges]
         lo, hi = _block(spec, shard)
         where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
@@ -712,11 +707,12 @@ def _fill_stitch(
         edges, r = edges[sub], r[sub]
         used = np.zeros(len(nodes), dtype=bool)
         used[edges.ravel()] = True
-        nodes, owned = _compact(nodes, owned, used)
+        nodes, owned, key = nodes[used], owned[used], key[used]
         edges = (np.cumsum(used) - 1)[edges]
         owned_strut = owned[edges[:, 0]]
         if spec.beams:  # the owned struts as beams (degrees of the whole lattice)
-            _save_beams(Path(spec.tmpdir) / f"beams-{shard}.npz", nodes, edges, r, owned_strut)
+            _save_beams(Path(spec.tmpdir) / f"beams-{shard}.npz", nodes, edges, r, owned_strut,
+                        key)  # fmt: skip
         n = _stitch_owned(
             nodes, edges, r, owned, owned_strut,
             segments=segments, seed=seed, profile=profile,
@@ -740,15 +736,34 @@ def _save_beams(
     edges: NDArray[np.int64],
     radii: NDArray[np.float64],
     owned_strut: NDArray[np.bool_],
+    key: NDArray[np.int64],
 ) -> None:
-    """The owned struts of a shard as beams: their nodes, edges, radii, and the degree of
-    each node in the shard graph (complete at the ends of owned struts)."""
-    degree = np.bincount(edges.ravel(), minlength=len(nodes))
+    """The owned struts of a shard as beams: their nodes, edges, radii, the degree of each
+    node in the shard graph (complete at the ends of owned struts), and the balls this
+    shard writes.
+
+    A seam node's struts are owned by several shards; its ball is written once, by the
+    owner of the node's strut whose other end has the lowest global id (``key`` (N,)
+    int64, the nodes' global ids): every shard holding one of the node's struts has the
+    node's whole star and the same ids, so exactly one of them takes the ball. Its radius
+    is the largest strut radius at the node over the whole star (as in one process).
+    """
+    n = len(nodes)
+    degree = np.bincount(edges.ravel(), minlength=n)
+    other = key[edges[:, ::-1]]  # (M, 2): the global id of the far end, per strut end
+    best = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(best, edges.ravel(), other.ravel())
+    first = other == best[edges]  # the end's strut is the node's ball strut
+    ball = np.zeros(n, dtype=bool)
+    ball[edges[first & owned_strut[:, None]]] = True
+    ball_radius = np.zeros(n)
+    np.maximum.at(ball_radius, edges.ravel(), radii.ravel())
     e = edges[owned_strut]
-    used = np.zeros(len(nodes), dtype=bool)
+    used = np.zeros(n, dtype=bool)
     used[e.ravel()] = True
     np.savez(path, nodes=nodes[used], edges=(np.cumsum(used) - 1)[e],
-             radii=radii[owned_strut], degree=degree[used])  # fmt: skip
+             radii=radii[owned_strut], degree=degree[used], ball=ball[used],
+             ball_radius=ball_radius[used])  # fmt: skip
 
 
 def _piece_part(tmpdir: str, shard: int, beams: bool) -> dict[str, Any]:
@@ -771,7 +786,7 @@ def _piece_part(tmpdir: str, shard: int, beams: bool) -> dict[str, Any]:
     b = None
     if beams:
         with np.load(work / f"beams-{shard}.npz") as d:
-            b = {k: d[k] for k in ("nodes", "edges", "radii", "degree")}
+            b = {k: d[k] for k in d.files}
     return write_part(work / f"part-{shard}.3mf", vertices, faces, name=f"shard {shard}",
                       beams=b)  # fmt: skip
 
@@ -1279,8 +1294,10 @@ def _graph_stitch(
     seed: int,
     profile: str,
     threads: int,
+    beams: bool = False,
 ) -> ShardStats | None:
-    """Reduce step: one block's struts (halo included), stitched; owned triangles written."""
+    """Reduce step: one block's struts (halo included), stitched; owned triangles written
+    (and, with ``beams``, the owned struts as beams with the balls this block owns)."""
     _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     lo, step, counts, _ = (np.asarray(x) for x in box)
@@ -1304,6 +1321,9 @@ def _graph_stitch(
         owned_strut = owned[owner_end]
         if not owned_strut.any() and not owned.any():
             return None
+        if beams:
+            _save_beams(Path(tmpdir) / f"beams-{blk}.npz", nodes, edges, radii, owned_strut,
+                        ids)  # fmt: skip
         n = _stitch_owned(
             nodes, edges, radii, owned, owned_strut, segments=segments, seed=seed,
             profile=profile, piece=Path(tmpdir) / f"piece-{blk}.stl",
@@ -1336,6 +1356,7 @@ def stitch_sharded(
     progress: bool = False,
     tmpdir: str | os.PathLike[str] | None = None,
     threemf: Literal["auto", "merged", "shards"] = "auto",
+    beam_lattice: bool = False,
 ) -> ShardedResult:
     """Stitch a graph held as NPZ shards (:func:`write_graph_shards`) on a Dask cluster.
 
@@ -1359,6 +1380,10 @@ def stitch_sharded(
         Spatial blocks (stitch tasks), at least.
     scheduler, workers, retries, threads_per_task, progress, tmpdir, threemf
         As for :func:`fill_sharded`.
+    beam_lattice : bool
+        With a ``.3mf`` output: each block's object also holds the struts it owns as
+        beams (3MF Beam Lattice extension) and the balls of the nodes it owns (each ball
+        once, see :func:`_save_beams`); always written in shards, as :func:`fill_sharded`.
 
     Returns
     -------
@@ -1370,6 +1395,8 @@ def stitch_sharded(
     out = check_target(path)
     fmt = _format(out)
     _threemf_layout(threemf, 0, False)
+    if beam_lattice and fmt != "3mf":
+        raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     srcs = [str(Path(p).resolve()) for p in graph_shards]
     for p in srcs:
         if not Path(p).is_file():
@@ -1406,7 +1433,7 @@ def stitch_sharded(
             for b in range(n_blocks)
         ]
         extra = (box, str(work), int(segments), int(seed), str(profile),
-                 int(threads_per_task))  # fmt: skip
+                 int(threads_per_task), bool(beam_lattice))  # fmt: skip
         stats = _run(client, _graph_stitch, items, retries=retries, progress=progress,
                      desc="stitch", extra=extra)  # fmt: skip
         result.seconds["stitch"] = time.perf_counter() - t0
@@ -1414,9 +1441,11 @@ def stitch_sharded(
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
         t0 = time.perf_counter()
-        if fmt == "3mf" and _threemf_layout(threemf, result.triangles, False) == "shards":
+        layout = _threemf_layout(threemf, result.triangles, bool(beam_lattice))
+        if fmt == "3mf" and layout == "shards":
             _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
-                                 beams=False, retries=retries, progress=progress)  # fmt: skip
+                                 beams=bool(beam_lattice), retries=retries,
+                                 progress=progress)  # fmt: skip
         else:
             _assemble(out, [work / f"piece-{s.shard}.stl" for s in result.shards],
                       result.triangles, fmt=fmt)  # fmt: skip
