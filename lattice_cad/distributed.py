@@ -145,6 +145,8 @@ class ShardStats:
     cpu_seconds: float
     peak_rss: int
     worker: str
+    thinned: int = 0
+    min_radius: float = float("inf")
 
 
 @dataclass
@@ -174,6 +176,7 @@ class ShardedResult:
     removed_islands: int = 0
     removed_fragments: int = 0
     build_rss: dict[str, int] = field(default_factory=dict)
+    radii_reduced: int = 0
 
     @property
     def peak_rss_per_worker(self) -> dict[str, int]:
@@ -530,6 +533,15 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
                     f"{spec.halo} cell(s); use a larger halo"
                 )
             trusted &= ~bad[edges[alive]].any(axis=1)
+        # nodes whose star (its struts and their far ends) is the whole lattice's: not on
+        # a cut face of the region, no strut of unsure pruning, no unsure merge at either
+        # end (the distributed radius fit needs them well beyond the owned nodes)
+        exact = ~incomplete
+        unsure = alive != lower
+        if bad is not None:
+            exact &= ~bad
+            unsure |= bad[edges].any(axis=1)
+        exact[edges[unsure].ravel()] = False
         pruned_owned = int((~alive & owned[edges[:, 0]]).sum())
         edges = edges[alive]
         used = np.zeros(n, dtype=bool)
@@ -538,7 +550,7 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             return {"shard": shard, "empty": True, "pruned": pruned_owned}
         new_id = np.cumsum(used) - 1
         nodes, nijk, owned, on_surface = nodes[used], nijk[used], owned[used], on_surface[used]
-        key = key[used]
+        key, exact = key[used], exact[used]
         edges = new_id[edges]
         # connected pieces over the struts known exactly (all of them for "inside");
         # joined across shards by the nodes they share, they give the global pieces
@@ -570,6 +582,7 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             owned=owned,
             label=label,
             key=key,
+            exact=exact,
         )
         return {
             "shard": shard,
@@ -655,51 +668,317 @@ def _boundary_fill(
     return nodes, edges, on_surface, bad_root[root], src, new_key
 
 
+# ======================================================= the distributed radius fit
+def _shard_graph(
+    spec: _FillSpec, shard: int, keep_label: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_], NDArray[np.int64],
+           NDArray[np.bool_]] | None:  # fmt: skip
+    """A shard's graph of phase 1 with the selected pieces only: nodes (N, 3), edges
+    (M, 2) (local ids, in global order), owned (N,) bool, key (N,) int64 global ids and
+    exact (N,) bool (the star is the whole lattice's); None when it owns nothing."""
+    with np.load(Path(spec.tmpdir) / f"graph-{shard}.npz") as data:
+        nodes, edges, owned, label = data["nodes"], data["edges"], data["owned"], data["label"]
+        key, exact = data["key"], data["exact"]
+    edges = edges[keep_label[label[edges[:, 0]]]]
+    used = np.zeros(len(nodes), dtype=bool)
+    used[edges.ravel()] = True
+    if not (owned & used).any():
+        return None
+    edges = (np.cumsum(used) - 1)[edges]
+    return nodes[used], edges, owned[used], key[used], exact[used]
+
+
+def _strut_ids(key: NDArray[np.int64], edges: NDArray[np.int64]) -> tuple[NDArray[Any],
+                                                                           NDArray[np.bool_]]:
+    """(M,) 16-byte global strut ids (the two ends' global ids, lower first) and (M,) bool
+    ``swap``: the strut's local orientation is the reverse of its id's."""
+    a, b = key[edges[:, 0]], key[edges[:, 1]]
+    swap = a > b
+    pair = np.stack([np.where(swap, b, a), np.where(swap, a, b)], axis=1)
+    return np.ascontiguousarray(pair).view(np.dtype((np.void, 16))).ravel(), swap
+
+
+def _canon(r: NDArray[np.float64], swap: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Per-end radii in the orientation of the strut ids (an involution)."""
+    return np.where(swap[:, None], r[:, ::-1], r)
+
+
+def _neighbour_shards(spec: _FillSpec, shard: int) -> list[int]:
+    """The shards whose blocks a shard's region (block and halo) may reach."""
+    bi = np.array(np.unravel_index(shard, spec.counts))
+    reach = -(-spec.halo // np.array(spec.size))
+    out = []
+    for s in range(int(np.prod(spec.counts))):
+        bj = np.array(np.unravel_index(s, spec.counts))
+        if (np.abs(bj - bi) <= reach).all():
+            out.append(s)
+    return out
+
+
+def _gather_radii(
+    spec: _FillSpec, shard: int, ids: NDArray[Any], swap: NDArray[np.bool_], rnd: int,
+    col: str, fallback: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:  # fmt: skip
+    """The radii of a shard's struts as their owners computed them in round ``rnd``
+    (column ``col``): (M, 2) float64 in local orientation, and (M,) bool found (the others
+    keep ``fallback``: struts that no shard owns, outside what this shard must know)."""
+    r = _canon(fallback, swap)
+    found = np.zeros(len(ids), dtype=bool)
+    for s in _neighbour_shards(spec, shard):
+        p = Path(spec.tmpdir) / f"fit-{rnd}-{s}.npz"
+        if not p.exists():
+            continue
+        with np.load(p) as d:
+            oid = d["ids"].view(np.dtype((np.void, 16))).ravel()
+            at = np.searchsorted(oid, ids)
+            at[at >= len(oid)] = 0
+            hit = oid[at] == ids if len(oid) else np.zeros(len(ids), dtype=bool)
+            if hit.any():
+                r[hit] = d[col][at[hit]]
+                found |= hit
+    return _canon(r, swap), found
+
+
+def _fit_reach(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], rmax: float, segments: int,
+    profile: str,
+) -> float:  # fmt: skip
+    """How far from a node the struts that one round of :func:`conformal.radius.fit_radii`
+    reads to thin the struts at that node can be: two struts (misfits: the node factor at
+    the far end depends on the offsets at its neighbours), or a strut, the clearance of a
+    strut or joint there to an element sharing no node with it, and that element's far
+    end (joint balls reach at most ``sqrt(l^2 + R^2)`` once every strut fits)."""
+    from fast_stitch.hubvolume import profile_factor
+    from lattice_cad.core.config import CLEARANCE_MARGIN
+
+    lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
+    big_r = rmax * profile_factor(segments, profile)
+    ball = float(np.hypot(lmax, big_r))
+    return (2.0 * lmax + (1.0 + 2.0 * CLEARANCE_MARGIN) * 2.0 * max(ball, big_r)) * (1 + 1e-9)
+
+
+def _fit_round(
+    spec: _FillSpec,
+    shard: int,
+    keep_label: NDArray[np.bool_],
+    rnd: int,
+    prev: str,
+    radius: Any,
+    floor: float,
+    segments: int,
+    profile: str,
+) -> dict[str, Any] | None:
+    """Round ``rnd`` of the radius fit of :func:`conformal.radius.fit_radii`, for the struts
+    this shard owns.
+
+    Round 0 resolves the radii and caps them at 0.45 of the length (``cur``). Round k >= 1
+    reads the radii of every strut of the shard as their owners wrote them in round k - 1
+    (column ``prev``: ``cur``, or the candidate the client chose, ``M`` or ``C``), and
+    computes, as one process does for the whole lattice, both candidates: ``M`` (the
+    struts at nodes with misfits thinned, :func:`fast_stitch.fit.misfits`) and, unless an
+    owned strut misfits (then the lattice is in a misfit round), ``C`` (struts and joints
+    that clash thinned, :func:`fast_stitch.fit.clashes`). The client decides from all
+    shards' flags which one the whole lattice takes (the one-process rule), so every round
+    is the one-process round, strut for strut. Exact because every node within
+    :func:`_fit_reach` of an owned node has the lattice's star (checked in round 0), and
+    the radii are exchanged every round.
+    """
+    from conformal.radius import _clash_struts, resolve_radii
+    from fast_stitch.fit import clashes, misfits, strut_lengths
+    from lattice_cad.core.config import CLEARANCE_MARGIN, FIT_SLACK
+
+    with _threads(spec.threads):
+        g = _shard_graph(spec, shard, keep_label)
+        if g is None:
+            return None
+        nodes, edges, owned, key, exact = g
+        lo, hi = _block(spec, shard)
+        where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+        owned_strut = owned[edges[:, 0]]
+        ids, swap = _strut_ids(key, edges)
+        order = np.argsort(ids[owned_strut], kind="stable")
+        out_ids = ids[owned_strut][order]
+
+        def save(**cols: NDArray[np.float64]) -> None:
+            data = {k: _canon(v, swap)[owned_strut][order] for k, v in cols.items()}
+            np.savez(Path(spec.tmpdir) / f"fit-{rnd}-{shard}.npz",
+                     ids=out_ids.view(np.int64).reshape(-1, 2), **data)  # fmt: skip
+
+        r_res = resolve_radii(radius, nodes, edges)
+        if rnd == 0:
+            if not exact.all():
+                from scipy.spatial import cKDTree
+
+                reach = _fit_reach(nodes, edges, float(r_res.max()), segments, profile)
+                d, i = cKDTree(nodes[~exact]).query(nodes[owned], k=1,
+                                                    distance_upper_bound=reach)  # fmt: skip
+                if np.isfinite(d).any():
+                    k = int(np.flatnonzero(~exact)[i[np.isfinite(d)][0]])
+                    raise ShardingError(
+                        f"{where}: fitting the radii reads struts within {reach:.4g} of "
+                        f"the owned nodes, but the node at {nodes[k].tolist()} may have "
+                        f"struts beyond the halo of {spec.halo} cell(s); use a larger halo"
+                    )
+            r = r_res.copy()
+            length = strut_lengths(nodes, edges)
+            cap = 0.45 * length
+            too_fat = r > cap[:, None]
+            r[too_fat] = np.broadcast_to(cap[:, None], r.shape)[too_fat]
+            save(cur=r, res=r_res)
+            return {"min": float(r_res[owned_strut].min()) if owned_strut.any() else np.inf}
+        r, _ = _gather_radii(spec, shard, ids, swap, rnd - 1, prev, r_res)
+        n_nodes, m = len(nodes), len(edges)
+        bad, need, length = misfits(nodes, edges, r, slack=FIT_SLACK, segments=segments,
+                                    profile=profile)  # fmt: skip
+        node_f = np.ones(n_nodes)
+        edge_f = np.ones(m)
+        if len(bad):
+            factor = np.clip((1.0 - 1.5 * FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
+            np.minimum.at(node_f, edges[bad, 0], factor)
+            np.minimum.at(node_f, edges[bad, 1], factor)
+        new_m = np.maximum(r * node_f[edges] * edge_f[:, None], floor)
+        mis_owned = np.zeros(m, dtype=bool)
+        mis_owned[bad] = True
+        mis_owned &= owned_strut
+        out: dict[str, Any] = {
+            "misfit": int(mis_owned.sum()),
+            "eq_m": bool(np.array_equal(new_m[owned_strut], r[owned_strut])),
+            "pairs": 0, "clash": 0, "eq_c": True,
+            "where": (nodes[edges[np.flatnonzero(mis_owned)[0]]].tolist()
+                      if mis_owned.any() else None),
+        }  # fmt: skip
+        cols = {"M": new_m}
+        if not mis_owned.any():
+            pairs, dist, reach = clashes(
+                nodes, edges, r, margin=2 * CLEARANCE_MARGIN, segments=segments,
+                profile=profile,
+            )  # fmt: skip
+            node_f = np.ones(n_nodes)
+            edge_f = np.ones(m)
+            factor = np.repeat(np.clip(0.98 * dist / reach, 0.2, 0.97), 2)
+            el = pairs.ravel()
+            strut = el < m
+            np.minimum.at(edge_f, el[strut], factor[strut])
+            np.minimum.at(node_f, el[~strut] - m, factor[~strut])
+            new_c = np.maximum(r * node_f[edges] * edge_f[:, None], floor)
+            # a pair is seen exactly by the owners of its elements (a joint: its node's)
+            own_el = np.concatenate([owned_strut, owned])
+            out["pairs"] = int(own_el[pairs].any(axis=1).sum())
+            cl = np.zeros(m, dtype=bool)
+            cl[_clash_struts(pairs, edges, m, n_nodes)] = True
+            cl &= owned_strut
+            out["clash"] = int(cl.sum())
+            if cl.any():
+                out["where"] = nodes[edges[np.flatnonzero(cl)[0]]].tolist()
+            out["eq_c"] = bool(np.array_equal(new_c[owned_strut], r[owned_strut]))
+            cols["C"] = new_c
+        save(**cols)
+        return out
+
+
+def _fit_sharded(
+    client: Any,
+    spec: _FillSpec,
+    live: list[int],
+    keep: dict[int, NDArray[np.bool_]],
+    radius: Any,
+    min_radius: float | None,
+    segments: int,
+    profile: str,
+    *,
+    retries: int,
+    progress: bool,
+    max_rounds: int = 60,
+) -> tuple[int, str]:
+    """:func:`conformal.radius.fit_radii` (``clearance=True``) over the shards, round by
+    round (:func:`_fit_round`); the client takes each round's decision of the one-process
+    loop from the owned flags of all shards. Returns the round and column of the fitted
+    radii (the owners' ``fit-ROUND-SHARD.npz``). Raises :class:`FitError` as
+    ``conformal.voxel_lattice`` does when struts cannot be thinned enough."""
+    from lattice_cad.core.errors import FitError
+
+    def run(rnd: int, prev: str, floor: float) -> list[dict[str, Any]]:
+        got = _run(client, _fit_round, [(spec, s, keep[s], rnd, prev) for s in live],
+                   retries=retries, progress=progress, desc=f"fit{rnd}",
+                   extra=(radius, floor, segments, profile))  # fmt: skip
+        return [x for x in got if x is not None]
+
+    init = run(0, "cur", 0.0)
+    floor = 0.1 * min(x["min"] for x in init) if min_radius is None else float(min_radius)
+    prev = "cur"
+    unfit: list[dict[str, Any]] = []
+    final = (max_rounds, "M")
+    for rnd in range(1, max_rounds + 1):
+        flags = run(rnd, prev, floor)
+        if any(x["misfit"] for x in flags):
+            unfit = [x for x in flags if x["misfit"]]
+            if all(x["eq_m"] for x in flags):
+                final = (rnd - 1, prev)
+                break
+            prev = "M"
+        else:
+            if not any(x["pairs"] for x in flags):
+                unfit = []
+                final = (rnd - 1, prev)
+                break
+            unfit = [x for x in flags if x["clash"]]
+            if all(x["eq_c"] for x in flags):
+                final = (rnd - 1, prev)
+                break
+            prev = "C"
+    else:
+        final = (max_rounds, prev)
+    if unfit:
+        n = sum(x["misfit"] or x["clash"] for x in unfit)
+        raise FitError(
+            f"{n} strut(s) cannot be thinned enough to stitch (min radius {floor:g}); e.g. "
+            f"the strut from {unfit[0]['where'][0]} to {unfit[0]['where'][1]}; use larger "
+            "cells, a smaller radius or more segments (--segments), or a lower min_radius"
+        )
+    return final
+
+
 def _fill_stitch(
     spec: _FillSpec,
     shard: int,
     keep_label: NDArray[np.bool_],
+    fitted: tuple[int, str] | None,
     radius: Any,
-    fit: str,
-    min_radius: float | None,
     segments: int,
     seed: int,
     profile: str,
 ) -> ShardStats | None:
-    """Phase 2 of a shard: keep the selected pieces, radii, stitch, write owned triangles."""
-    from conformal.radius import fit_radii, resolve_radii
+    """Phase 2 of a shard: keep the selected pieces, radii (the fitted ones of their
+    owners, :func:`_fit_sharded`), stitch, write owned triangles."""
+    from conformal.radius import resolve_radii
 
     _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     with _threads(spec.threads):
-        data = np.load(Path(spec.tmpdir) / f"graph-{shard}.npz")
-        nodes, edges, owned, label = data["nodes"], data["edges"], data["owned"], data["label"]
-        key = data["key"]
-        edges = edges[keep_label[label[edges[:, 0]]]]
-        used = np.zeros(len(nodes), dtype=bool)
-        used[edges.ravel()] = True
-        if not (owned & used).any():
+        g = _shard_graph(spec, shard, keep_label)
+        if g is None:
             return None
-        nodes, owned, key = nodes[used], owned[used], key[used]
-        edges = (np.cumsum(used) - 1)[edges]
+        nodes, edges, owned, key, _ = g
         lo, hi = _block(spec, shard)
         where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
         r = resolve_radii(radius, nodes, edges)
-        if fit == "shrink":
-            floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
-            new, _ = fit_radii(
-                nodes, edges, r, min_radius=floor, segments=segments, profile=profile
-            )
+        thinned, r_min = 0, np.inf
+        if fitted is not None:
+            ids, swap = _strut_ids(key, edges)
+            asked = r
+            r, found = _gather_radii(spec, shard, ids, swap, fitted[0], fitted[1], asked)
             need = _within(owned, edges, _hops(profile))
-            changed = (new != r).any(axis=1) & need[edges].any(axis=1)
-            if changed.any():
-                e = int(np.flatnonzero(changed)[0])
+            lost = need[edges].any(axis=1) & ~found
+            if lost.any():
+                e = int(np.flatnonzero(lost)[0])
                 raise ShardingError(
-                    f"{where}: {int(changed.sum())} strut(s) would be thinned to fit (e.g. the "
-                    f"strut from {nodes[edges[e, 0]].tolist()} to {nodes[edges[e, 1]].tolist()});"
-                    " fitting radii is a global iteration the sharded path does not run: use "
-                    "thinner struts, or fit='off'"
+                    f"{where}: no shard fitted the strut from {nodes[edges[e, 0]].tolist()} "
+                    f"to {nodes[edges[e, 1]].tolist()}, which this shard needs; use a larger "
+                    "halo"
                 )
+            mine = owned[edges[:, 0]]
+            thinned = int(((r < asked).any(axis=1) & mine).sum())
+            r_min = float(r[mine].min()) if mine.any() else np.inf
         # stitch only what the owned triangles depend on: the struts at the owned nodes
         # and at the nodes within _hops (whose hubs are complete here)
         need = _within(owned, edges, _hops(profile))
@@ -727,6 +1006,8 @@ def _fill_stitch(
             cpu_seconds=time.process_time() - c0,
             peak_rss=_peak_rss(),
             worker=_worker_name(),
+            thinned=thinned,
+            min_radius=r_min,
         )
 
 
@@ -1128,16 +1409,32 @@ def fill_sharded(
             raise _nothing_fits(the_part, h, radius if not callable(radius) else 0.0,
                                 f"no cell of size {h[0]:.4g} mm fits inside")  # fmt: skip
         keep = _select_pieces(the_part, live, result)
+        fitted = None
+        if fit == "shrink":
+            t0 = time.perf_counter()
+            fitted = _fit_sharded(client, spec, [b["shard"] for b in live], keep, radius,
+                                  min_radius, int(segments), str(profile), retries=retries,
+                                  progress=progress)  # fmt: skip
+            result.seconds["fit"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         stats = _run(
             client, _fill_stitch, [(spec, b["shard"], keep[b["shard"]]) for b in live],
             retries=retries, progress=progress, desc="stitch",
-            extra=(radius, fit, min_radius, int(segments), int(seed), str(profile)),
+            extra=(fitted, radius, int(segments), int(seed), str(profile)),
         )  # fmt: skip
         result.seconds["stitch"] = time.perf_counter() - t0
         result.shards = [s for s in stats if s is not None]
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
+        result.radii_reduced = sum(s.thinned for s in result.shards)
+        if result.radii_reduced:  # the warning of conformal.voxel_lattice, same words
+            warnings.warn(
+                f"{result.radii_reduced} of {result.struts} struts were thinned (down to "
+                f"radius {min(s.min_radius for s in result.shards):.4g}) so that every "
+                "strut can be stitched",
+                LatticeWarning,
+                stacklevel=2,
+            )
         t0 = time.perf_counter()
         if fmt == "3mf" and _threemf_layout(threemf, result.triangles, beam_lattice) == "shards":
             _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
