@@ -147,6 +147,8 @@ class ShardStats:
     worker: str
     thinned: int = 0
     min_radius: float = float("inf")
+    hit0: bool = False
+    capped: bool = False
 
 
 @dataclass
@@ -390,21 +392,28 @@ def _stitch_owned(
     profile: str,
     piece: Path,
     where: str,
+    report: dict[str, Any] | None = None,
 ) -> int:
-    """Stitch one shard's graph and write the triangles it owns; their count."""
+    """Stitch one shard's graph and write the triangles it owns; their count.
+
+    Without ``report``, a hub near the owned nodes whose growth the clearance capped
+    raises :class:`ShardingError`; with it (:func:`fill_sharded`, which runs the capping
+    rounds sharded), the stitch's report is left there (``scale_override`` may be given
+    in it)."""
     import fast_stitch
     from lattice_cad.core.graph import LatticeGraph
 
     graph = LatticeGraph(nodes, edges, radii)
     graph.check_precision("float32")
-    report: dict[str, Any] = {}
+    refuse = report is None
+    report = {} if report is None else report
     mesh = fast_stitch.stitch(
         graph, segments, seed=seed, profile=profile, workers=None, _report=report
     )
     capped = report.get("capped", np.zeros(0, dtype=np.int64))
     # the owned triangles use the hub scales of the owned nodes and their neighbours
     near = _within(owned_node, edges, 1)[capped] if len(capped) else np.zeros(0, dtype=bool)
-    if near.any():
+    if refuse and near.any():
         k = int(capped[near][0])
         raise ShardingError(
             f"{where}: the hub at {nodes[k].tolist()} may not grow to the exact solid's "
@@ -938,11 +947,132 @@ def _fit_sharded(
     return final
 
 
+# ================================================ hub growth capped, sharded
+#: Largest hub growth ``s_n`` (profile="volume") the sharded reach of capping allows for.
+_MAX_GROWTH = 1.5
+
+
+def _near(nodes: NDArray[np.float64], seed: NDArray[np.bool_], reach: float) -> NDArray[np.bool_]:
+    """(N,) bool: the nodes within ``reach`` of a ``seed`` node."""
+    from scipy.spatial import cKDTree
+
+    out = seed.copy()
+    if seed.any() and not seed.all():
+        d, _ = cKDTree(nodes[seed]).query(nodes[~seed], k=1, distance_upper_bound=reach)
+        out[~seed] = np.isfinite(d)
+    return out
+
+
+def _cap_reach(
+    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64],
+    segments: int,
+) -> float:  # fmt: skip
+    """How far from a node the scales that one capping round
+    (:func:`fast_stitch.stitch.cap_growth`) reads for it can be: a strut at the node (its
+    far end's scale), the clearance of that strut or of the node's joint to an element
+    sharing no node with it, and that element's far end; elements grown by at most
+    :data:`_MAX_GROWTH` (joint balls reach at most ``sqrt(l^2 + R^2)`` unscaled)."""
+    from fast_stitch.hubvolume import profile_factor
+
+    lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
+    big_r = float(radii.max()) * profile_factor(segments, "circumscribed")
+    ball = float(np.hypot(lmax, big_r)) * _MAX_GROWTH
+    return (2.0 * lmax + 2.0 * max(ball, big_r * _MAX_GROWTH)) * (1 + 1e-6)
+
+
+def _gather_scales(
+    spec: _FillSpec, shard: int, key: NDArray[np.int64], rnd: int, where: str,
+    fallback: NDArray[np.float64] | None = None,
+    halvings: bool = False,
+) -> Any:  # fmt: skip
+    """Node scales (and halvings) as their owners wrote them in capping round ``rnd``;
+    a node no owner wrote keeps ``fallback`` (without one: :class:`ShardingError`)."""
+    scale = np.full(len(key), np.nan) if fallback is None else fallback.copy()
+    halv = np.zeros(len(key), dtype=np.int64)
+    found = np.zeros(len(key), dtype=bool)
+    for s in _neighbour_shards(spec, shard):
+        p = Path(spec.tmpdir) / f"capr-{rnd}-{s}.npz"
+        if not p.exists():
+            continue
+        with np.load(p) as d:
+            ids = d["key"]
+            if not len(ids):
+                continue
+            at = np.minimum(np.searchsorted(ids, key), len(ids) - 1)
+            hit = ids[at] == key
+            scale[hit] = d["scale"][at[hit]]
+            halv[hit] = d["halvings"][at[hit]]
+            found |= hit
+    if fallback is None and not found.all():
+        raise ShardingError(f"{where}: no shard capped the hub growth of a node it needs; "
+                            "use a larger halo")  # fmt: skip
+    return (scale, halv, found) if halvings else scale
+
+
+def _cap_round(spec: _FillSpec, shard: int, rnd: int) -> bool | None:
+    """Round ``rnd`` of :func:`fast_stitch.stitch.cap_growth` for the nodes this shard
+    owns: the scales of every node within :func:`_cap_reach` as their owners wrote them
+    in round ``rnd - 1`` (round 0: the hub scales of the stitch), the clearance check of
+    the scaled elements, the growth of hit owned nodes halved. Returns whether an owned
+    node was hit (the one-process loop stops at the first round without any)."""
+    from fast_stitch.fit import _clashes, _incidence
+
+    p = Path(spec.tmpdir) / f"cap-{shard}.npz"
+    if not p.exists():
+        return None
+    with _threads(spec.threads), np.load(p) as d:
+        nodes, edges, radii, off = d["nodes"], d["edges"], d["radii0"], d["offset0"]
+        s0, key, owned, near = d["scale0"], d["key"], d["owned"], d["near"]
+        lo, hi = _block(spec, shard)
+        where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+        if rnd == 0:
+            scale, halv = s0, np.zeros(len(nodes), dtype=np.int64)
+        else:
+            scale, halv, found = _gather_scales(spec, shard, key, rnd - 1, where, fallback=s0,
+                                                halvings=True)  # fmt: skip
+            if (near & ~found).any():
+                raise ShardingError(f"{where}: no shard capped the hub growth of a node "
+                                    "within reach; use a larger halo")  # fmt: skip
+        m, n_nodes = len(edges), len(nodes)
+        node_scale = scale[edges]
+        pairs, _, _ = _clashes(nodes, edges, radii * node_scale, off * node_scale,
+                               _incidence(edges, n_nodes), 1e-9)  # fmt: skip
+        el = np.unique(pairs.ravel())
+        hit = np.zeros(n_nodes, dtype=bool)
+        hit[edges[el[el < m]].ravel()] = True
+        hit[el[el >= m] - m] = True
+        hit &= (scale > 1.0) & owned
+        new = scale.copy()
+        halv = halv.copy()
+        halv[hit] += 1
+        less = hit & (halv <= 3)
+        new[less] = 1.0 + 0.5 * (scale[less] - 1.0)
+        new[hit & ~less] = 1.0
+        order = np.argsort(key[owned])
+        np.savez(Path(spec.tmpdir) / f"capr-{rnd}-{shard}.npz", key=key[owned][order],
+                 scale=new[owned][order], halvings=halv[owned][order])  # fmt: skip
+        return bool(hit.any())
+
+
+def _cap_sharded(
+    client: Any, spec: _FillSpec, live: list[int], *, retries: int, progress: bool
+) -> int:
+    """The capping rounds of :func:`fast_stitch.stitch.cap_growth` over the shards (scales
+    exchanged between owners every round); the round whose files hold the final scales."""
+    for rnd in range(10_000):
+        hits = _run(client, _cap_round, [(spec, s, rnd) for s in live], retries=retries,
+                    progress=progress, desc=f"cap{rnd}")  # fmt: skip
+        if not any(h for h in hits if h is not None):
+            return rnd
+    raise ShardingError("capping hub growth did not settle")  # pragma: no cover
+
+
 def _fill_stitch(
     spec: _FillSpec,
     shard: int,
     keep_label: NDArray[np.bool_],
     fitted: tuple[int, str] | None,
+    cap: int | None,
     radius: Any,
     segments: int,
     seed: int,
@@ -963,6 +1093,7 @@ def _fill_stitch(
         where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
         r = resolve_radii(radius, nodes, edges)
         thinned, r_min = 0, np.inf
+        found = np.ones(len(edges), dtype=bool)
         if fitted is not None:
             ids, swap = _strut_ids(key, edges)
             asked = r
@@ -980,23 +1111,69 @@ def _fill_stitch(
             thinned = int(((r < asked).any(axis=1) & mine).sum())
             r_min = float(r[mine].min()) if mine.any() else np.inf
         # stitch only what the owned triangles depend on: the struts at the owned nodes
-        # and at the nodes within _hops (whose hubs are complete here)
+        # and at the nodes within _hops (whose hubs are complete here); with "volume",
+        # also what the capping rounds of hub growth read (_cap_round): the scales of the
+        # nodes within _cap_reach of the owned nodes, so the stars one strut further
         need = _within(owned, edges, _hops(profile))
+        capping = profile == "volume"
+        if capping:
+            exact = g[4]
+            reach = _cap_reach(nodes, edges, r, segments)
+            near = _near(nodes, owned, reach)
+            need |= _within(near, edges, 1)
+            sub = need[edges].any(axis=1)
+            bad = need & ~exact
+            if fitted is not None:
+                bad[edges[sub & ~found].ravel()] = True
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                raise ShardingError(
+                    f"{where}: limiting hub growth reads hubs within {reach:.4g} of the owned "
+                    f"nodes, but the node at {nodes[k].tolist()} may have struts beyond the "
+                    f"halo of {spec.halo} cell(s); use a larger halo"
+                )
         sub = need[edges].any(axis=1)
         edges, r = edges[sub], r[sub]
         used = np.zeros(len(nodes), dtype=bool)
         used[edges.ravel()] = True
         nodes, owned, key = nodes[used], owned[used], key[used]
+        need = need[used]
         edges = (np.cumsum(used) - 1)[edges]
         owned_strut = owned[edges[:, 0]]
         if spec.beams:  # the owned struts as beams (degrees of the whole lattice)
             _save_beams(Path(spec.tmpdir) / f"beams-{shard}.npz", nodes, edges, r, owned_strut,
                         key)  # fmt: skip
+        report: dict[str, Any] | None = None
+        seen = _within(owned, edges, 1)  # the nodes whose scales the owned triangles use
+        if capping:
+            report = {}
+            if cap is not None:
+                idx = np.flatnonzero(seen)
+                if cap < 0:  # nothing is capped in the lattice: the uncapped scales
+                    report["scale_override"] = (idx, None)
+                else:
+                    report["scale_override"] = (idx, _gather_scales(spec, shard, key[idx],
+                                                                    cap, where))  # fmt: skip
         n = _stitch_owned(
             nodes, edges, r, owned, owned_strut,
             segments=segments, seed=seed, profile=profile,
-            piece=Path(spec.tmpdir) / f"piece-{shard}.stl", where=where,
+            piece=Path(spec.tmpdir) / f"piece-{shard}.stl", where=where, report=report,
         )  # fmt: skip
+        hit0 = capped_seen = False
+        if report is not None and cap is None:
+            if "scale0" in report and float(report["scale0"].max()) > _MAX_GROWTH:
+                raise ShardingError(
+                    f"{where}: a hub grows by {float(report['scale0'].max()):.4g}, more than "
+                    f"the {_MAX_GROWTH} the sharded path allows for"
+                )
+            hits = report.get("hits0")
+            hit0 = bool(hits is not None and (hits & owned).any())
+            capped_seen = bool(seen[report.get("capped", np.zeros(0, dtype=np.int64))].any())
+            if "scale0" in report:
+                near = _near(nodes, owned, _cap_reach(nodes, edges, r, segments))
+                np.savez(Path(spec.tmpdir) / f"cap-{shard}.npz", nodes=nodes, edges=edges,
+                         radii0=report["radii0"], offset0=report["offset0"],
+                         scale0=report["scale0"], key=key, owned=owned, near=near)  # fmt: skip
         return ShardStats(
             shard=shard,
             owned_struts=int(owned_strut.sum()),
@@ -1008,6 +1185,8 @@ def _fill_stitch(
             worker=_worker_name(),
             thinned=thinned,
             min_radius=r_min,
+            hit0=hit0,
+            capped=capped_seen,
         )
 
 
@@ -1417,12 +1596,35 @@ def fill_sharded(
                                   progress=progress)  # fmt: skip
             result.seconds["fit"] = time.perf_counter() - t0
         t0 = time.perf_counter()
+        extra = (radius, int(segments), int(seed), str(profile))
         stats = _run(
-            client, _fill_stitch, [(spec, b["shard"], keep[b["shard"]]) for b in live],
-            retries=retries, progress=progress, desc="stitch",
-            extra=(fitted, radius, int(segments), int(seed), str(profile)),
+            client, _fill_stitch, [(spec, b["shard"], keep[b["shard"]], fitted, None)
+                                   for b in live],
+            retries=retries, progress=progress, desc="stitch", extra=extra,
         )  # fmt: skip
         result.seconds["stitch"] = time.perf_counter() - t0
+        # hub growth capped (profile="volume"): if a hub is hit anywhere, the capping
+        # rounds run sharded and the shards are stitched again with the capped scales;
+        # if none is, a shard that capped a hub it shows (wrongly, from its halo) is
+        # stitched again with the uncapped scales
+        redo: dict[int, int] = {}
+        if any(s.hit0 for s in stats if s is not None):
+            t0 = time.perf_counter()
+            last = _cap_sharded(client, spec, [b["shard"] for b in live], retries=retries,
+                                progress=progress)  # fmt: skip
+            redo = {s.shard: last for s in stats if s is not None}
+            result.seconds["cap"] = time.perf_counter() - t0
+        else:
+            redo = {s.shard: -1 for s in stats if s is not None and s.capped}
+        if redo:
+            t0 = time.perf_counter()
+            again = _run(
+                client, _fill_stitch, [(spec, k, keep[k], fitted, c) for k, c in redo.items()],
+                retries=retries, progress=progress, desc="restitch", extra=extra,
+            )  # fmt: skip
+            by = {s.shard: s for s in again if s is not None}
+            stats = [by.get(s.shard, s) if s is not None else None for s in stats]
+            result.seconds["restitch"] = time.perf_counter() - t0
         result.shards = [s for s in stats if s is not None]
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
