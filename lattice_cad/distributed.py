@@ -92,6 +92,7 @@ from lattice_cad.core.errors import (
     DistributedUnavailableError,
     InputFileError,
     LatticeWarning,
+    ShardHaloError,
     ShardingError,
 )
 
@@ -523,12 +524,12 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         relevant = need[edges].any(axis=1)
         if incomplete[need].any():
             k = int(np.flatnonzero(need & incomplete)[0])
-            raise ShardingError(
+            raise ShardHaloError(
                 f"{where}: node at {nodes[k].tolist()} needs struts beyond the halo of "
                 f"{spec.halo} cell(s); use a larger halo"
             )
         if (relevant & (alive != lower)).any():
-            raise ShardingError(
+            raise ShardHaloError(
                 f"{where}: pruning dangling struts reaches beyond the halo of {spec.halo} "
                 "cell(s); use a larger halo (or prune=False)"
             )
@@ -537,7 +538,7 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         trusted = lower[alive]
         if bad is not None:
             if (relevant & bad[edges].any(axis=1)).any():
-                raise ShardingError(
+                raise ShardHaloError(
                     f"{where}: merging close surface nodes reaches beyond the halo of "
                     f"{spec.halo} cell(s); use a larger halo"
                 )
@@ -748,22 +749,66 @@ def _gather_radii(
     return _canon(r, swap), found
 
 
-def _fit_reach(
-    nodes: NDArray[np.float64], edges: NDArray[np.int64], rmax: float, segments: int,
+def _reach(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    owned: NDArray[np.bool_],
+    *,
+    segments: int,
     profile: str,
-) -> float:  # fmt: skip
-    """How far from a node the struts that one round of :func:`conformal.radius.fit_radii`
-    reads to thin the struts at that node can be: two struts (misfits: the node factor at
-    the far end depends on the offsets at its neighbours), or a strut, the clearance of a
-    strut or joint there to an element sharing no node with it, and that element's far
-    end (joint balls reach at most ``sqrt(l^2 + R^2)`` once every strut fits)."""
+    pad: float,
+    growth: float = 1.0,
+    misfit_hops: bool = True,
+) -> float:
+    """How far from an owned node the nodes whose stars one round of the radius fit
+    (:func:`conformal.radius.fit_radii`) or of hub-growth capping
+    (:func:`fast_stitch.stitch.cap_growth`) reads for the owned struts and nodes can be.
+
+    The elements read: the struts at the owned nodes and the joints at them and at their
+    neighbours (the node factors of the far ends), of actual reach ``E`` (capsule radius,
+    or joint ball: the farthest profile vertex, :func:`fast_stitch.fit.end_offsets`, times
+    ``growth``); any element sharing no node with them that comes within ``pad * (E + E')``
+    of them, whose nodes are then within ``l + pad * (E + B)`` (a joint at such a node, of
+    ball ``B <= sqrt(l^2 + R^2)`` once every strut fits) or ``2 l + pad * (E + R)`` (a strut)
+    of the owned node; with ``misfit_hops``, the misfits two struts away (``2 l``).
+    ``l``: the longest strut, ``R``: the largest profile radius (times ``growth``).
+    """
+    from fast_stitch.fit import end_offsets
     from fast_stitch.hubvolume import profile_factor
-    from lattice_cad.core.config import CLEARANCE_MARGIN
 
     lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
-    big_r = rmax * profile_factor(segments, profile)
-    ball = float(np.hypot(lmax, big_r))
-    return (2.0 * lmax + (1.0 + 2.0 * CLEARANCE_MARGIN) * 2.0 * max(ball, big_r)) * (1 + 1e-9)
+    k = profile_factor(segments, profile)
+    big_r = float(radii.max()) * k * growth
+    ball_bar = float(np.hypot(lmax, big_r))
+    off = end_offsets(nodes, edges, radii, segments=segments, profile=profile)
+    ball = np.hypot(off, radii * k) * growth  # (M, 2): profile vertex distance per end
+    at = _within(owned, edges, 1)  # joints read: at the owned nodes and their neighbours
+    e_x = max(float(ball[at[edges]].max(initial=0.0)), big_r)
+    reach = max(lmax + pad * (e_x + ball_bar), 2.0 * lmax + pad * (e_x + big_r))
+    if misfit_hops:
+        reach = max(reach, 2.0 * lmax)
+    return reach * (1 + 1e-9)
+
+
+def _check_reach(
+    nodes: NDArray[np.float64], owned: NDArray[np.bool_], ok: NDArray[np.bool_],
+    reach: float, what: str, where: str, halo: int,
+) -> None:  # fmt: skip
+    """:class:`ShardingError` unless every node within ``reach`` of an owned node is ``ok``
+    (its star is the whole lattice's, with the current radii)."""
+    if ok.all():
+        return
+    from scipy.spatial import cKDTree
+
+    d, i = cKDTree(nodes[~ok]).query(nodes[owned], k=1, distance_upper_bound=reach)
+    if np.isfinite(d).any():
+        k = int(np.flatnonzero(~ok)[i[np.isfinite(d)][0]])
+        raise ShardHaloError(
+            f"{where}: {what} reads struts within {reach:.4g} of the owned nodes, but the "
+            f"node at {nodes[k].tolist()} may have struts beyond the halo of {halo} cell(s); "
+            "use a larger halo"
+        )
 
 
 def _fit_round(
@@ -815,19 +860,6 @@ def _fit_round(
 
         r_res = resolve_radii(radius, nodes, edges)
         if rnd == 0:
-            if not exact.all():
-                from scipy.spatial import cKDTree
-
-                reach = _fit_reach(nodes, edges, float(r_res.max()), segments, profile)
-                d, i = cKDTree(nodes[~exact]).query(nodes[owned], k=1,
-                                                    distance_upper_bound=reach)  # fmt: skip
-                if np.isfinite(d).any():
-                    k = int(np.flatnonzero(~exact)[i[np.isfinite(d)][0]])
-                    raise ShardingError(
-                        f"{where}: fitting the radii reads struts within {reach:.4g} of "
-                        f"the owned nodes, but the node at {nodes[k].tolist()} may have "
-                        f"struts beyond the halo of {spec.halo} cell(s); use a larger halo"
-                    )
             r = r_res.copy()
             length = strut_lengths(nodes, edges)
             cap = 0.45 * length
@@ -835,7 +867,12 @@ def _fit_round(
             r[too_fat] = np.broadcast_to(cap[:, None], r.shape)[too_fat]
             save(cur=r, res=r_res)
             return {"min": float(r_res[owned_strut].min()) if owned_strut.any() else np.inf}
-        r, _ = _gather_radii(spec, shard, ids, swap, rnd - 1, prev, r_res)
+        r, found = _gather_radii(spec, shard, ids, swap, rnd - 1, prev, r_res)
+        ok = exact.copy()
+        ok[edges[~found].ravel()] = False
+        reach = _reach(nodes, edges, r, owned, segments=segments, profile=profile,
+                       pad=1.0 + 2.0 * CLEARANCE_MARGIN)  # fmt: skip
+        _check_reach(nodes, owned, ok, reach, "fitting the radii", where, spec.halo)
         n_nodes, m = len(nodes), len(edges)
         bad, need, length = misfits(nodes, edges, r, slack=FIT_SLACK, segments=segments,
                                     profile=profile)  # fmt: skip
@@ -963,23 +1000,6 @@ def _near(nodes: NDArray[np.float64], seed: NDArray[np.bool_], reach: float) -> 
     return out
 
 
-def _cap_reach(
-    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64],
-    segments: int,
-) -> float:  # fmt: skip
-    """How far from a node the scales that one capping round
-    (:func:`fast_stitch.stitch.cap_growth`) reads for it can be: a strut at the node (its
-    far end's scale), the clearance of that strut or of the node's joint to an element
-    sharing no node with it, and that element's far end; elements grown by at most
-    :data:`_MAX_GROWTH` (joint balls reach at most ``sqrt(l^2 + R^2)`` unscaled)."""
-    from fast_stitch.hubvolume import profile_factor
-
-    lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
-    big_r = float(radii.max()) * profile_factor(segments, "circumscribed")
-    ball = float(np.hypot(lmax, big_r)) * _MAX_GROWTH
-    return (2.0 * lmax + 2.0 * max(ball, big_r * _MAX_GROWTH)) * (1 + 1e-6)
-
-
 def _gather_scales(
     spec: _FillSpec, shard: int, key: NDArray[np.int64], rnd: int, where: str,
     fallback: NDArray[np.float64] | None = None,
@@ -1004,7 +1024,7 @@ def _gather_scales(
             halv[hit] = d["halvings"][at[hit]]
             found |= hit
     if fallback is None and not found.all():
-        raise ShardingError(f"{where}: no shard capped the hub growth of a node it needs; "
+        raise ShardHaloError(f"{where}: no shard capped the hub growth of a node it needs; "
                             "use a larger halo")  # fmt: skip
     return (scale, halv, found) if halvings else scale
 
@@ -1031,7 +1051,7 @@ def _cap_round(spec: _FillSpec, shard: int, rnd: int) -> bool | None:
             scale, halv, found = _gather_scales(spec, shard, key, rnd - 1, where, fallback=s0,
                                                 halvings=True)  # fmt: skip
             if (near & ~found).any():
-                raise ShardingError(f"{where}: no shard capped the hub growth of a node "
+                raise ShardHaloError(f"{where}: no shard capped the hub growth of a node "
                                     "within reach; use a larger halo")  # fmt: skip
         m, n_nodes = len(edges), len(nodes)
         node_scale = scale[edges]
@@ -1102,7 +1122,7 @@ def _fill_stitch(
             lost = need[edges].any(axis=1) & ~found
             if lost.any():
                 e = int(np.flatnonzero(lost)[0])
-                raise ShardingError(
+                raise ShardHaloError(
                     f"{where}: no shard fitted the strut from {nodes[edges[e, 0]].tolist()} "
                     f"to {nodes[edges[e, 1]].tolist()}, which this shard needs; use a larger "
                     "halo"
@@ -1117,21 +1137,15 @@ def _fill_stitch(
         need = _within(owned, edges, _hops(profile))
         capping = profile == "volume"
         if capping:
-            exact = g[4]
-            reach = _cap_reach(nodes, edges, r, segments)
+            ok = g[4].copy()
+            ok[edges[~found].ravel()] = False
+            reach = _reach(nodes, edges, r, owned, segments=segments, profile=profile,
+                           pad=1.0 + 1e-9, growth=_MAX_GROWTH, misfit_hops=False)  # fmt: skip
             near = _near(nodes, owned, reach)
             need |= _within(near, edges, 1)
-            sub = need[edges].any(axis=1)
-            bad = need & ~exact
-            if fitted is not None:
-                bad[edges[sub & ~found].ravel()] = True
-            if bad.any():
-                k = int(np.flatnonzero(bad)[0])
-                raise ShardingError(
-                    f"{where}: limiting hub growth reads hubs within {reach:.4g} of the owned "
-                    f"nodes, but the node at {nodes[k].tolist()} may have struts beyond the "
-                    f"halo of {spec.halo} cell(s); use a larger halo"
-                )
+            # the scales read (near) are exact when the stars one strut further are
+            _check_reach(nodes, owned, ok | ~_within(near, edges, 1), np.inf,
+                         "limiting hub growth", where, spec.halo)  # fmt: skip
         sub = need[edges].any(axis=1)
         edges, r = edges[sub], r[sub]
         used = np.zeros(len(nodes), dtype=bool)
@@ -1161,16 +1175,17 @@ def _fill_stitch(
         )  # fmt: skip
         hit0 = capped_seen = False
         if report is not None and cap is None:
-            if "scale0" in report and float(report["scale0"].max()) > _MAX_GROWTH:
+            near = near[used]
+            grow = float(report["scale0"][near].max()) if "scale0" in report else 1.0
+            if grow > _MAX_GROWTH:
                 raise ShardingError(
-                    f"{where}: a hub grows by {float(report['scale0'].max()):.4g}, more than "
-                    f"the {_MAX_GROWTH} the sharded path allows for"
+                    f"{where}: a hub grows by {grow:.4g}, more than the {_MAX_GROWTH} the "
+                    "sharded path allows for"
                 )
             hits = report.get("hits0")
             hit0 = bool(hits is not None and (hits & owned).any())
             capped_seen = bool(seen[report.get("capped", np.zeros(0, dtype=np.int64))].any())
             if "scale0" in report:
-                near = _near(nodes, owned, _cap_reach(nodes, edges, r, segments))
                 np.savez(Path(spec.tmpdir) / f"cap-{shard}.npz", nodes=nodes, edges=edges,
                          radii0=report["radii0"], offset0=report["offset0"],
                          scale0=report["scale0"], key=key, owned=owned, near=near)  # fmt: skip
@@ -1426,6 +1441,17 @@ def _check_profile(profile: str) -> None:
         raise ValueError(f"unknown profile {profile!r}")
 
 
+def _default_halo(fill: str, fit: str, profile: str) -> int:
+    """The first halo (cells) :func:`fill_sharded` tries: 1 cell for the struts of cells
+    that stay inside the cell (2 for ``"clip"``, whose merges of surface nodes reach a
+    strut length plus ``min_strut`` further, 3 for ``"conform"``, whose moved nodes make
+    longer struts), plus 1 for the neighbours' hubs (2 with ``profile="volume"``, whose
+    hub scales reach one strut further), plus 1 for what the radius fit and hub-growth
+    capping read around the owned struts (``fit="shrink"`` or ``profile="volume"``)."""
+    base = {"clip": 2, "conform": 3}.get(fill, 1) + _hops(profile)
+    return base + (1 if fit == "shrink" or profile == "volume" else 0)
+
+
 def fill_sharded(
     part: str | os.PathLike[str],
     path: str | os.PathLike[str],
@@ -1528,6 +1554,21 @@ def fill_sharded(
     FillError
         No cell fits inside the part.
     """
+    if halo is None:  # the default, grown while a shard finds it too small
+        kw = dict(locals())
+        base = _default_halo(fill, fit, profile)
+        for extra in (0, 2, 4):
+            with warnings.catch_warnings(record=True) as seen:
+                warnings.simplefilter("always")
+                try:
+                    result = fill_sharded(**{**kw, "halo": base + extra})
+                except ShardHaloError:
+                    if extra == 4:
+                        raise
+                    continue
+            for w in seen:  # the warnings of the attempt that worked only
+                warnings.warn(w.message, w.category, stacklevel=2)
+            return result
     from conformal.voxel import _nothing_fits, grid_of
 
     t_start = time.perf_counter()
@@ -1543,8 +1584,6 @@ def fill_sharded(
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
     _threemf_layout(threemf, 0, False)
-    if halo is None:
-        halo = (2 if fill in ("clip", "conform") else 1) + _hops(profile)
     if beam_lattice and fmt != "3mf":
         raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
