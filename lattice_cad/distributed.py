@@ -25,13 +25,25 @@ Why the pieces fit together exactly
   cells of halo give that for every cell whose struts stay in the cell: all built-in
   cells). With ``profile="volume"`` (the default) each hub is also scaled by ``s_n``,
   which depends on the offsets at the far ends of its node's struts: the stars must be
-  complete one strut further (three cells of halo, the default; ``stitch_sharded``
-  routes struts within twice the longest strut of a block), and ``s_n`` is iterated per
-  node (:func:`fast_stitch.hubvolume.hub_scales`). A shard that finds one of those nodes
-  on the halo's edge raises :class:`ShardingError`. Hub growth limited by clearance
-  (:func:`fast_stitch.stitch.cap_growth`) depends on struts anywhere near: a shard that
-  caps a hub within reach of its block raises :class:`ShardingError` (run that lattice in
-  one process, or use ``profile="area"``).
+  complete one strut further (``stitch_sharded`` routes struts within twice the longest
+  strut of a block), and ``s_n`` is iterated per node
+  (:func:`fast_stitch.hubvolume.hub_scales`). A shard that finds one of those nodes on
+  the halo's edge raises :class:`ShardHaloError`.
+- **Iterations that reach across shards, run round by round.** The radius fit
+  (:func:`conformal.radius.fit_radii`: struts at crowded nodes and struts or joints that
+  come too close are thinned, repeatedly) and the capping of hub growth
+  (:func:`fast_stitch.stitch.cap_growth`) are loops whose rounds are local (a strut's or
+  hub's next value depends only on the elements within a bounded distance, :func:`_reach`)
+  but whose decisions are global (which kind of round, when to stop). :func:`fill_sharded`
+  runs them as one task per shard and round: each shard computes the next values of what
+  it owns from the current values of everything within reach, exchanged through files of
+  the owners; the client takes each decision from the flags of all shards. Every round is
+  thus the one-process round, value for value; each shard checks that everything within
+  reach of its owned elements has the whole lattice's star (else
+  :class:`ShardHaloError`). Capping runs only when a grown hub is hit somewhere; then the
+  shards are stitched again with the capped scales (``fast_stitch.stitch``'s
+  ``scale_override``). :func:`stitch_sharded` does not run these rounds: a capped hub
+  within reach of a block raises :class:`ShardingError` there (use ``profile="area"``).
 - **Global clean-up, done exactly.** Dangling struts are pruned in each shard twice (halo
   edge kept / halo edge pruned); the true result lies between, so equal answers near the
   block prove it exact (else :class:`ShardingError`). The largest connected piece (per
@@ -51,8 +63,8 @@ Why the pieces fit together exactly
 Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits), ``"clip"``
 and ``"conform"`` of any
 built-in or user cell without rotation, a scalar or callable radius (a picklable
-function of the (M, 3) strut midpoints), ``fit="shrink"`` when it thins nothing near a
-block and ``fit="off"``; written as binary STL (up to 2^32 triangles) or 3MF: one merged
+function of the (M, 3) strut midpoints), ``fit="shrink"`` (run sharded, as above) and
+``fit="off"``; written as binary STL (up to 2^32 triangles) or 3MF: one merged
 mesh up to :data:`MAX_3MF_TRIANGLES`, beyond (or with ``threemf="shards"``) one object
 per shard in its own model part (Production extension, :mod:`lattice_cad.io.sharded_3mf`),
 also with beams (``beam_lattice=True``). Refused with :class:`ShardingError`:
@@ -1514,14 +1526,18 @@ def fill_sharded(
         ``"clip"`` / ``"conform"``: merge distance and shortest strut, in cells (as
         ``conformal.voxel_lattice``).
     fit : {"shrink", "off"}
-        ``"shrink"`` checks that the single-process fitting (for ``segments`` and
-        ``profile``) would thin nothing near any block (else :class:`ShardingError`).
+        ``"shrink"``: the radii are fitted as ``conformal.voxel_lattice`` fits them
+        (:func:`conformal.radius.fit_radii`), sharded: round by round, every shard
+        computes the new radii of the struts it owns from the current radii of every strut
+        within reach (exchanged through files between rounds), and the client takes the
+        decisions of the one-process loop (misfit or clearance round, when to stop) from
+        the flags of all shards, so that every round is the one-process round. The
+        thinning warning and :class:`FitError` are those of one process.
     halo : int, optional
-        Cells of overlap on every side of a block. The default: 1 cell for the struts of
-        cells that stay inside the cell (2 for ``"clip"`` / ``"conform"``, whose merges of
-        surface nodes reach a strut length plus ``min_strut`` further), plus 1 for the
-        neighbours' hubs (2 with ``profile="volume"``, whose hub scales reach one strut
-        further). A halo too small for what a shard finds raises :class:`ShardingError`.
+        Cells of overlap on every side of a block. The default (:func:`_default_halo`:
+        4 cells for ``"inside"``, 5 for ``"clip"``, 6 for ``"conform"`` with the default
+        fit and profile) is grown by 2 cells, twice, when a shard finds it too small
+        (:class:`ShardHaloError`); a halo given is used as it is (too small: the error).
     retries : int
         Dask retries of a failed task (a worker that dies is replaced and its tasks rerun).
     threads_per_task : int
