@@ -390,8 +390,10 @@ def _stitch(
         if report is not None:  # the unscaled profiles and scales (the sharded cap rounds)
             report["scale0"], report["radii0"], report["offset0"] = scale, radii, end_offset
         override = None if report is None else report.get("scale_override")
-        scale, capped = cap_growth(nodes, edges, radii, end_offset, scale,
-                                   hits0=None if report is None else report)  # fmt: skip
+        if report is None:
+            scale, capped = cap_growth(nodes, edges, radii, end_offset, scale)
+        else:
+            scale, capped = cap_growth(nodes, edges, radii, end_offset, scale, hits0=report)
         if override is not None:  # scales of some nodes given (lattice_cad.distributed)
             idx, given = override
             scale = scale.copy()
