@@ -385,7 +385,7 @@ def _stitch(
     if correct_hubs and len(hubs):
         scale, _, _ = hub_scales(
             nodes, edges, graph.incidence, degree, graph.radii, radii, end_offset, length,
-            vertices, faces, face_start, node_rep, P,
+            vertices, faces, face_start, node_rep, P, frames=(axis, sign, fu, fv),
         )  # fmt: skip
         if report is not None:  # the unscaled profiles and scales (the sharded cap rounds)
             report["scale0"], report["radii0"], report["offset0"] = scale, radii, end_offset
