@@ -1,6 +1,7 @@
 """Sharded beam lattices (3MF Beam Lattice extension): every strut as one beam and every
 ball once (seam nodes too), for fill_sharded and for stitch_sharded of a user graph;
-compared ball by ball (position, radius) with the single-process beam lattice."""
+compared ball by ball (position, radius) with the single-process beam lattice; and the
+hub scales that a shard computes from part of the lattice are the whole lattice's."""
 
 from __future__ import annotations
 
@@ -102,3 +103,37 @@ def test_stitch_sharded_beam_lattice(client, tmp_path):
     np.testing.assert_array_equal(e, e1)
     with pytest.raises(Exception, match="beam lattice is written as .3mf"):
         stitch_sharded(shards, tmp_path / "g.stl", 7, scheduler=client, beam_lattice=True)
+
+
+def test_hub_scales_do_not_depend_on_the_representative():
+    """Translated hubs share one representative, whose volumes give the hub scale of all
+    of them; a shard holds only part of the lattice and picks other representatives. The
+    volumes come from the stitch's canonical frames, so the scales are bit-identical
+    (they differed in the last bits when taken from absolute positions: one vertex of the
+    GE bracket's conform fill at r = 0.08 cell differed sharded)."""
+    from lattice_cad import LatticeGraph
+
+    ijk = np.argwhere(np.ones((6, 5, 4), dtype=bool))
+    nodes, edges, _ = conformal.tile_arrays("bcc", ijk, cell_size=1.37, origin=(-31.3, 7.9, 2.1))
+    full = LatticeGraph(nodes, edges, np.full((len(edges), 2), 0.11))
+    rep_full: dict = {}
+    fast_stitch.stitch(full, 6, _report=rep_full)
+    # drop the cells' struts near the low corner: every hub class gets another first member
+    keep = (nodes[edges].min(axis=1) > nodes.min(axis=0) + 1.5).any(axis=1)
+    used = np.zeros(len(nodes), dtype=bool)
+    used[edges[keep].ravel()] = True
+    sub = LatticeGraph(nodes[used], (np.cumsum(used) - 1)[edges[keep]],
+                       np.full((int(keep.sum()), 2), 0.11))  # fmt: skip
+    rep_sub: dict = {}
+    fast_stitch.stitch(sub, 6, _report=rep_sub)
+    # nodes whose stars two struts out are whole in the sub-lattice
+    whole = np.zeros(len(nodes), dtype=bool)
+    whole[used] = np.bincount(sub.edges.ravel(), minlength=sub.num_nodes) == full.degree[used]
+    for _ in range(2):
+        whole &= ~np.bincount(edges[~whole[edges].all(axis=1)].ravel(),
+                              minlength=len(nodes)).astype(bool)  # fmt: skip
+    assert whole.sum() > 20
+    got = rep_sub["scale0"][(np.cumsum(used) - 1)[whole]]
+    want = rep_full["scale0"][whole]
+    assert np.ptp(want) > 0  # boundary and inner hubs: several classes
+    np.testing.assert_array_equal(got, want)
