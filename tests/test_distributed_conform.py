@@ -83,7 +83,11 @@ def test_conform_halo_too_small_is_refused(client, tmp_path):
     assert not (tmp_path / "x.stl").exists()
 
 
-@pytest.mark.parametrize(("fill", "cells"), [("conform", 12), ("clip", 14)])
+@pytest.mark.parametrize(
+    ("fill", "cells"),
+    # conform: a 6-cell halo on a 12-cell part (~20 s under load)
+    [pytest.param("conform", 12, marks=pytest.mark.slow), ("clip", 14)],
+)
 def test_usual_radius_fit_and_capping_sharded(client, tmp_path, fill, cells):
     """At the CLI's radius (0.08 of the cell) the one-process fit thins hundreds of struts
     near the surface (misfit and clearance rounds) and, for clip, hub growth is capped by
