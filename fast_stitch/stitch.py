@@ -399,7 +399,7 @@ def _stitch(
             scale = scale.copy()
             scale[idx] = report["scale0"][idx] if given is None else given
         if report is not None:
-            report["capped"] = capped
+            report["capped"], report["scale"] = capped, scale
         # similar hubs: same triangles, profiles (radius and offset) scaled about the node
         node_scale = scale[edges]
         radii = radii * node_scale

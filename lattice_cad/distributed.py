@@ -1086,6 +1086,20 @@ def _cap_round(spec: _FillSpec, shard: int, rnd: int) -> bool | None:
         return bool(hit.any())
 
 
+def _cap_changed(spec: _FillSpec, shard: int, rnd: int) -> bool:
+    """Whether the final scales (round ``rnd``) of the nodes whose scales a shard's owned
+    triangles use differ from those its first stitch used (then it is stitched again)."""
+    p = Path(spec.tmpdir) / f"cap-{shard}.npz"
+    if not p.exists():
+        return True
+    with np.load(p) as d:
+        seen, key, scale = d["seen"], d["key"], d["scale"]
+    lo, hi = _block(spec, shard)
+    where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+    final = _gather_scales(spec, shard, key[seen], rnd, where)
+    return not np.array_equal(final, scale[seen])
+
+
 def _cap_sharded(
     client: Any, spec: _FillSpec, live: list[int], *, retries: int, progress: bool
 ) -> int:
@@ -1200,7 +1214,8 @@ def _fill_stitch(
             if "scale0" in report:
                 np.savez(Path(spec.tmpdir) / f"cap-{shard}.npz", nodes=nodes, edges=edges,
                          radii0=report["radii0"], offset0=report["offset0"],
-                         scale0=report["scale0"], key=key, owned=owned, near=near)  # fmt: skip
+                         scale0=report["scale0"], key=key, owned=owned, near=near,
+                         seen=seen, scale=report["scale"])  # fmt: skip
         return ShardStats(
             shard=shard,
             owned_struts=int(owned_strut.sum()),
@@ -1667,7 +1682,10 @@ def fill_sharded(
             t0 = time.perf_counter()
             last = _cap_sharded(client, spec, [b["shard"] for b in live], retries=retries,
                                 progress=progress)  # fmt: skip
-            redo = {s.shard: last for s in stats if s is not None}
+            done = [s.shard for s in stats if s is not None]
+            changed = _run(client, _cap_changed, [(spec, k, last) for k in done],
+                           retries=retries, progress=False, desc="capcheck")  # fmt: skip
+            redo = {k: last for k, c in zip(done, changed, strict=True) if c}
             result.seconds["cap"] = time.perf_counter() - t0
         else:
             redo = {s.shard: -1 for s in stats if s is not None and s.capped}

@@ -4,6 +4,7 @@ parts, and one closed solid across the seams (trimesh, manifold3d)."""
 
 from __future__ import annotations
 
+import sys
 import warnings
 
 import numpy as np
@@ -120,6 +121,25 @@ def test_usual_radius_fit_and_capping_sharded(client, tmp_path, fill, cells):
     assert len(rec) == res.triangles == len(ref)
     np.testing.assert_array_equal(canonical(rec["v"]), ref)
     assert_closed(rec)
+    if capped:  # every shard stitched again with the capped scales given: the same
+        import cloudpickle
+
+        cloudpickle.register_pickle_by_value(sys.modules[__name__])
+        try:
+            with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                mp.setattr(st, "_cap_changed", _always_changed)
+                res2 = st.fill_sharded(src, out, "bcc", h, r, shards=4, scheduler=client,
+                                       fill=fill)  # fmt: skip
+        finally:
+            cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+        assert "restitch" in res2.seconds
+        np.testing.assert_array_equal(canonical(read_stl(out)["v"]), ref)
+
+
+def _always_changed(spec, shard, rnd):
+    """Stands in for lattice_cad.distributed._cap_changed: restitch every shard."""
+    return True
 
 
 def test_fit_reach_checked(client, tmp_path):
