@@ -41,8 +41,8 @@ Why the pieces fit together exactly
   thus the one-process round, value for value; each shard checks that everything within
   reach of its owned elements has the whole lattice's star (else
   :class:`ShardHaloError`). Capping runs only when a grown hub is hit somewhere; then the
-  shards are stitched again with the capped scales (``fast_stitch.stitch``'s
-  ``scale_override``). :func:`stitch_sharded` does not run these rounds: a capped hub
+  shards whose owned triangles use a scale that differs from their first stitch's are
+  stitched again with the capped scales (``fast_stitch.stitch``'s ``scale_override``). :func:`stitch_sharded` does not run these rounds: a capped hub
   within reach of a block raises :class:`ShardingError` there (use ``profile="area"``).
 - **Global clean-up, done exactly.** Dangling struts are pruned in each shard twice (halo
   edge kept / halo edge pruned); the true result lies between, so equal answers near the
