@@ -42,8 +42,9 @@ Why the pieces fit together exactly
   reach of its owned elements has the whole lattice's star (else
   :class:`ShardHaloError`). Capping runs only when a grown hub is hit somewhere; then the
   shards whose owned triangles use a scale that differs from their first stitch's are
-  stitched again with the capped scales (``fast_stitch.stitch``'s ``scale_override``). :func:`stitch_sharded` does not run these rounds: a capped hub
-  within reach of a block raises :class:`ShardingError` there (use ``profile="area"``).
+  stitched again with the capped scales (``fast_stitch.stitch``'s ``scale_override``).
+  :func:`stitch_sharded` does not run these rounds: a capped hub within reach of a block
+  raises :class:`ShardingError` there (use ``profile="area"``).
 - **Global clean-up, done exactly.** Dangling struts are pruned in each shard twice (halo
   edge kept / halo edge pruned); the true result lies between, so equal answers near the
   block prove it exact (else :class:`ShardingError`). The largest connected piece (per
