@@ -25,7 +25,7 @@ def sphere_directions(n):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, end_offset, W, out):
+def exact_hub_volumes(reps, axis, sign, offsets, inc_edge, inc_side, radii, end_offset, W, out):
     """Volume of the exact solid's part on the node's side of all its profile planes.
 
     The exact solid near node ``n`` is the ball of radius ``R = max r_i`` united with
@@ -39,6 +39,11 @@ def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, en
     ----------
     reps : (K,) int64
         Nodes (degree >= 2) to measure.
+    axis : (M, 3) float64, sign : (M,) int64
+        The stitch's canonical strut axes (``_kernels.edge_frames``): the strut leaves its
+        first node along ``sign * axis``. Directions from these, not from the node
+        positions, so that translated hubs (one representative per shape) have
+        bit-identical volumes whichever member represents them.
     radii : (M, 2) float64
         True strut radii (of the design, not of the polygons).
     end_offset : (M, 2) float64
@@ -60,14 +65,10 @@ def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, en
         for t in range(d):
             e = inc_edge[lo + t]
             s = inc_side[lo + t]
-            o = edges[e, 1 - s]
-            vx = nodes[o, 0] - nodes[n, 0]
-            vy = nodes[o, 1] - nodes[n, 1]
-            vz = nodes[o, 2] - nodes[n, 2]
-            nn = np.sqrt(vx * vx + vy * vy + vz * vz)
-            a[t, 0] = vx / nn
-            a[t, 1] = vy / nn
-            a[t, 2] = vz / nn
+            sg = float(sign[e]) if s == 0 else -float(sign[e])
+            a[t, 0] = sg * axis[e, 0]
+            a[t, 1] = sg * axis[e, 1]
+            a[t, 2] = sg * axis[e, 2]
             r[t] = radii[e, s]
             r2[t] = r[t] * r[t]
             off[t] = end_offset[e, s]
@@ -93,17 +94,36 @@ def exact_hub_volumes(reps, nodes, edges, offsets, inc_edge, inc_side, radii, en
         out[ri] = total * wgt
 
 
+@njit(cache=True, inline="always")
+def _rel_vertex(i, axis, sign, frame_u, frame_v, prad, end_offset, P, c):
+    """Coordinate ``c`` of profile vertex ``i`` relative to its node: the terms of
+    ``_kernels.profile_vertices`` without the node (the same for translated hubs)."""
+    e = i // (2 * P)
+    side = (i // P) % 2
+    k = i % P
+    s = float(sign[e]) if side == 0 else -float(sign[e])
+    dd = end_offset[e, side] * s
+    r = prad[e, side]
+    ang = 2.0 * np.pi * k / P
+    return dd * axis[e, c] + np.cos(ang) * r * frame_u[e, c] + np.sin(ang) * r * frame_v[e, c]
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def hub_mesh_volumes(reps, nodes, vertices, faces, face_start, offsets, inc_edge, inc_side,
-                     prad, end_offset, P, out):  # fmt: skip
+def hub_mesh_volumes(reps, axis, sign, frame_u, frame_v, faces, face_start, offsets, inc_edge,
+                     inc_side, prad, end_offset, P, out):  # fmt: skip
     """Volume of each hub polyhedron: the convex hull of its profiles.
 
     The hub's triangles (``d P + 2 d - 4`` rows from ``face_start[n]``, outward) plus its
     profile polygons (area ``P / 2 rho^2 sin(2 pi / P)`` at distance ``d_i`` from the node)
-    close it; volumes are cones from the node.
+    close it; volumes are cones from the node. The vertices are taken relative to the
+    node from the stitch's frames (``_kernels.edge_frames``), not from their absolute
+    positions, so that translated hubs have bit-identical volumes whichever member
+    represents them (a shard and the whole lattice may pick different members).
 
     Parameters
     ----------
+    axis, frame_u, frame_v : (M, 3) float64, sign : (M,) int64
+        The stitch's canonical strut frames.
     prad : (M, 2) float64
         Profile circumradius of each strut end.
     out : (K,) float64, out
@@ -113,23 +133,20 @@ def hub_mesh_volumes(reps, nodes, vertices, faces, face_start, offsets, inc_edge
         n = reps[ri]
         lo = offsets[n]
         d = offsets[n + 1] - lo
-        x0 = nodes[n, 0]
-        y0 = nodes[n, 1]
-        z0 = nodes[n, 2]
         total = 0.0
         for f in range(face_start[n], face_start[n] + d * P + 2 * d - 4):
             i = faces[f, 0]
             j = faces[f, 1]
             k = faces[f, 2]
-            ax = vertices[i, 0] - x0
-            ay = vertices[i, 1] - y0
-            az = vertices[i, 2] - z0
-            bx = vertices[j, 0] - x0
-            by = vertices[j, 1] - y0
-            bz = vertices[j, 2] - z0
-            cx = vertices[k, 0] - x0
-            cy = vertices[k, 1] - y0
-            cz = vertices[k, 2] - z0
+            ax = _rel_vertex(i, axis, sign, frame_u, frame_v, prad, end_offset, P, 0)
+            ay = _rel_vertex(i, axis, sign, frame_u, frame_v, prad, end_offset, P, 1)
+            az = _rel_vertex(i, axis, sign, frame_u, frame_v, prad, end_offset, P, 2)
+            bx = _rel_vertex(j, axis, sign, frame_u, frame_v, prad, end_offset, P, 0)
+            by = _rel_vertex(j, axis, sign, frame_u, frame_v, prad, end_offset, P, 1)
+            bz = _rel_vertex(j, axis, sign, frame_u, frame_v, prad, end_offset, P, 2)
+            cx = _rel_vertex(k, axis, sign, frame_u, frame_v, prad, end_offset, P, 0)
+            cy = _rel_vertex(k, axis, sign, frame_u, frame_v, prad, end_offset, P, 1)
+            cz = _rel_vertex(k, axis, sign, frame_u, frame_v, prad, end_offset, P, 2)
             total += ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
         total /= 6.0
         for t in range(d):

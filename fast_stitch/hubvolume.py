@@ -114,6 +114,9 @@ def hub_scales(
     face_start: NDArray[np.int64],
     node_rep: NDArray[np.int64],
     P: int,
+    *,
+    frames: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
+                  NDArray[np.float64]],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Per-node scale ``s_n`` that gives each hub the exact solid's volume (module docstring).
 
@@ -132,6 +135,10 @@ def hub_scales(
         First row of each node's hub triangles.
     node_rep : (N,) int64
         Distinct hub of each node of degree >= 2 (translates share one), -1 otherwise.
+    frames : tuple
+        The stitch's strut frames ``(axis (M, 3), sign (M,), frame_u (M, 3), frame_v
+        (M, 3))`` (``_kernels.edge_frames``): the volumes are computed from them relative
+        to the node, so that they do not depend on which translate represents a hub.
 
     Returns
     -------
@@ -154,12 +161,13 @@ def hub_scales(
     vh = np.empty(len(rep_nodes))
     vx = np.empty(len(rep_nodes))
     W = _hub_kernels.sphere_directions(int(config.HUB_QUADRATURE))
+    axis, sign, frame_u, frame_v = frames
     _hub_kernels.hub_mesh_volumes(
-        rep_nodes, nodes, vertices, faces, face_start, offsets, inc_edge, inc_side, prad,
-        end_offset, P, vh,
+        rep_nodes, axis, sign, frame_u, frame_v, faces, face_start, offsets, inc_edge,
+        inc_side, prad, end_offset, P, vh,
     )  # fmt: skip
     _hub_kernels.exact_hub_volumes(
-        rep_nodes, nodes, edges, offsets, inc_edge, inc_side, radii, end_offset, W, vx
+        rep_nodes, axis, sign, offsets, inc_edge, inc_side, radii, end_offset, W, vx
     )
     pos = np.searchsorted(reps_of, node_rep[hubs])
     v_hull[hubs] = vh[pos]

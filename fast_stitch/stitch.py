@@ -385,11 +385,21 @@ def _stitch(
     if correct_hubs and len(hubs):
         scale, _, _ = hub_scales(
             nodes, edges, graph.incidence, degree, graph.radii, radii, end_offset, length,
-            vertices, faces, face_start, node_rep, P,
+            vertices, faces, face_start, node_rep, P, frames=(axis, sign, fu, fv),
         )  # fmt: skip
-        scale, capped = cap_growth(nodes, edges, radii, end_offset, scale)
+        if report is not None:  # the unscaled profiles and scales (the sharded cap rounds)
+            report["scale0"], report["radii0"], report["offset0"] = scale, radii, end_offset
+        override = None if report is None else report.get("scale_override")
+        if report is None:
+            scale, capped = cap_growth(nodes, edges, radii, end_offset, scale)
+        else:
+            scale, capped = cap_growth(nodes, edges, radii, end_offset, scale, hits0=report)
+        if override is not None:  # scales of some nodes given (lattice_cad.distributed)
+            idx, given = override
+            scale = scale.copy()
+            scale[idx] = report["scale0"][idx] if given is None else given
         if report is not None:
-            report["capped"] = capped
+            report["capped"], report["scale"] = capped, scale
         # similar hubs: same triangles, profiles (radius and offset) scaled about the node
         node_scale = scale[edges]
         radii = radii * node_scale
@@ -408,6 +418,7 @@ def cap_growth(
     scale: NDArray[np.float64],
     *,
     rounds: int = 3,
+    hits0: dict[str, Any] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Limit the growth of hubs (``s_n > 1``) to what their clearance allows.
 
@@ -429,6 +440,9 @@ def cap_growth(
         Profile circumradii and offsets before scaling.
     scale : (N,) float64
         ``s_n`` of :func:`fast_stitch.hubvolume.hub_scales`.
+    hits0 : dict, optional
+        Receives ``"hits0"``: (N,) bool, the grown nodes of overlapping elements in the
+        first round (before any halving), for the sharded path.
 
     Returns
     -------
@@ -457,6 +471,8 @@ def cap_growth(
         hit[edges[el[el < m]].ravel()] = True
         hit[el[el >= m] - m] = True
         hit &= scale > 1.0
+        if hits0 is not None and "hits0" not in hits0:
+            hits0["hits0"] = hit.copy()
         if not hit.any():
             break
         halvings[hit] += 1

@@ -911,9 +911,6 @@ def _entry() -> None:  # pragma: no cover - console script
     sys.exit(main())
 
 
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
-
 
 def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
     """``fill --shards N``: lattice_cad.distributed.fill_sharded, refusing what it cannot do."""
@@ -958,3 +955,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
         )
     con.say(res.summary())
     return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

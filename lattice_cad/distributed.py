@@ -25,13 +25,26 @@ Why the pieces fit together exactly
   cells of halo give that for every cell whose struts stay in the cell: all built-in
   cells). With ``profile="volume"`` (the default) each hub is also scaled by ``s_n``,
   which depends on the offsets at the far ends of its node's struts: the stars must be
-  complete one strut further (three cells of halo, the default; ``stitch_sharded``
-  routes struts within twice the longest strut of a block), and ``s_n`` is iterated per
-  node (:func:`fast_stitch.hubvolume.hub_scales`). A shard that finds one of those nodes
-  on the halo's edge raises :class:`ShardingError`. Hub growth limited by clearance
-  (:func:`fast_stitch.stitch.cap_growth`) depends on struts anywhere near: a shard that
-  caps a hub within reach of its block raises :class:`ShardingError` (run that lattice in
-  one process, or use ``profile="area"``).
+  complete one strut further (``stitch_sharded`` routes struts within twice the longest
+  strut of a block), and ``s_n`` is iterated per node
+  (:func:`fast_stitch.hubvolume.hub_scales`). A shard that finds one of those nodes on
+  the halo's edge raises :class:`ShardHaloError`.
+- **Iterations that reach across shards, run round by round.** The radius fit
+  (:func:`conformal.radius.fit_radii`: struts at crowded nodes and struts or joints that
+  come too close are thinned, repeatedly) and the capping of hub growth
+  (:func:`fast_stitch.stitch.cap_growth`) are loops whose rounds are local (a strut's or
+  hub's next value depends only on the elements within a bounded distance, :func:`_reach`)
+  but whose decisions are global (which kind of round, when to stop). :func:`fill_sharded`
+  runs them as one task per shard and round: each shard computes the next values of what
+  it owns from the current values of everything within reach, exchanged through files of
+  the owners; the client takes each decision from the flags of all shards. Every round is
+  thus the one-process round, value for value; each shard checks that everything within
+  reach of its owned elements has the whole lattice's star (else
+  :class:`ShardHaloError`). Capping runs only when a grown hub is hit somewhere; then the
+  shards whose owned triangles use a scale that differs from their first stitch's are
+  stitched again with the capped scales (``fast_stitch.stitch``'s ``scale_override``).
+  :func:`stitch_sharded` does not run these rounds: a capped hub within reach of a block
+  raises :class:`ShardingError` there (use ``profile="area"``).
 - **Global clean-up, done exactly.** Dangling struts are pruned in each shard twice (halo
   edge kept / halo edge pruned); the true result lies between, so equal answers near the
   block prove it exact (else :class:`ShardingError`). The largest connected piece (per
@@ -51,8 +64,8 @@ Why the pieces fit together exactly
 Supported sharded: ``fill="inside"`` (also ``"auto"`` when a whole cell fits), ``"clip"``
 and ``"conform"`` of any
 built-in or user cell without rotation, a scalar or callable radius (a picklable
-function of the (M, 3) strut midpoints), ``fit="shrink"`` when it thins nothing near a
-block and ``fit="off"``; written as binary STL (up to 2^32 triangles) or 3MF: one merged
+function of the (M, 3) strut midpoints), ``fit="shrink"`` (run sharded, as above) and
+``fit="off"``; written as binary STL (up to 2^32 triangles) or 3MF: one merged
 mesh up to :data:`MAX_3MF_TRIANGLES`, beyond (or with ``threemf="shards"``) one object
 per shard in its own model part (Production extension, :mod:`lattice_cad.io.sharded_3mf`),
 also with beams (``beam_lattice=True``). Refused with :class:`ShardingError`:
@@ -92,6 +105,7 @@ from lattice_cad.core.errors import (
     DistributedUnavailableError,
     InputFileError,
     LatticeWarning,
+    ShardHaloError,
     ShardingError,
 )
 
@@ -145,6 +159,10 @@ class ShardStats:
     cpu_seconds: float
     peak_rss: int
     worker: str
+    thinned: int = 0
+    min_radius: float = float("inf")
+    hit0: bool = False
+    capped: bool = False
 
 
 @dataclass
@@ -174,6 +192,7 @@ class ShardedResult:
     removed_islands: int = 0
     removed_fragments: int = 0
     build_rss: dict[str, int] = field(default_factory=dict)
+    radii_reduced: int = 0
 
     @property
     def peak_rss_per_worker(self) -> dict[str, int]:
@@ -322,13 +341,6 @@ def _within(
     return out
 
 
-def _compact(
-    nodes: NDArray[np.float64], owned: NDArray[np.bool_], used: NDArray[np.bool_]
-) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """The used nodes (order kept, so local order stays global order)."""
-    return nodes[used], owned[used]
-
-
 def _write_piece(path: Path, records: Iterator[NDArray[Any]]) -> None:
     """Write STL records to ``path`` via a temp file and rename (a retried task
     overwrites a half-written piece of a killed attempt)."""
@@ -394,21 +406,28 @@ def _stitch_owned(
     profile: str,
     piece: Path,
     where: str,
+    report: dict[str, Any] | None = None,
 ) -> int:
-    """Stitch one shard's graph and write the triangles it owns; their count."""
+    """Stitch one shard's graph and write the triangles it owns; their count.
+
+    Without ``report``, a hub near the owned nodes whose growth the clearance capped
+    raises :class:`ShardingError`; with it (:func:`fill_sharded`, which runs the capping
+    rounds sharded), the stitch's report is left there (``scale_override`` may be given
+    in it)."""
     import fast_stitch
     from lattice_cad.core.graph import LatticeGraph
 
     graph = LatticeGraph(nodes, edges, radii)
     graph.check_precision("float32")
-    report: dict[str, Any] = {}
+    refuse = report is None
+    report = {} if report is None else report
     mesh = fast_stitch.stitch(
         graph, segments, seed=seed, profile=profile, workers=None, _report=report
     )
     capped = report.get("capped", np.zeros(0, dtype=np.int64))
     # the owned triangles use the hub scales of the owned nodes and their neighbours
     near = _within(owned_node, edges, 1)[capped] if len(capped) else np.zeros(0, dtype=bool)
-    if near.any():
+    if refuse and near.any():
         k = int(capped[near][0])
         raise ShardingError(
             f"{where}: the hub at {nodes[k].tolist()} may not grow to the exact solid's "
@@ -518,12 +537,12 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         relevant = need[edges].any(axis=1)
         if incomplete[need].any():
             k = int(np.flatnonzero(need & incomplete)[0])
-            raise ShardingError(
+            raise ShardHaloError(
                 f"{where}: node at {nodes[k].tolist()} needs struts beyond the halo of "
                 f"{spec.halo} cell(s); use a larger halo"
             )
         if (relevant & (alive != lower)).any():
-            raise ShardingError(
+            raise ShardHaloError(
                 f"{where}: pruning dangling struts reaches beyond the halo of {spec.halo} "
                 "cell(s); use a larger halo (or prune=False)"
             )
@@ -532,11 +551,20 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
         trusted = lower[alive]
         if bad is not None:
             if (relevant & bad[edges].any(axis=1)).any():
-                raise ShardingError(
+                raise ShardHaloError(
                     f"{where}: merging close surface nodes reaches beyond the halo of "
                     f"{spec.halo} cell(s); use a larger halo"
                 )
             trusted &= ~bad[edges[alive]].any(axis=1)
+        # nodes whose star (its struts and their far ends) is the whole lattice's: not on
+        # a cut face of the region, no strut of unsure pruning, no unsure merge at either
+        # end (the distributed radius fit needs them well beyond the owned nodes)
+        exact = ~incomplete
+        unsure = alive != lower
+        if bad is not None:
+            exact &= ~bad
+            unsure |= bad[edges].any(axis=1)
+        exact[edges[unsure].ravel()] = False
         pruned_owned = int((~alive & owned[edges[:, 0]]).sum())
         edges = edges[alive]
         used = np.zeros(n, dtype=bool)
@@ -545,7 +573,7 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             return {"shard": shard, "empty": True, "pruned": pruned_owned}
         new_id = np.cumsum(used) - 1
         nodes, nijk, owned, on_surface = nodes[used], nijk[used], owned[used], on_surface[used]
-        key = key[used]
+        key, exact = key[used], exact[used]
         edges = new_id[edges]
         # connected pieces over the struts known exactly (all of them for "inside");
         # joined across shards by the nodes they share, they give the global pieces
@@ -576,6 +604,8 @@ def _fill_build_task(spec: _FillSpec, shard: int) -> dict[str, Any] | None:
             edges=edges,
             owned=owned,
             label=label,
+            key=key,
+            exact=exact,
         )
         return {
             "shard": shard,
@@ -661,67 +691,532 @@ def _boundary_fill(
     return nodes, edges, on_surface, bad_root[root], src, new_key
 
 
+# ======================================================= the distributed radius fit
+def _shard_graph(
+    spec: _FillSpec, shard: int, keep_label: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_], NDArray[np.int64],
+           NDArray[np.bool_]] | None:  # fmt: skip
+    """A shard's graph of phase 1 with the selected pieces only: nodes (N, 3), edges
+    (M, 2) (local ids, in global order), owned (N,) bool, key (N,) int64 global ids and
+    exact (N,) bool (the star is the whole lattice's); None when it owns nothing."""
+    with np.load(Path(spec.tmpdir) / f"graph-{shard}.npz") as data:
+        nodes, edges, owned, label = data["nodes"], data["edges"], data["owned"], data["label"]
+        key, exact = data["key"], data["exact"]
+    edges = edges[keep_label[label[edges[:, 0]]]]
+    used = np.zeros(len(nodes), dtype=bool)
+    used[edges.ravel()] = True
+    if not (owned & used).any():
+        return None
+    edges = (np.cumsum(used) - 1)[edges]
+    return nodes[used], edges, owned[used], key[used], exact[used]
+
+
+def _strut_ids(key: NDArray[np.int64], edges: NDArray[np.int64]) -> tuple[NDArray[Any],
+                                                                           NDArray[np.bool_]]:
+    """(M,) 16-byte global strut ids (the two ends' global ids, lower first) and (M,) bool
+    ``swap``: the strut's local orientation is the reverse of its id's."""
+    a, b = key[edges[:, 0]], key[edges[:, 1]]
+    swap = a > b
+    pair = np.stack([np.where(swap, b, a), np.where(swap, a, b)], axis=1)
+    return np.ascontiguousarray(pair).view(np.dtype((np.void, 16))).ravel(), swap
+
+
+def _canon(r: NDArray[np.float64], swap: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Per-end radii in the orientation of the strut ids (an involution)."""
+    return np.where(swap[:, None], r[:, ::-1], r)
+
+
+def _neighbour_shards(spec: _FillSpec, shard: int) -> list[int]:
+    """The shards whose blocks a shard's region (block and halo) may reach."""
+    bi = np.array(np.unravel_index(shard, spec.counts))
+    reach = -(-spec.halo // np.array(spec.size))
+    out = []
+    for s in range(int(np.prod(spec.counts))):
+        bj = np.array(np.unravel_index(s, spec.counts))
+        if (np.abs(bj - bi) <= reach).all():
+            out.append(s)
+    return out
+
+
+def _gather_radii(
+    spec: _FillSpec, shard: int, ids: NDArray[Any], swap: NDArray[np.bool_], rnd: int,
+    col: str, fallback: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:  # fmt: skip
+    """The radii of a shard's struts as their owners computed them in round ``rnd``
+    (column ``col``): (M, 2) float64 in local orientation, and (M,) bool found (the others
+    keep ``fallback``: struts that no shard owns, outside what this shard must know)."""
+    r = _canon(fallback, swap)
+    found = np.zeros(len(ids), dtype=bool)
+    for s in _neighbour_shards(spec, shard):
+        p = Path(spec.tmpdir) / f"fit-{rnd}-{s}.npz"
+        if not p.exists():
+            continue
+        with np.load(p) as d:
+            oid = d["ids"].view(np.dtype((np.void, 16))).ravel()
+            at = np.searchsorted(oid, ids)
+            at[at >= len(oid)] = 0
+            hit = oid[at] == ids if len(oid) else np.zeros(len(ids), dtype=bool)
+            if hit.any():
+                r[hit] = d[col][at[hit]]
+                found |= hit
+    return _canon(r, swap), found
+
+
+def _reach(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    owned: NDArray[np.bool_],
+    *,
+    segments: int,
+    profile: str,
+    pad: float,
+    growth: float = 1.0,
+    misfit_hops: bool = True,
+) -> float:
+    """How far from an owned node the nodes whose stars one round of the radius fit
+    (:func:`conformal.radius.fit_radii`) or of hub-growth capping
+    (:func:`fast_stitch.stitch.cap_growth`) reads for the owned struts and nodes can be.
+
+    The elements read: the struts at the owned nodes and the joints at them and at their
+    neighbours (the node factors of the far ends), of actual reach ``E`` (capsule radius,
+    or joint ball: the farthest profile vertex, :func:`fast_stitch.fit.end_offsets`, times
+    ``growth``); any element sharing no node with them that comes within ``pad * (E + E')``
+    of them, whose nodes are then within ``l + pad * (E + B)`` (a joint at such a node, of
+    ball ``B <= sqrt(l^2 + R^2)`` once every strut fits) or ``2 l + pad * (E + R)`` (a strut)
+    of the owned node; with ``misfit_hops``, the misfits two struts away (``2 l``).
+    ``l``: the longest strut, ``R``: the largest profile radius (times ``growth``).
+    """
+    from fast_stitch.fit import end_offsets
+    from fast_stitch.hubvolume import profile_factor
+
+    lmax = float(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1).max())
+    k = profile_factor(segments, profile)
+    big_r = float(radii.max()) * k * growth
+    ball_bar = float(np.hypot(lmax, big_r))
+    off = end_offsets(nodes, edges, radii, segments=segments, profile=profile)
+    ball = np.hypot(off, radii * k) * growth  # (M, 2): profile vertex distance per end
+    at = _within(owned, edges, 1)  # joints read: at the owned nodes and their neighbours
+    e_x = max(float(ball[at[edges]].max(initial=0.0)), big_r)
+    reach = max(lmax + pad * (e_x + ball_bar), 2.0 * lmax + pad * (e_x + big_r))
+    if misfit_hops:
+        reach = max(reach, 2.0 * lmax)
+    return reach * (1 + 1e-9)
+
+
+def _check_reach(
+    nodes: NDArray[np.float64], owned: NDArray[np.bool_], ok: NDArray[np.bool_],
+    reach: float, what: str, where: str, halo: int,
+) -> None:  # fmt: skip
+    """:class:`ShardingError` unless every node within ``reach`` of an owned node is ``ok``
+    (its star is the whole lattice's, with the current radii)."""
+    if ok.all():
+        return
+    from scipy.spatial import cKDTree
+
+    d, i = cKDTree(nodes[~ok]).query(nodes[owned], k=1, distance_upper_bound=reach)
+    if np.isfinite(d).any():
+        k = int(np.flatnonzero(~ok)[i[np.isfinite(d)][0]])
+        raise ShardHaloError(
+            f"{where}: {what} reads struts within {reach:.4g} of the owned nodes, but the "
+            f"node at {nodes[k].tolist()} may have struts beyond the halo of {halo} cell(s); "
+            "use a larger halo"
+        )
+
+
+def _fit_round(
+    spec: _FillSpec,
+    shard: int,
+    keep_label: NDArray[np.bool_],
+    rnd: int,
+    prev: str,
+    radius: Any,
+    floor: float,
+    segments: int,
+    profile: str,
+) -> dict[str, Any] | None:
+    """Round ``rnd`` of the radius fit of :func:`conformal.radius.fit_radii`, for the struts
+    this shard owns.
+
+    Round 0 resolves the radii and caps them at 0.45 of the length (``cur``). Round k >= 1
+    reads the radii of every strut of the shard as their owners wrote them in round k - 1
+    (column ``prev``: ``cur``, or the candidate the client chose, ``M`` or ``C``), and
+    computes, as one process does for the whole lattice, both candidates: ``M`` (the
+    struts at nodes with misfits thinned, :func:`fast_stitch.fit.misfits`) and, unless an
+    owned strut misfits (then the lattice is in a misfit round), ``C`` (struts and joints
+    that clash thinned, :func:`fast_stitch.fit.clashes`). The client decides from all
+    shards' flags which one the whole lattice takes (the one-process rule), so every round
+    is the one-process round, strut for strut. Exact because every node within
+    :func:`_fit_reach` of an owned node has the lattice's star (checked in round 0), and
+    the radii are exchanged every round.
+    """
+    from conformal.radius import _clash_struts, resolve_radii
+    from fast_stitch.fit import clashes, misfits, strut_lengths
+    from lattice_cad.core.config import CLEARANCE_MARGIN, FIT_SLACK
+
+    with _threads(spec.threads):
+        g = _shard_graph(spec, shard, keep_label)
+        if g is None:
+            return None
+        nodes, edges, owned, key, exact = g
+        lo, hi = _block(spec, shard)
+        where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+        owned_strut = owned[edges[:, 0]]
+        ids, swap = _strut_ids(key, edges)
+        order = np.argsort(ids[owned_strut], kind="stable")
+        out_ids = ids[owned_strut][order]
+
+        def save(**cols: NDArray[np.float64]) -> None:
+            data = {k: _canon(v, swap)[owned_strut][order] for k, v in cols.items()}
+            np.savez(Path(spec.tmpdir) / f"fit-{rnd}-{shard}.npz",
+                     ids=out_ids.view(np.int64).reshape(-1, 2), **data)  # fmt: skip
+
+        r_res = resolve_radii(radius, nodes, edges)
+        if rnd == 0:
+            r = r_res.copy()
+            length = strut_lengths(nodes, edges)
+            cap = 0.45 * length
+            too_fat = r > cap[:, None]
+            r[too_fat] = np.broadcast_to(cap[:, None], r.shape)[too_fat]
+            save(cur=r, res=r_res)
+            return {"min": float(r_res[owned_strut].min()) if owned_strut.any() else np.inf}
+        r, found = _gather_radii(spec, shard, ids, swap, rnd - 1, prev, r_res)
+        ok = exact.copy()
+        ok[edges[~found].ravel()] = False
+        reach = _reach(nodes, edges, r, owned, segments=segments, profile=profile,
+                       pad=1.0 + 2.0 * CLEARANCE_MARGIN)  # fmt: skip
+        _check_reach(nodes, owned, ok, reach, "fitting the radii", where, spec.halo)
+        n_nodes, m = len(nodes), len(edges)
+        bad, need, length = misfits(nodes, edges, r, slack=FIT_SLACK, segments=segments,
+                                    profile=profile)  # fmt: skip
+        node_f = np.ones(n_nodes)
+        edge_f = np.ones(m)
+        if len(bad):
+            factor = np.clip((1.0 - 1.5 * FIT_SLACK) * length[bad] / need[bad], 0.2, 0.97)
+            np.minimum.at(node_f, edges[bad, 0], factor)
+            np.minimum.at(node_f, edges[bad, 1], factor)
+        new_m = np.maximum(r * node_f[edges] * edge_f[:, None], floor)
+        mis_owned = np.zeros(m, dtype=bool)
+        mis_owned[bad] = True
+        mis_owned &= owned_strut
+        out: dict[str, Any] = {
+            "misfit": int(mis_owned.sum()),
+            "eq_m": bool(np.array_equal(new_m[owned_strut], r[owned_strut])),
+            "pairs": 0, "clash": 0, "eq_c": True,
+            "where": (nodes[edges[np.flatnonzero(mis_owned)[0]]].tolist()
+                      if mis_owned.any() else None),
+        }  # fmt: skip
+        cols = {"M": new_m}
+        if not mis_owned.any():
+            pairs, dist, reach = clashes(
+                nodes, edges, r, margin=2 * CLEARANCE_MARGIN, segments=segments,
+                profile=profile,
+            )  # fmt: skip
+            node_f = np.ones(n_nodes)
+            edge_f = np.ones(m)
+            factor = np.repeat(np.clip(0.98 * dist / reach, 0.2, 0.97), 2)
+            el = pairs.ravel()
+            strut = el < m
+            np.minimum.at(edge_f, el[strut], factor[strut])
+            np.minimum.at(node_f, el[~strut] - m, factor[~strut])
+            new_c = np.maximum(r * node_f[edges] * edge_f[:, None], floor)
+            # a pair is seen exactly by the owners of its elements (a joint: its node's)
+            own_el = np.concatenate([owned_strut, owned])
+            out["pairs"] = int(own_el[pairs].any(axis=1).sum())
+            cl = np.zeros(m, dtype=bool)
+            cl[_clash_struts(pairs, edges, m, n_nodes)] = True
+            cl &= owned_strut
+            out["clash"] = int(cl.sum())
+            if cl.any():
+                out["where"] = nodes[edges[np.flatnonzero(cl)[0]]].tolist()
+            out["eq_c"] = bool(np.array_equal(new_c[owned_strut], r[owned_strut]))
+            cols["C"] = new_c
+        save(**cols)
+        return out
+
+
+def _fit_sharded(
+    client: Any,
+    spec: _FillSpec,
+    live: list[int],
+    keep: dict[int, NDArray[np.bool_]],
+    radius: Any,
+    min_radius: float | None,
+    segments: int,
+    profile: str,
+    *,
+    retries: int,
+    progress: bool,
+    max_rounds: int = 60,
+) -> tuple[int, str]:
+    """:func:`conformal.radius.fit_radii` (``clearance=True``) over the shards, round by
+    round (:func:`_fit_round`); the client takes each round's decision of the one-process
+    loop from the owned flags of all shards. Returns the round and column of the fitted
+    radii (the owners' ``fit-ROUND-SHARD.npz``). Raises :class:`FitError` as
+    ``conformal.voxel_lattice`` does when struts cannot be thinned enough."""
+    from lattice_cad.core.errors import FitError
+
+    def run(rnd: int, prev: str, floor: float) -> list[dict[str, Any]]:
+        got = _run(client, _fit_round, [(spec, s, keep[s], rnd, prev) for s in live],
+                   retries=retries, progress=progress, desc=f"fit{rnd}",
+                   extra=(radius, floor, segments, profile))  # fmt: skip
+        return [x for x in got if x is not None]
+
+    init = run(0, "cur", 0.0)
+    floor = 0.1 * min(x["min"] for x in init) if min_radius is None else float(min_radius)
+    prev = "cur"
+    unfit: list[dict[str, Any]] = []
+    final = (max_rounds, "M")
+    for rnd in range(1, max_rounds + 1):
+        flags = run(rnd, prev, floor)
+        if any(x["misfit"] for x in flags):
+            unfit = [x for x in flags if x["misfit"]]
+            if all(x["eq_m"] for x in flags):
+                final = (rnd - 1, prev)
+                break
+            prev = "M"
+        else:
+            if not any(x["pairs"] for x in flags):
+                unfit = []
+                final = (rnd - 1, prev)
+                break
+            unfit = [x for x in flags if x["clash"]]
+            if all(x["eq_c"] for x in flags):
+                final = (rnd - 1, prev)
+                break
+            prev = "C"
+    else:
+        final = (max_rounds, prev)
+    if unfit:
+        n = sum(x["misfit"] or x["clash"] for x in unfit)
+        raise FitError(
+            f"{n} strut(s) cannot be thinned enough to stitch (min radius {floor:g}); e.g. "
+            f"the strut from {unfit[0]['where'][0]} to {unfit[0]['where'][1]}; use larger "
+            "cells, a smaller radius or more segments (--segments), or a lower min_radius"
+        )
+    return final
+
+
+# ================================================ hub growth capped, sharded
+#: Largest hub growth ``s_n`` (profile="volume") the sharded reach of capping allows for.
+_MAX_GROWTH = 1.5
+
+
+def _near(nodes: NDArray[np.float64], seed: NDArray[np.bool_], reach: float) -> NDArray[np.bool_]:
+    """(N,) bool: the nodes within ``reach`` of a ``seed`` node."""
+    from scipy.spatial import cKDTree
+
+    out = seed.copy()
+    if seed.any() and not seed.all():
+        d, _ = cKDTree(nodes[seed]).query(nodes[~seed], k=1, distance_upper_bound=reach)
+        out[~seed] = np.isfinite(d)
+    return out
+
+
+def _gather_scales(
+    spec: _FillSpec, shard: int, key: NDArray[np.int64], rnd: int, where: str,
+    fallback: NDArray[np.float64] | None = None,
+    halvings: bool = False,
+) -> Any:  # fmt: skip
+    """Node scales (and halvings) as their owners wrote them in capping round ``rnd``;
+    a node no owner wrote keeps ``fallback`` (without one: :class:`ShardingError`)."""
+    scale = np.full(len(key), np.nan) if fallback is None else fallback.copy()
+    halv = np.zeros(len(key), dtype=np.int64)
+    found = np.zeros(len(key), dtype=bool)
+    for s in _neighbour_shards(spec, shard):
+        p = Path(spec.tmpdir) / f"capr-{rnd}-{s}.npz"
+        if not p.exists():
+            continue
+        with np.load(p) as d:
+            ids = d["key"]
+            if not len(ids):
+                continue
+            at = np.minimum(np.searchsorted(ids, key), len(ids) - 1)
+            hit = ids[at] == key
+            scale[hit] = d["scale"][at[hit]]
+            halv[hit] = d["halvings"][at[hit]]
+            found |= hit
+    if fallback is None and not found.all():
+        raise ShardHaloError(f"{where}: no shard capped the hub growth of a node it needs; "
+                            "use a larger halo")  # fmt: skip
+    return (scale, halv, found) if halvings else scale
+
+
+def _cap_round(spec: _FillSpec, shard: int, rnd: int) -> bool | None:
+    """Round ``rnd`` of :func:`fast_stitch.stitch.cap_growth` for the nodes this shard
+    owns: the scales of every node within :func:`_cap_reach` as their owners wrote them
+    in round ``rnd - 1`` (round 0: the hub scales of the stitch), the clearance check of
+    the scaled elements, the growth of hit owned nodes halved. Returns whether an owned
+    node was hit (the one-process loop stops at the first round without any)."""
+    from fast_stitch.fit import _clashes, _incidence
+
+    p = Path(spec.tmpdir) / f"cap-{shard}.npz"
+    if not p.exists():
+        return None
+    with _threads(spec.threads), np.load(p) as d:
+        nodes, edges, radii, off = d["nodes"], d["edges"], d["radii0"], d["offset0"]
+        s0, key, owned, near = d["scale0"], d["key"], d["owned"], d["near"]
+        lo, hi = _block(spec, shard)
+        where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+        if rnd == 0:
+            scale, halv = s0, np.zeros(len(nodes), dtype=np.int64)
+        else:
+            scale, halv, found = _gather_scales(spec, shard, key, rnd - 1, where, fallback=s0,
+                                                halvings=True)  # fmt: skip
+            if (near & ~found).any():
+                raise ShardHaloError(f"{where}: no shard capped the hub growth of a node "
+                                    "within reach; use a larger halo")  # fmt: skip
+        m, n_nodes = len(edges), len(nodes)
+        node_scale = scale[edges]
+        pairs, _, _ = _clashes(nodes, edges, radii * node_scale, off * node_scale,
+                               _incidence(edges, n_nodes), 1e-9)  # fmt: skip
+        el = np.unique(pairs.ravel())
+        hit = np.zeros(n_nodes, dtype=bool)
+        hit[edges[el[el < m]].ravel()] = True
+        hit[el[el >= m] - m] = True
+        hit &= (scale > 1.0) & owned
+        new = scale.copy()
+        halv = halv.copy()
+        halv[hit] += 1
+        less = hit & (halv <= 3)
+        new[less] = 1.0 + 0.5 * (scale[less] - 1.0)
+        new[hit & ~less] = 1.0
+        order = np.argsort(key[owned])
+        np.savez(Path(spec.tmpdir) / f"capr-{rnd}-{shard}.npz", key=key[owned][order],
+                 scale=new[owned][order], halvings=halv[owned][order])  # fmt: skip
+        return bool(hit.any())
+
+
+def _cap_changed(spec: _FillSpec, shard: int, rnd: int) -> bool:
+    """Whether the final scales (round ``rnd``) of the nodes whose scales a shard's owned
+    triangles use differ from those its first stitch used (then it is stitched again)."""
+    p = Path(spec.tmpdir) / f"cap-{shard}.npz"
+    if not p.exists():
+        return True
+    with np.load(p) as d:
+        seen, key, scale = d["seen"], d["key"], d["scale"]
+    lo, hi = _block(spec, shard)
+    where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
+    final = _gather_scales(spec, shard, key[seen], rnd, where)
+    return not np.array_equal(final, scale[seen])
+
+
+def _cap_sharded(
+    client: Any, spec: _FillSpec, live: list[int], *, retries: int, progress: bool
+) -> int:
+    """The capping rounds of :func:`fast_stitch.stitch.cap_growth` over the shards (scales
+    exchanged between owners every round); the round whose files hold the final scales."""
+    for rnd in range(10_000):
+        hits = _run(client, _cap_round, [(spec, s, rnd) for s in live], retries=retries,
+                    progress=progress, desc=f"cap{rnd}")  # fmt: skip
+        if not any(h for h in hits if h is not None):
+            return rnd
+    raise ShardingError("capping hub growth did not settle")  # pragma: no cover
+
+
 def _fill_stitch(
     spec: _FillSpec,
     shard: int,
     keep_label: NDArray[np.bool_],
+    fitted: tuple[int, str] | None,
+    cap: int | None,
     radius: Any,
-    fit: str,
-    min_radius: float | None,
     segments: int,
     seed: int,
     profile: str,
 ) -> ShardStats | None:
-    """Phase 2 of a shard: keep the selected pieces, radii, stitch, write owned triangles."""
-    from conformal.radius import fit_radii, resolve_radii
+    """Phase 2 of a shard: keep the selected pieces, radii (the fitted ones of their
+    owners, :func:`_fit_sharded`), stitch, write owned triangles."""
+    from conformal.radius import resolve_radii
 
     _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     with _threads(spec.threads):
-        data = np.load(Path(spec.tmpdir) / f"graph-{shard}.npz")
-        nodes, edges, owned, label = data["nodes"], data["edges"], data["owned"], data["label"]
-        edges = edges[keep_label[label[edges[:, 0]]]]
-        used = np.zeros(len(nodes), dtype=bool)
-        used[edges.ravel()] = True
-        if not (owned & used).any():
+        g = _shard_graph(spec, shard, keep_label)
+        if g is None:
             return None
-        nodes, owned = _compact(nodes, owned, used)
-        edges = (np.cumsum(used) - 1)[edges]
+        nodes, edges, owned, key, _ = g
         lo, hi = _block(spec, shard)
         where = f"shard {shard} (cells {lo.tolist()}..{(hi - 1).tolist()})"
         r = resolve_radii(radius, nodes, edges)
-        if fit == "shrink":
-            floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
-            new, _ = fit_radii(
-                nodes, edges, r, min_radius=floor, segments=segments, profile=profile
-            )
+        thinned, r_min = 0, np.inf
+        found = np.ones(len(edges), dtype=bool)
+        if fitted is not None:
+            ids, swap = _strut_ids(key, edges)
+            asked = r
+            r, found = _gather_radii(spec, shard, ids, swap, fitted[0], fitted[1], asked)
             need = _within(owned, edges, _hops(profile))
-            changed = (new != r).any(axis=1) & need[edges].any(axis=1)
-            if changed.any():
-                e = int(np.flatnonzero(changed)[0])
-                raise ShardingError(
-                    f"{where}: {int(changed.sum())} strut(s) would be thinned to fit (e.g. the "
-                    f"strut from {nodes[edges[e, 0]].tolist()} to {nodes[edges[e, 1]].tolist()});"
-                    " fitting radii is a global iteration the sharded path does not run: use "
-                    "thinner struts, or fit='off'"
+            lost = need[edges].any(axis=1) & ~found
+            if lost.any():
+                e = int(np.flatnonzero(lost)[0])
+                raise ShardHaloError(
+                    f"{where}: no shard fitted the strut from {nodes[edges[e, 0]].tolist()} "
+                    f"to {nodes[edges[e, 1]].tolist()}, which this shard needs; use a larger "
+                    "halo"
                 )
+            mine = owned[edges[:, 0]]
+            thinned = int(((r < asked).any(axis=1) & mine).sum())
+            r_min = float(r[mine].min()) if mine.any() else np.inf
         # stitch only what the owned triangles depend on: the struts at the owned nodes
-        # and at the nodes within _hops (whose hubs are complete here)
+        # and at the nodes within _hops (whose hubs are complete here); with "volume",
+        # also what the capping rounds of hub growth read (_cap_round): the scales of the
+        # nodes within _cap_reach of the owned nodes, so the stars one strut further
         need = _within(owned, edges, _hops(profile))
+        capping = profile == "volume"
+        if capping:
+            ok = g[4].copy()
+            ok[edges[~found].ravel()] = False
+            reach = _reach(nodes, edges, r, owned, segments=segments, profile=profile,
+                           pad=1.0 + 1e-9, growth=_MAX_GROWTH, misfit_hops=False)  # fmt: skip
+            near = _near(nodes, owned, reach)
+            need |= _within(near, edges, 1)
+            # the scales read (near) are exact when the stars one strut further are
+            _check_reach(nodes, owned, ok | ~_within(near, edges, 1), np.inf,
+                         "limiting hub growth", where, spec.halo)  # fmt: skip
         sub = need[edges].any(axis=1)
         edges, r = edges[sub], r[sub]
         used = np.zeros(len(nodes), dtype=bool)
         used[edges.ravel()] = True
-        nodes, owned = _compact(nodes, owned, used)
+        nodes, owned, key = nodes[used], owned[used], key[used]
+        need = need[used]
         edges = (np.cumsum(used) - 1)[edges]
         owned_strut = owned[edges[:, 0]]
         if spec.beams:  # the owned struts as beams (degrees of the whole lattice)
-            _save_beams(Path(spec.tmpdir) / f"beams-{shard}.npz", nodes, edges, r, owned_strut)
+            _save_beams(Path(spec.tmpdir) / f"beams-{shard}.npz", nodes, edges, r, owned_strut,
+                        key)  # fmt: skip
+        report: dict[str, Any] | None = None
+        seen = _within(owned, edges, 1)  # the nodes whose scales the owned triangles use
+        if capping:
+            report = {}
+            if cap is not None:
+                idx = np.flatnonzero(seen)
+                if cap < 0:  # nothing is capped in the lattice: the uncapped scales
+                    report["scale_override"] = (idx, None)
+                else:
+                    report["scale_override"] = (idx, _gather_scales(spec, shard, key[idx],
+                                                                    cap, where))  # fmt: skip
         n = _stitch_owned(
             nodes, edges, r, owned, owned_strut,
             segments=segments, seed=seed, profile=profile,
-            piece=Path(spec.tmpdir) / f"piece-{shard}.stl", where=where,
+            piece=Path(spec.tmpdir) / f"piece-{shard}.stl", where=where, report=report,
         )  # fmt: skip
+        hit0 = capped_seen = False
+        if report is not None and cap is None:
+            near = near[used]
+            grow = float(report["scale0"][near].max()) if "scale0" in report else 1.0
+            if grow > _MAX_GROWTH:
+                raise ShardingError(
+                    f"{where}: a hub grows by {grow:.4g}, more than the {_MAX_GROWTH} the "
+                    "sharded path allows for"
+                )
+            hits = report.get("hits0")
+            hit0 = bool(hits is not None and (hits & owned).any())
+            capped_seen = bool(seen[report.get("capped", np.zeros(0, dtype=np.int64))].any())
+            if "scale0" in report:
+                np.savez(Path(spec.tmpdir) / f"cap-{shard}.npz", nodes=nodes, edges=edges,
+                         radii0=report["radii0"], offset0=report["offset0"],
+                         scale0=report["scale0"], key=key, owned=owned, near=near,
+                         seen=seen, scale=report["scale"])  # fmt: skip
         return ShardStats(
             shard=shard,
             owned_struts=int(owned_strut.sum()),
@@ -731,6 +1226,10 @@ def _fill_stitch(
             cpu_seconds=time.process_time() - c0,
             peak_rss=_peak_rss(),
             worker=_worker_name(),
+            thinned=thinned,
+            min_radius=r_min,
+            hit0=hit0,
+            capped=capped_seen,
         )
 
 
@@ -740,15 +1239,34 @@ def _save_beams(
     edges: NDArray[np.int64],
     radii: NDArray[np.float64],
     owned_strut: NDArray[np.bool_],
+    key: NDArray[np.int64],
 ) -> None:
-    """The owned struts of a shard as beams: their nodes, edges, radii, and the degree of
-    each node in the shard graph (complete at the ends of owned struts)."""
-    degree = np.bincount(edges.ravel(), minlength=len(nodes))
+    """The owned struts of a shard as beams: their nodes, edges, radii, the degree of each
+    node in the shard graph (complete at the ends of owned struts), and the balls this
+    shard writes.
+
+    A seam node's struts are owned by several shards; its ball is written once, by the
+    owner of the node's strut whose other end has the lowest global id (``key`` (N,)
+    int64, the nodes' global ids): every shard holding one of the node's struts has the
+    node's whole star and the same ids, so exactly one of them takes the ball. Its radius
+    is the largest strut radius at the node over the whole star (as in one process).
+    """
+    n = len(nodes)
+    degree = np.bincount(edges.ravel(), minlength=n)
+    other = key[edges[:, ::-1]]  # (M, 2): the global id of the far end, per strut end
+    best = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(best, edges.ravel(), other.ravel())
+    first = other == best[edges]  # the end's strut is the node's ball strut
+    ball = np.zeros(n, dtype=bool)
+    ball[edges[first & owned_strut[:, None]]] = True
+    ball_radius = np.zeros(n)
+    np.maximum.at(ball_radius, edges.ravel(), radii.ravel())
     e = edges[owned_strut]
-    used = np.zeros(len(nodes), dtype=bool)
+    used = np.zeros(n, dtype=bool)
     used[e.ravel()] = True
     np.savez(path, nodes=nodes[used], edges=(np.cumsum(used) - 1)[e],
-             radii=radii[owned_strut], degree=degree[used])  # fmt: skip
+             radii=radii[owned_strut], degree=degree[used], ball=ball[used],
+             ball_radius=ball_radius[used])  # fmt: skip
 
 
 def _piece_part(tmpdir: str, shard: int, beams: bool) -> dict[str, Any]:
@@ -771,7 +1289,7 @@ def _piece_part(tmpdir: str, shard: int, beams: bool) -> dict[str, Any]:
     b = None
     if beams:
         with np.load(work / f"beams-{shard}.npz") as d:
-            b = {k: d[k] for k in ("nodes", "edges", "radii", "degree")}
+            b = {k: d[k] for k in d.files}
     return write_part(work / f"part-{shard}.3mf", vertices, faces, name=f"shard {shard}",
                       beams=b)  # fmt: skip
 
@@ -951,6 +1469,17 @@ def _check_profile(profile: str) -> None:
         raise ValueError(f"unknown profile {profile!r}")
 
 
+def _default_halo(fill: str, fit: str, profile: str) -> int:
+    """The first halo (cells) :func:`fill_sharded` tries: 1 cell for the struts of cells
+    that stay inside the cell (2 for ``"clip"``, whose merges of surface nodes reach a
+    strut length plus ``min_strut`` further, 3 for ``"conform"``, whose moved nodes make
+    longer struts), plus 1 for the neighbours' hubs (2 with ``profile="volume"``, whose
+    hub scales reach one strut further), plus 1 for what the radius fit and hub-growth
+    capping read around the owned struts (``fit="shrink"`` or ``profile="volume"``)."""
+    base = {"clip": 2, "conform": 3}.get(fill, 1) + _hops(profile)
+    return base + (1 if fit == "shrink" or profile == "volume" else 0)
+
+
 def fill_sharded(
     part: str | os.PathLike[str],
     path: str | os.PathLike[str],
@@ -1013,14 +1542,18 @@ def fill_sharded(
         ``"clip"`` / ``"conform"``: merge distance and shortest strut, in cells (as
         ``conformal.voxel_lattice``).
     fit : {"shrink", "off"}
-        ``"shrink"`` checks that the single-process fitting (for ``segments`` and
-        ``profile``) would thin nothing near any block (else :class:`ShardingError`).
+        ``"shrink"``: the radii are fitted as ``conformal.voxel_lattice`` fits them
+        (:func:`conformal.radius.fit_radii`), sharded: round by round, every shard
+        computes the new radii of the struts it owns from the current radii of every strut
+        within reach (exchanged through files between rounds), and the client takes the
+        decisions of the one-process loop (misfit or clearance round, when to stop) from
+        the flags of all shards, so that every round is the one-process round. The
+        thinning warning and :class:`FitError` are those of one process.
     halo : int, optional
-        Cells of overlap on every side of a block. The default: 1 cell for the struts of
-        cells that stay inside the cell (2 for ``"clip"`` / ``"conform"``, whose merges of
-        surface nodes reach a strut length plus ``min_strut`` further), plus 1 for the
-        neighbours' hubs (2 with ``profile="volume"``, whose hub scales reach one strut
-        further). A halo too small for what a shard finds raises :class:`ShardingError`.
+        Cells of overlap on every side of a block. The default (:func:`_default_halo`:
+        4 cells for ``"inside"``, 5 for ``"clip"``, 6 for ``"conform"`` with the default
+        fit and profile) is grown by 2 cells, twice, when a shard finds it too small
+        (:class:`ShardHaloError`); a halo given is used as it is (too small: the error).
     retries : int
         Dask retries of a failed task (a worker that dies is replaced and its tasks rerun).
     threads_per_task : int
@@ -1053,6 +1586,21 @@ def fill_sharded(
     FillError
         No cell fits inside the part.
     """
+    if halo is None:  # the default, grown while a shard finds it too small
+        kw = dict(locals())
+        base = _default_halo(fill, fit, profile)
+        for extra in (0, 2, 4):
+            with warnings.catch_warnings(record=True) as seen:
+                warnings.simplefilter("always")
+                try:
+                    result = fill_sharded(**{**kw, "halo": base + extra})
+                except ShardHaloError:
+                    if extra == 4:
+                        raise
+                    continue
+            for w in seen:  # the warnings of the attempt that worked only
+                warnings.warn(w.message, w.category, stacklevel=2)
+            return result
     from conformal.voxel import _nothing_fits, grid_of
 
     t_start = time.perf_counter()
@@ -1068,8 +1616,6 @@ def fill_sharded(
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
     _threemf_layout(threemf, 0, False)
-    if halo is None:
-        halo = (2 if fill in ("clip", "conform") else 1) + _hops(profile)
     if beam_lattice and fmt != "3mf":
         raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     if int(halo) < 1 or int(shards) < 1 or int(retries) < 0:
@@ -1113,16 +1659,58 @@ def fill_sharded(
             raise _nothing_fits(the_part, h, radius if not callable(radius) else 0.0,
                                 f"no cell of size {h[0]:.4g} mm fits inside")  # fmt: skip
         keep = _select_pieces(the_part, live, result)
+        fitted = None
+        if fit == "shrink":
+            t0 = time.perf_counter()
+            fitted = _fit_sharded(client, spec, [b["shard"] for b in live], keep, radius,
+                                  min_radius, int(segments), str(profile), retries=retries,
+                                  progress=progress)  # fmt: skip
+            result.seconds["fit"] = time.perf_counter() - t0
         t0 = time.perf_counter()
+        extra = (radius, int(segments), int(seed), str(profile))
         stats = _run(
-            client, _fill_stitch, [(spec, b["shard"], keep[b["shard"]]) for b in live],
-            retries=retries, progress=progress, desc="stitch",
-            extra=(radius, fit, min_radius, int(segments), int(seed), str(profile)),
+            client, _fill_stitch, [(spec, b["shard"], keep[b["shard"]], fitted, None)
+                                   for b in live],
+            retries=retries, progress=progress, desc="stitch", extra=extra,
         )  # fmt: skip
         result.seconds["stitch"] = time.perf_counter() - t0
+        # hub growth capped (profile="volume"): if a hub is hit anywhere, the capping
+        # rounds run sharded and the shards are stitched again with the capped scales;
+        # if none is, a shard that capped a hub it shows (wrongly, from its halo) is
+        # stitched again with the uncapped scales
+        redo: dict[int, int] = {}
+        if any(s.hit0 for s in stats if s is not None):
+            t0 = time.perf_counter()
+            last = _cap_sharded(client, spec, [b["shard"] for b in live], retries=retries,
+                                progress=progress)  # fmt: skip
+            done = [s.shard for s in stats if s is not None]
+            changed = _run(client, _cap_changed, [(spec, k, last) for k in done],
+                           retries=retries, progress=False, desc="capcheck")  # fmt: skip
+            redo = {k: last for k, c in zip(done, changed, strict=True) if c}
+            result.seconds["cap"] = time.perf_counter() - t0
+        else:
+            redo = {s.shard: -1 for s in stats if s is not None and s.capped}
+        if redo:
+            t0 = time.perf_counter()
+            again = _run(
+                client, _fill_stitch, [(spec, k, keep[k], fitted, c) for k, c in redo.items()],
+                retries=retries, progress=progress, desc="restitch", extra=extra,
+            )  # fmt: skip
+            by = {s.shard: s for s in again if s is not None}
+            stats = [by.get(s.shard, s) if s is not None else None for s in stats]
+            result.seconds["restitch"] = time.perf_counter() - t0
         result.shards = [s for s in stats if s is not None]
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
+        result.radii_reduced = sum(s.thinned for s in result.shards)
+        if result.radii_reduced:  # the warning of conformal.voxel_lattice, same words
+            warnings.warn(
+                f"{result.radii_reduced} of {result.struts} struts were thinned (down to "
+                f"radius {min(s.min_radius for s in result.shards):.4g}) so that every "
+                "strut can be stitched",
+                LatticeWarning,
+                stacklevel=2,
+            )
         t0 = time.perf_counter()
         if fmt == "3mf" and _threemf_layout(threemf, result.triangles, beam_lattice) == "shards":
             _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
@@ -1279,8 +1867,10 @@ def _graph_stitch(
     seed: int,
     profile: str,
     threads: int,
+    beams: bool = False,
 ) -> ShardStats | None:
-    """Reduce step: one block's struts (halo included), stitched; owned triangles written."""
+    """Reduce step: one block's struts (halo included), stitched; owned triangles written
+    (and, with ``beams``, the owned struts as beams with the balls this block owns)."""
     _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     lo, step, counts, _ = (np.asarray(x) for x in box)
@@ -1304,6 +1894,9 @@ def _graph_stitch(
         owned_strut = owned[owner_end]
         if not owned_strut.any() and not owned.any():
             return None
+        if beams:
+            _save_beams(Path(tmpdir) / f"beams-{blk}.npz", nodes, edges, radii, owned_strut,
+                        ids)  # fmt: skip
         n = _stitch_owned(
             nodes, edges, radii, owned, owned_strut, segments=segments, seed=seed,
             profile=profile, piece=Path(tmpdir) / f"piece-{blk}.stl",
@@ -1336,6 +1929,7 @@ def stitch_sharded(
     progress: bool = False,
     tmpdir: str | os.PathLike[str] | None = None,
     threemf: Literal["auto", "merged", "shards"] = "auto",
+    beam_lattice: bool = False,
 ) -> ShardedResult:
     """Stitch a graph held as NPZ shards (:func:`write_graph_shards`) on a Dask cluster.
 
@@ -1359,6 +1953,10 @@ def stitch_sharded(
         Spatial blocks (stitch tasks), at least.
     scheduler, workers, retries, threads_per_task, progress, tmpdir, threemf
         As for :func:`fill_sharded`.
+    beam_lattice : bool
+        With a ``.3mf`` output: each block's object also holds the struts it owns as
+        beams (3MF Beam Lattice extension) and the balls of the nodes it owns (each ball
+        once, see :func:`_save_beams`); always written in shards, as :func:`fill_sharded`.
 
     Returns
     -------
@@ -1370,6 +1968,8 @@ def stitch_sharded(
     out = check_target(path)
     fmt = _format(out)
     _threemf_layout(threemf, 0, False)
+    if beam_lattice and fmt != "3mf":
+        raise ShardingError(f"{out.name}: a beam lattice is written as .3mf, not .{fmt}")
     srcs = [str(Path(p).resolve()) for p in graph_shards]
     for p in srcs:
         if not Path(p).is_file():
@@ -1406,7 +2006,7 @@ def stitch_sharded(
             for b in range(n_blocks)
         ]
         extra = (box, str(work), int(segments), int(seed), str(profile),
-                 int(threads_per_task))  # fmt: skip
+                 int(threads_per_task), bool(beam_lattice))  # fmt: skip
         stats = _run(client, _graph_stitch, items, retries=retries, progress=progress,
                      desc="stitch", extra=extra)  # fmt: skip
         result.seconds["stitch"] = time.perf_counter() - t0
@@ -1414,9 +2014,11 @@ def stitch_sharded(
         result.struts = sum(s.owned_struts for s in result.shards)
         result.triangles = sum(s.triangles for s in result.shards)
         t0 = time.perf_counter()
-        if fmt == "3mf" and _threemf_layout(threemf, result.triangles, False) == "shards":
+        layout = _threemf_layout(threemf, result.triangles, bool(beam_lattice))
+        if fmt == "3mf" and layout == "shards":
             _assemble_3mf_shards(client, out, work, [s.shard for s in result.shards],
-                                 beams=False, retries=retries, progress=progress)  # fmt: skip
+                                 beams=bool(beam_lattice), retries=retries,
+                                 progress=progress)  # fmt: skip
         else:
             _assemble(out, [work / f"piece-{s.shard}.stl" for s in result.shards],
                       result.triangles, fmt=fmt)  # fmt: skip

@@ -148,6 +148,12 @@ class ShardingError(LatticeError, ValueError):
     small for the lattice (the message says which)."""
 
 
+class ShardHaloError(ShardingError):
+    """A shard's halo is too small for what it must know exactly (its struts' neighbours,
+    the radius fit's or hub capping's reach): ``fill_sharded`` with the default halo
+    retries with a larger one."""
+
+
 class DistributedUnavailableError(LatticeError, ImportError):
     """The sharded path needs Dask distributed: ``pip install 'lattice-cad[distributed]'``."""
 class ToleranceError(LatticeError, ValueError):

@@ -642,11 +642,17 @@ def _set_beams(
     digest: Any,
     *,
     degree: NDArray[np.int64] | None = None,
+    ball_at: NDArray[np.bool_] | None = None,
+    ball_radius: NDArray[np.float64] | None = None,
 ) -> None:
     """The beams (and balls) of ``graph`` on ``obj``, whose vertex ``offset + i`` is the
     ``i``-th used node. used : (U,) int64 node ids, edges : (M, 2) int64 into ``used``;
     degree : (U,) int64, optional: the nodes' degrees in a larger lattice (a shard's part
-    of it: caps and balls follow the whole lattice), default the graph's own."""
+    of it: caps and balls follow the whole lattice), default the graph's own.
+    ball_at : (U,) bool, optional: which of the nodes of degree >= 2 get a ball here (a
+    shard writes only the balls it owns, so that a seam node has one ball); ball_radius :
+    (U,) float64, optional: their radii (the largest strut radius at the node in the
+    whole lattice), default the largest of ``edges`` at the node."""
     bl = obj.BeamLattice()
     bl.SetMinLength(float(min(1e-4, 0.5 * graph.edge_lengths.min())))
     degree = graph.degree[used] if degree is None else np.asarray(degree)
@@ -682,11 +688,14 @@ def _set_beams(
     )
     if not balls:
         return
-    inner = np.flatnonzero(degree >= 2)
+    inner = np.flatnonzero((degree >= 2) if ball_at is None else (degree >= 2) & ball_at)
     if not len(inner):
         return
-    rmax = np.zeros(len(used))
-    np.maximum.at(rmax, edges.ravel(), graph.radii.ravel())
+    if ball_radius is None:
+        rmax = np.zeros(len(used))
+        np.maximum.at(rmax, edges.ravel(), graph.radii.ravel())
+    else:
+        rmax = np.asarray(ball_radius, dtype=np.float64)
     ball_arr = np.zeros(
         len(inner),
         dtype=np.dtype(

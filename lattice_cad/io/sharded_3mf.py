@@ -71,7 +71,10 @@ def write_part(
     beams : dict, optional
         ``nodes`` (N, 3) float64, ``edges`` (M, 2) int64 into ``nodes``, ``radii`` (M, 2)
         float64 and ``degree`` (N,) int64 (the node's degree in the *whole* lattice: caps
-        and balls follow it, not the shard's share).
+        and balls follow it, not the shard's share); optionally ``ball`` (N,) bool, the
+        nodes whose ball this part holds (each ball in one part only), and ``ball_radius``
+        (N,) float64, the ball radii (the largest strut radius at the node in the whole
+        lattice).
     balls : bool
         A ball at every node of degree >= 2 (with ``beams``).
 
@@ -107,7 +110,9 @@ def write_part(
             _set_geometry(lib3mf, obj, np.vstack([vertices, nodes]), faces, digest)
             if len(edges):
                 _set_beams(lib3mf, obj, g, used, edges, len(vertices), balls, digest,
-                           degree=np.asarray(beams["degree"], dtype=np.int64))  # fmt: skip
+                           degree=np.asarray(beams["degree"], dtype=np.int64),
+                           ball_at=beams.get("ball"),
+                           ball_radius=beams.get("ball_radius"))  # fmt: skip
             n_beams = len(edges)
         uid = _stable_uuid(digest.digest(), "object")
         obj.SetUUID(uid)
