@@ -1160,11 +1160,18 @@ def _stack(
             if isinstance(got, str):
                 fail(int(i), got)
                 continue
-            v_i, f_i = got
+            v_i, f_i, src = got
             verts.append(v_i)
             offset += len(v_i)
             faces.append(f_i)
-            fnode.append(np.full(len(f_i), units.members[i][0], dtype=np.int64))
+            mem_i = units.members[i]
+            if len(mem_i) == 1:
+                fnode.append(np.full(len(f_i), mem_i[0], dtype=np.int64))
+            else:  # each triangle to the nearest member node (as below), by its source face
+                local = graph.nodes[mem_i] - graph.nodes[mem_i[0]]
+                cen = res.vertices[res.faces].mean(axis=1)
+                near = np.argmin(np.linalg.norm(cen[:, None, :] - local[None], axis=2), axis=1)
+                fnode.append(mem_i[near[src]])
             hub_volume[units.members[i]] = 0.0
             hub_volume[units.anchor[i]] = res.volume
         inst = inst[~one_by_one]
@@ -1234,10 +1241,11 @@ def _stack_one(
     circ: NDArray[np.float64],
     offset: int,
     scale: float,
-) -> tuple[NDArray[np.float64], NDArray[np.int64]] | str:
-    """One placed (possibly turned) copy: its own vertices (numbered from ``offset``) and its
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]] | str:
+    """One placed (possibly turned) copy: its own vertices (numbered from ``offset``), its
     faces (global numbering, boundary triangles split where the strut's circle has the
-    other end's points too); a message if it cannot be stacked."""
+    other end's points too) and the template face each comes from; a message if it cannot
+    be stacked."""
     q = np.eye(3) if units.rotation is None else units.rotation[i]
     es = units.slots[i]
     nc = sum(len(c) for c in res.circles)
@@ -1293,4 +1301,7 @@ def _stack_one(
         extra.append(np.column_stack([mpt, x1, x2]))
         keep[s[:, 0]] = False
     f = np.concatenate([vmap[local[keep]], *extra])
-    return np.ascontiguousarray(placed[nc:]), f
+    src = np.arange(len(local), dtype=np.int64)[keep]
+    if splits:
+        src = np.concatenate([src, s[:, 0], s[:, 0]])
+    return np.ascontiguousarray(placed[nc:]), f, src

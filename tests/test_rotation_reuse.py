@@ -74,6 +74,11 @@ def test_turned_copies_stack_watertight_with_the_same_volume():
     assert rot.volume == pytest.approx(tra.volume, rel=1e-6)
     np.testing.assert_allclose(rot.hub_volume, tra.hub_volume, rtol=1e-6)
     check_watertight(rot.mesh)
+    # every node keeps its triangles; a turned copy has its template's plus the split ones
+    per_rot = np.bincount(rot.face_node, minlength=g.num_nodes)
+    per_tra = np.bincount(tra.face_node, minlength=g.num_nodes)
+    assert np.all(per_rot[g.degree > 0] >= per_tra[g.degree > 0])
+    assert np.all(per_rot[g.degree > 0] > 0)
     # the split boundary triangles only add points on the exact surface: the mesh volume
     # gets closer to the exact one, never farther
     import trimesh
