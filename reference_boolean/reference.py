@@ -664,11 +664,11 @@ def run_with_estimate(
 
     Prints to ``stream`` (default stderr), before the work: how many hubs the lattice has,
     how many are built and how many reused; then builds ``calibration`` hubs of the median
-    degree in this process (their results are kept, not built twice) and prints the
-    estimated CPU and wall seconds of the rest, assuming the time of a hub grows with the
-    1.5th power of its degree (:data:`_COST_POWER`) and that ``workers`` cores are free. A tqdm bar
-    follows the rest. Ctrl-C stops the worker processes and re-raises
-    ``KeyboardInterrupt``.
+    degree (among the hubs and clusters: leaves do not count) in this process (their
+    results are kept, not built twice) and prints the estimated CPU and wall seconds of the
+    rest, assuming the time of a hub grows with the 1.5th power of its degree
+    (:data:`_COST_POWER`) and that ``workers`` cores are free. A tqdm bar follows the rest.
+    Ctrl-C stops the worker processes and re-raises ``KeyboardInterrupt``.
 
     Parameters
     ----------
@@ -712,7 +712,12 @@ def run_with_estimate(
         flush=True,
     )
     k = min(max(int(calibration), 1), d)
-    cal = np.argsort(np.abs(deg - np.median(deg)), kind="stable")[:k]
+    # calibrate on the hubs and clusters (leaves, degree 1, cost next to nothing: a clipped
+    # lattice has more leaves than hubs, and a leaf's time says little about a hub's)
+    pool = np.flatnonzero(deg > 1)
+    if len(pool) < k:
+        pool = np.arange(d)
+    cal = pool[np.argsort(np.abs(deg[pool] - np.median(deg[pool])), kind="stable")[:k]]
     c0 = time.process_time()
     for i in cal:
         results[int(i)] = _build_one((specs[int(i)], deflection, angular, keep))
