@@ -41,7 +41,7 @@ import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,6 +52,7 @@ from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
 from lattice_cad.core.formats import Kind, resolve
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh
+from reference_boolean.rotations import RotationCache
 
 __all__ = [
     "Reference",
@@ -191,6 +192,7 @@ class Reference:
             axes=axes,
             tolerance=config.BREP_SEW_RTOL * float(g.radii.min()),
             failed=failed,
+            rotations=u.rotation,
         )
         write_step(as_one(shapes, str(p)), p)
         return p
@@ -358,6 +360,15 @@ class _Units:
     slots: list[NDArray[np.int64]]
     node_instance: NDArray[np.int64]
     reasons: list[str]
+    #: (I, 3, 3) float64: orthogonal map of each instance's template onto it (identity
+    #: for copies by translation; see :mod:`reference_boolean.rotations`); None: all identity.
+    rotation: NDArray[np.float64] | None = None
+
+    def turned(self) -> NDArray[np.bool_]:
+        """(I,) bool: instances placed with a rotation or reflection (not a translation)."""
+        if self.rotation is None:
+            return np.zeros(len(self.template), dtype=bool)
+        return np.abs(self.rotation - np.eye(3)[None]).max(axis=(1, 2)) > 0.0
 
     def instances_of(self) -> list[NDArray[np.int64]]:
         """Instances of each template."""
@@ -366,8 +377,10 @@ class _Units:
         return [order[cuts[t] : cuts[t + 1]] for t in range(len(self.specs))]
 
 
-def _unit_specs(graph: LatticeGraph, cache: bool) -> _Units:
-    """Cluster the nodes and describe every distinct hub or cluster (cached by translation)."""
+def _unit_specs(graph: LatticeGraph, cache: bool, *, rotations: bool = False) -> _Units:
+    """Cluster the nodes and describe every distinct hub or cluster (cached by translation;
+    with ``rotations`` also single hubs equal up to a rotation or reflection, see
+    :mod:`reference_boolean.rotations`)."""
     from lattice_cad.occ_impl.cluster import ClusterSpec
     from lattice_cad.occ_impl.truss import HubSpec
     from reference_boolean.clusters import find_clusters, hub_radius
@@ -401,14 +414,30 @@ def _unit_specs(graph: LatticeGraph, cache: bool) -> _Units:
     specs: list[Any] = []
     keys: dict[bytes, int] = {}
     template, anchor, members, slots = [], [], [], []
+    turns: dict[int, NDArray[np.float64]] = {}
+    scale = float(np.max(graph.edge_lengths))
+    rcache = (
+        RotationCache(config.ROTATION_KEY_RTOL * scale, config.ROTATION_RTOL * scale)
+        if cache and rotations
+        else None
+    )
     node_instance = np.full(graph.num_nodes, -1, dtype=np.int64)
     for c in range(len(cuts) - 1):
         group = order[cuts[c] : cuts[c + 1]]
+        turn = None
         if len(group) == 1 and R[group[0]] > 0:  # a single hub
             n = int(group[0])
             spec, es, _, key = node_spec(n)
             key = b"H" + key
             mem, slot = np.array([n], np.int64), es
+            if rcache is not None and key not in keys:
+                radii_ = np.column_stack([spec.r_node, spec.r_mid])
+                t_rot, found = rcache.find(spec.radius, spec.vecs, radii_)
+                if t_rot is None:
+                    rcache.add(found, len(specs), spec.vecs, radii_)
+                else:  # template stump k is this hub's stump perm[k]
+                    turn = (t_rot, found)
+                    slot = es[found.perm]
         else:  # a cluster (or one leaf)
             pos = np.rint((nodes[group] - nodes[group].min(axis=0)) / q).astype(np.int64)
             mem = group[np.lexsort(pos.T[::-1])].astype(np.int64)
@@ -462,7 +491,10 @@ def _unit_specs(graph: LatticeGraph, cache: bool) -> _Units:
             )
             slot = lv_e_a
         t = keys.get(key, -1) if cache else -1
-        if t < 0:
+        if turn is not None:
+            t = turn[0]
+            turns[len(template)] = turn[1].rotation
+        elif t < 0:
             t = len(specs)
             specs.append(spec)
             if cache:
@@ -480,7 +512,18 @@ def _unit_specs(graph: LatticeGraph, cache: bool) -> _Units:
         slots=slots,
         node_instance=node_instance,
         reasons=reasons,
+        rotation=_rotations(len(template), turns),
     )
+
+
+def _rotations(n: int, turns: dict[int, NDArray[np.float64]]) -> NDArray[np.float64] | None:
+    """(n, 3, 3) float64: identity but for the turned instances; None if there are none."""
+    if not turns:
+        return None
+    out = np.repeat(np.eye(3)[None], n, axis=0)
+    for i, q in turns.items():
+        out[i] = q
+    return out
 
 
 # ---------------------------------------------------------------- workers
@@ -621,11 +664,11 @@ def run_with_estimate(
 
     Prints to ``stream`` (default stderr), before the work: how many hubs the lattice has,
     how many are built and how many reused; then builds ``calibration`` hubs of the median
-    degree in this process (their results are kept, not built twice) and prints the
-    estimated CPU and wall seconds of the rest, assuming the time of a hub grows with the
-    1.5th power of its degree (:data:`_COST_POWER`) and that ``workers`` cores are free. A tqdm bar
-    follows the rest. Ctrl-C stops the worker processes and re-raises
-    ``KeyboardInterrupt``.
+    degree (among the hubs and clusters: leaves do not count) in this process (their
+    results are kept, not built twice) and prints the estimated CPU and wall seconds of the
+    rest, assuming the time of a hub grows with the 1.5th power of its degree
+    (:data:`_COST_POWER`) and that ``workers`` cores are free. A tqdm bar follows the rest.
+    Ctrl-C stops the worker processes and re-raises ``KeyboardInterrupt``.
 
     Parameters
     ----------
@@ -669,7 +712,12 @@ def run_with_estimate(
         flush=True,
     )
     k = min(max(int(calibration), 1), d)
-    cal = np.argsort(np.abs(deg - np.median(deg)), kind="stable")[:k]
+    # calibrate on the hubs and clusters (leaves, degree 1, cost next to nothing: a clipped
+    # lattice has more leaves than hubs, and a leaf's time says little about a hub's)
+    pool = np.flatnonzero(deg > 1)
+    if len(pool) < k:
+        pool = np.arange(d)
+    cal = pool[np.argsort(np.abs(deg[pool] - np.median(deg[pool])), kind="stable")[:k]]
     c0 = time.process_time()
     for i in cal:
         results[int(i)] = _build_one((specs[int(i)], deflection, angular, keep))
@@ -816,6 +864,7 @@ def build_reference(
     hub_timeout: float = config.DEFAULT_HUB_TIMEOUT,
     keep_solids: bool = True,
     progress: Any = None,
+    reuse: Literal["translation", "rotation"] = "rotation",
 ) -> Reference:
     """Build the exact per-hub B-rep reference of a lattice.
 
@@ -843,6 +892,11 @@ def build_reference(
         to build and an estimate of the time from a short calibration (two hubs) to
         stderr first, then show a tqdm bar over the hubs (see :func:`run_with_estimate`);
         the estimate lands in ``timings["estimate"]``.
+    reuse : {"rotation", "translation"}
+        With ``cache``: build single hubs that are equal up to a rotation or reflection
+        once ("rotation", the default: :mod:`reference_boolean.rotations`; the stacked
+        mesh stays watertight, see :func:`_stack`), or only those equal up to a
+        translation. Clusters are reused up to translation only.
 
     Returns
     -------
@@ -868,7 +922,9 @@ def build_reference(
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if not (0 < angular < math.pi):
         raise ValueError(f"angular must be in (0, pi), got {angular!r}")
-    units = _unit_specs(graph, cache)
+    if reuse not in ("translation", "rotation"):
+        raise ValueError(f"reuse must be 'translation' or 'rotation', got {reuse!r}")
+    units = _unit_specs(graph, cache, rotations=reuse == "rotation")
     t_check = time.perf_counter()
     specs = units.specs
     estimate: dict[str, float] = {}
@@ -921,10 +977,75 @@ def build_reference(
     )
 
 
+def _turned_phases(
+    res: Any,
+    q: NDArray[np.float64],
+    at: NDArray[np.float64],
+    es: NDArray[np.int64],
+    mid: NDArray[np.float64],
+    X: NDArray[np.float64],
+    Y: NDArray[np.float64],
+) -> list[tuple[float, int]] | str:
+    """Where a turned copy's midpoint circles land in their struts' frames.
+
+    Per circle ``j`` of the template (strut ``es[j]`` of the copy): ``(phi, sigma)`` such that
+    template vertex ``k`` lies at the angle ``phi + sigma * 2 pi k / K`` of the strut's frame
+    (``sigma = -1`` where the copy runs the circle the other way). A message if the circle is
+    not uniform there (it then cannot be stacked).
+    """
+    out: list[tuple[float, int]] = []
+    for j, c in enumerate(res.circles):
+        e = int(es[j])
+        k = len(c)
+        p = res.vertices[c] @ q.T + at - mid[e]
+        ang = np.arctan2(p @ Y[e], p @ X[e])
+        step = 2.0 * math.pi / k
+        d1 = (ang[1] - ang[0] + math.pi) % (2.0 * math.pi) - math.pi
+        sigma = 1 if d1 > 0 else -1
+        dev = (ang - ang[0] - sigma * step * np.arange(k) + math.pi) % (2.0 * math.pi) - math.pi
+        if np.abs(dev).max() > 10.0 * config.ANGLE_TOL:
+            return (
+                f"midpoint circle of strut {e}: the turned copy's {k} vertices are not "
+                f"uniformly spaced (max angle error {np.abs(dev).max():.3g} rad)"
+            )
+        out.append((float(ang[0] % (2.0 * math.pi)), sigma))
+    return out
+
+
+def _circle_edge_faces(res: Any) -> list[NDArray[np.int64]] | None:
+    """Per circle ``j``: the face holding the boundary edge from vertex ``k`` to ``k + 1``
+    (``(K_j,)`` int64); None if an edge is not found exactly once."""
+    f = np.asarray(res.faces, dtype=np.int64)
+    nv = len(res.vertices)
+    e = f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.minimum(e[:, 0], e[:, 1]) * nv + np.maximum(e[:, 0], e[:, 1])
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+    out = []
+    for c in res.circles:
+        a, b = c, np.roll(c, -1)
+        want = np.minimum(a, b) * nv + np.maximum(a, b)
+        lo = np.searchsorted(skey, want, side="left")
+        hi = np.searchsorted(skey, want, side="right")
+        if np.any(hi - lo != 1):
+            return None
+        out.append(order[lo] // 3)
+    return out
+
+
 def _stack(
     graph: LatticeGraph, results: list[Any], units: _Units
 ) -> tuple[Mesh, NDArray[np.int64], NDArray[np.float64], dict[int, str]]:
-    """Stack the hub and cluster tessellations; shared circle vertices become one point."""
+    """Stack the hub and cluster tessellations; shared circle vertices become one point.
+
+    Copies placed by translation put their circle vertices at the angles ``2 pi k / K`` of
+    each strut's canonical frame, so both ends of a strut share ``K`` points. A turned copy
+    (:mod:`reference_boolean.rotations`) puts them at ``phi + 2 pi k / K`` for some ``phi``:
+    where the two ends of a strut disagree on ``phi``, the strut's circle gets both sets
+    (``2 K`` points on the exact circle) and each end's boundary triangle on an edge
+    between two of its own points is split at the other end's point between them. No vertex
+    moves, every vertex stays on the exact surface, and the stack stays watertight.
+    """
     m = graph.num_edges
     failed: dict[int, str] = {}
     K = np.zeros(m, dtype=np.int64)
@@ -932,6 +1053,11 @@ def _stack(
     hub_volume = np.full(graph.num_nodes, np.nan)
     n_inst = len(units.template)
     inst_ok = np.zeros(n_inst, dtype=bool)
+    turned = units.turned()
+    rot = units.rotation
+    _, X, Y = strut_frames(graph)
+    mid = 0.5 * (graph.nodes[graph.edges[:, 0]] + graph.nodes[graph.edges[:, 1]])
+    rmid = graph.radii.mean(axis=1)
 
     def fail(i: int, why: str) -> None:
         mem = units.members[i]
@@ -940,6 +1066,7 @@ def _stack(
             failed[int(n)] = pre + why
 
     by_template = units.instances_of()
+    inst_phase: dict[int, list[tuple[float, int]]] = {}
     # 1. circle sizes: both sides of a strut must agree
     for t, res in enumerate(results):
         if res.status != "ok":
@@ -958,17 +1085,44 @@ def _stack(
                     f"{int(K[es[j]])} at node {int(K_node[es[j]])}",
                 )
                 continue
+            if turned[i]:
+                assert rot is not None
+                ph = _turned_phases(res, rot[i], graph.nodes[units.anchor[i]], es, mid, X, Y)
+                if isinstance(ph, str):
+                    fail(int(i), ph)
+                    continue
+                inst_phase[int(i)] = ph
             K[es] = ks
             K_node[es] = units.anchor[i]
             inst_ok[i] = True
+    # 1b. phases of the struts a turned copy ends on (both ends), in [0, 2 pi / K)
+    ends: dict[int, list[float]] = {}
+    for i, ph in inst_phase.items():
+        for j, (phi, _) in enumerate(ph):
+            e = int(units.slots[i][j])
+            ends.setdefault(e, []).append(phi % (2.0 * math.pi / K[e]))
+    special = np.zeros(m, dtype=bool)
+    special[list(ends)] = True
+    for i in np.flatnonzero(inst_ok & ~turned):
+        es = units.slots[i]
+        for e in es[special[es]]:
+            ends[int(e)].append(0.0)
+    n_ph = np.ones(m, dtype=np.int64)
+    phases: dict[int, list[float]] = {}
+    for e, ph in ends.items():
+        step = 2.0 * math.pi / K[e]
+        uniq: list[float] = []
+        for p in sorted(ph):
+            if not any(min(abs(p - u), step - abs(p - u)) < 10.0 * config.ANGLE_TOL for u in uniq):
+                uniq.append(p)
+        phases[e] = uniq
+        n_ph[e] = len(uniq)
     base = np.zeros(m + 1, dtype=np.int64)
-    np.cumsum(K, out=base[1:])
-    _, X, Y = strut_frames(graph)
-    mid = 0.5 * (graph.nodes[graph.edges[:, 0]] + graph.nodes[graph.edges[:, 1]])
-    rmid = graph.radii.mean(axis=1)
+    np.cumsum(K * n_ph, out=base[1:])
     circ = np.empty((int(base[-1]), 3))
-    for k_val in np.unique(K[K > 0]):
-        es = np.flatnonzero(K == k_val)
+    plain = (K > 0) & ~special
+    for k_val in np.unique(K[plain]):
+        es = np.flatnonzero(plain & (K == k_val))
         ang = 2.0 * np.pi * np.arange(k_val) / k_val
         pts = mid[es, None, :] + rmid[es, None, None] * (
             np.cos(ang)[None, :, None] * X[es, None, :]
@@ -976,7 +1130,15 @@ def _stack(
         )
         idx = base[es][:, None] + np.arange(k_val)[None, :]
         circ[idx.ravel()] = pts.reshape(-1, 3)
-    # 2. per template, all its instances at once
+    for e, uniq in phases.items():  # point k * n + p at the angle uniq[p] + 2 pi k / K
+        k_val, n = int(K[e]), len(uniq)
+        ang = np.asarray(uniq)[None, :] + 2.0 * np.pi * np.arange(k_val)[:, None] / k_val
+        ang = ang.ravel()
+        circ[base[e] : base[e] + k_val * n] = mid[e] + rmid[e] * (
+            np.cos(ang)[:, None] * X[e] + np.sin(ang)[:, None] * Y[e]
+        )
+    # 2. per template, all its plain instances at once; turned ones (and those next to one)
+    # one by one
     verts = [circ]
     faces: list[NDArray[np.int64]] = []
     fnode: list[NDArray[np.int64]] = []
@@ -992,6 +1154,34 @@ def _stack(
         nc = sum(len(c) for c in res.circles)
         nv = len(res.vertices)
         ni = nv - nc
+        one_by_one = np.array(
+            [turned[i] or bool(special[units.slots[i]].any()) for i in inst], dtype=bool
+        )
+        for i in inst[one_by_one]:
+            got = _stack_one(
+                int(i), res, units, graph, inst_phase.get(int(i)), base, n_ph, phases, K,
+                circ, offset, scale,
+            )  # fmt: skip
+            if isinstance(got, str):
+                fail(int(i), got)
+                continue
+            v_i, f_i, src = got
+            verts.append(v_i)
+            offset += len(v_i)
+            faces.append(f_i)
+            mem_i = units.members[i]
+            if len(mem_i) == 1:
+                fnode.append(np.full(len(f_i), mem_i[0], dtype=np.int64))
+            else:  # each triangle to the nearest member node (as below), by its source face
+                local = graph.nodes[mem_i] - graph.nodes[mem_i[0]]
+                cen = res.vertices[res.faces].mean(axis=1)
+                near = np.argmin(np.linalg.norm(cen[:, None, :] - local[None], axis=2), axis=1)
+                fnode.append(mem_i[near[src]])
+            hub_volume[units.members[i]] = 0.0
+            hub_volume[units.anchor[i]] = res.volume
+        inst = inst[~one_by_one]
+        if len(inst) == 0:
+            continue
         vmap = np.empty((len(inst), nv), dtype=np.int64)
         if nc:
             E = np.stack([units.slots[i] for i in inst])  # (c, d)
@@ -1041,3 +1231,82 @@ def _stack(
         hub_volume,
         failed,
     )
+
+
+def _stack_one(
+    i: int,
+    res: Any,
+    units: _Units,
+    graph: LatticeGraph,
+    phase: list[tuple[float, int]] | None,
+    base: NDArray[np.int64],
+    n_ph: NDArray[np.int64],
+    phases: dict[int, list[float]],
+    K: NDArray[np.int64],
+    circ: NDArray[np.float64],
+    offset: int,
+    scale: float,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]] | str:
+    """One placed (possibly turned) copy: its own vertices (numbered from ``offset``), its
+    faces (global numbering, boundary triangles split where the strut's circle has the
+    other end's points too) and the template face each comes from; a message if it cannot
+    be stacked."""
+    q = np.eye(3) if units.rotation is None else units.rotation[i]
+    es = units.slots[i]
+    nc = sum(len(c) for c in res.circles)
+    nv = len(res.vertices)
+    vmap = np.empty(nv, dtype=np.int64)
+    vmap[nc:] = offset + np.arange(nv - nc)
+    local = np.asarray(res.faces, dtype=np.int64)
+    if np.linalg.det(q) < 0.0:  # a reflection turns the triangles inside out
+        local = local[:, ::-1]
+    splits: list[tuple[int, int, int, int]] = []  # (face, a, b, middle point)
+    edge_faces: list[NDArray[np.int64]] | None = None
+    for j, c in enumerate(res.circles):
+        e = int(es[j])
+        k_val = len(c)
+        step = 2.0 * math.pi / k_val
+        phi, sigma = phase[j] if phase is not None else (0.0, 1)
+        n = int(n_ph[e])
+        ph = phases.get(e, [0.0])
+        dist = [min(abs(phi % step - u), step - abs(phi % step - u)) for u in ph]
+        p = int(np.argmin(dist))
+        k0 = int(np.rint((phi - ph[p]) / step)) % k_val
+        pos = (k0 + sigma * np.arange(k_val)) % k_val
+        vmap[c] = base[e] + pos * n + p
+        if n == 2:
+            if edge_faces is None:
+                edge_faces = _circle_edge_faces(res)
+                if edge_faces is None:
+                    return "a midpoint circle edge is not on exactly one triangle"
+            middle = base[e] + (pos * n + p + sigma) % (k_val * n)
+            for k in range(k_val):
+                splits.append((int(edge_faces[j][k]), int(c[k]), int(c[(k + 1) % k_val]),
+                               int(middle[k])))  # fmt: skip
+        elif n != 1:
+            return f"midpoint circle of strut {e} has {n} phases (expected 1 or 2)"
+    placed = res.vertices @ q.T + graph.nodes[units.anchor[i]]
+    move = np.abs(placed[:nc] - circ[vmap[:nc]]).max() if nc else 0.0
+    if move > config.SNAP_RTOL * scale:
+        return f"a midpoint circle vertex is {move:.3g} away from its canonical point"
+    keep = np.ones(len(local), dtype=bool)
+    extra: list[NDArray[np.int64]] = []
+    if splits:
+        s = np.asarray(splits, dtype=np.int64)
+        if len(np.unique(s[:, 0])) != len(s):
+            return "a triangle has two midpoint circle edges (cannot split both)"
+        tri = local[s[:, 0]]
+        third = np.argmax((tri != s[:, 1:2]) & (tri != s[:, 2:3]), axis=1)
+        r = np.arange(len(s))
+        x0 = vmap[tri[r, (third + 1) % 3]]
+        x1 = vmap[tri[r, (third + 2) % 3]]
+        x2 = vmap[tri[r, third]]
+        mpt = s[:, 3]
+        extra.append(np.column_stack([x0, mpt, x2]))
+        extra.append(np.column_stack([mpt, x1, x2]))
+        keep[s[:, 0]] = False
+    f = np.concatenate([vmap[local[keep]], *extra])
+    src = np.arange(len(local), dtype=np.int64)[keep]
+    if splits:
+        src = np.concatenate([src, s[:, 0], s[:, 0]])
+    return np.ascontiguousarray(placed[nc:]), f, src

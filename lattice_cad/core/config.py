@@ -206,6 +206,12 @@ CACHE_QUANTUM = 1e-9
 #: trusses, each a union of its sphere and half-struts; None: the whole lattice, as before).
 DEFAULT_UNION_HUBS = 200
 
+#: Hubs equal up to a rotation or reflection (reference_boolean.rotations): rounding quantum
+#: of the invariant keys and largest stump mismatch of a verified match, both relative to
+#: the longest strut.
+ROTATION_KEY_RTOL = 1e-6
+ROTATION_RTOL = 1e-8
+
 #: Largest allowed move (relative to the hub size) when snapping circle vertices.
 SNAP_RTOL = 1e-7
 

@@ -23,7 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
-from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeSolid, BRepBuilderAPI_Sewing
+from OCP.BRepBuilderAPI import (
+    BRepBuilderAPI_MakeSolid,
+    BRepBuilderAPI_Sewing,
+    BRepBuilderAPI_Transform,
+)
 from OCP.BRepLib import BRepLib
 from OCP.GeomAbs import GeomAbs_Plane
 from OCP.gp import gp_Trsf, gp_Vec
@@ -51,6 +55,20 @@ def _moved(shape: TopoDS_Shape, offset: NDArray[np.float64]) -> TopoDS_Shape:
     trsf = gp_Trsf()
     trsf.SetTranslation(gp_Vec(float(offset[0]), float(offset[1]), float(offset[2])))
     return shape.Moved(TopLoc_Location(trsf))
+
+
+def _turned(
+    shape: TopoDS_Shape, q: NDArray[np.float64], offset: NDArray[np.float64]
+) -> TopoDS_Shape:
+    """A copy of ``shape`` mapped by ``x -> q x + offset`` (``q`` orthogonal, maybe a
+    reflection, which ``BRepBuilderAPI_Transform`` handles by copying the geometry)."""
+    trsf = gp_Trsf()
+    trsf.SetValues(
+        *(float(v) for r in range(3) for v in (*q[r], offset[r]))
+    )
+    mk = BRepBuilderAPI_Transform(shape, trsf, True)
+    check_done(mk, "placing a turned hub")
+    return mk.Shape()
 
 
 def _decode(breps: Sequence[bytes], failed: dict[int, str]) -> list[TopoDS_Shape | None]:
@@ -147,6 +165,7 @@ def sew_hubs(
     tolerance: float,
     failed: dict[int, str] | None = None,
     axes: Sequence[NDArray[np.float64]] | None = None,
+    rotations: NDArray[np.float64] | None = None,
 ) -> list[TopoDS_Shape]:
     """The union of the hubs of a clean lattice, by sewing (one solid per body).
 
@@ -161,6 +180,9 @@ def sew_hubs(
     axes : sequence of (d, 3) float64, optional
         Per distinct solid, the axis of each midpoint disc (see :func:`disc_faces`);
         needed for the clusters of the exact reference.
+    rotations : (len(template), 3, 3) float64, optional
+        Orthogonal map applied to each placed solid before its translation (hubs reused up
+        to a rotation or reflection, :mod:`reference_boolean.rotations`); default none.
 
     Returns
     -------
@@ -194,8 +216,10 @@ def sew_hubs(
         for n, t in enumerate(template):
             if t < 0:
                 continue
+            q = None if rotations is None else rotations[n]
+            turned = q is not None and bool(np.abs(q - np.eye(3)).max() > 0.0)
             for f in kept[t]:
-                sew.Add(_moved(f, nodes[n]))
+                sew.Add(_turned(f, q, nodes[n]) if turned else _moved(f, nodes[n]))
         sew.Perform()
         if sew.NbFreeEdges() or sew.NbMultipleEdges():
             raise OCCTFailure(
