@@ -146,6 +146,36 @@ def _self_supporting_rotation(
     return best.rotation
 
 
+def _offset_worker(part: Any, skin: float | None) -> Any:
+    """A child process for OCCT's skin offsets, started (and importing OpenCascade) before
+    the part is loaded, for a skin of a part that may be a B-rep; else None."""
+    if skin is None or (
+        isinstance(part, (str, os.PathLike))
+        and Path(part).suffix.lower() in suffixes(Kind.MESH, action="read")
+    ):
+        return None
+    from lattice_cad.core.isolate import IsolatedWorker
+
+    return IsolatedWorker(warm="lattice_cad.occ_impl.shapes")
+
+
+def _start_offsets(worker: Any, part: Any, skin: float | None) -> Any:
+    """OCCT's offsets of a B-rep part started in ``worker`` (``conformal.skin.start_offsets``),
+    or None (the worker closed) when the part is a mesh."""
+    if worker is None:
+        return None
+    if skin is None or part.shape is None:
+        worker.close()
+        return None
+    from conformal.skin import start_offsets
+
+    try:
+        return start_offsets(part, skin, worker=worker)
+    except Exception:  # noqa: BLE001 - build_skin starts them again and reports the failure
+        worker.close()
+        return None
+
+
 def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
     """A boolean result (skin, trim) rounded to float32 as STL and 3MF store it, checked in
     full (with the folds the rounding makes collapsed), or :class:`ExportError`.
@@ -475,6 +505,7 @@ class Lattice:
         )
         if self_supporting:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
+        worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
         the_part = _load_part(part)
         zones = None
         if keep is not None:  # resolved before the lattice: a wrong selector fails fast
@@ -511,6 +542,7 @@ class Lattice:
         lat.build_report = report
         lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
         lat.overhang_removal = removal
+        lat._pending_offsets = _start_offsets(worker, the_part, skin)
         return lat
 
     def printability(
@@ -598,7 +630,10 @@ class Lattice:
             moved = lattice.vertices + SHIFT_DIRECTION * step
             lattice = Mesh(vertices=moved, faces=lattice.faces)
         # checked after rounding to float32 (what the files hold)
-        result = _skin.build_skin(lattice, self.part, self.skin, check=False, mid_wall=mid_wall)
+        pending = self.__dict__.pop("_pending_offsets", None)
+        result = _skin.build_skin(
+            lattice, self.part, self.skin, check=False, mid_wall=mid_wall, offsets=pending
+        )
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
