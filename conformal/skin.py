@@ -125,6 +125,10 @@ class SkinResult:
 
     solid: Any
     report: SkinReport
+    #: With ``build_skin(graph=...)``: ``solid`` is made from the lattice's elements near
+    #: the wall only (caps included); ``split.glue`` puts the deep ones back into its mesh
+    #: (a ``conformal.skin_split.SplitLattice``). None: ``solid`` is the whole result.
+    split: Any = None
 
 
 #: Fraction of a grid step by which sampling grids are shifted off round coordinates.
@@ -705,6 +709,7 @@ def build_skin(
     check: bool = True,
     mid_wall: bool = False,
     offsets: PendingOffsets | None = None,
+    graph: Any = None,
 ) -> SkinResult:
     """One solid per solid of the part: its skin united with the lattice inside it.
 
@@ -732,6 +737,10 @@ def build_skin(
     offsets : PendingOffsets, optional
         OCCT's offsets already started by :func:`start_offsets` (used when they are of
         this part, thickness and ``mid_wall``).
+    graph : LatticeGraph, optional
+        The graph ``lattice`` was stitched from (``fast_stitch.stitch``), with
+        ``check=False``: the booleans then run on the lattice's elements near the wall only
+        and ``SkinResult.split`` glues the deep ones back (see :mod:`conformal.skin_split`).
 
     Returns
     -------
@@ -756,10 +765,23 @@ def build_skin(
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)
     t1 = time.perf_counter()
-    lat = as_manifold(lattice, name="lattice mesh")
-    # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
-    solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
-    solid, bodies, islands = _keep_attached(solid, surface)
+    split = None
+    if graph is not None and not mid_wall and not check:
+        split = _split(lattice, graph, inner, thickness)
+    if split is not None:
+        # the booleans on the elements near the wall only (conformal.skin_split)
+        near = _manifold(split.near_vertices, split.near_faces, "the lattice near the wall")
+        solid = outer - (inner - near)
+        pieces = solid.decompose()
+        if sum(1 for p_ in pieces if p_.volume() > 0) == 1:
+            bodies, islands = 1, 0
+        else:  # islands, or several bodies joined by deep struts: the whole lattice
+            split = None
+    if split is None:
+        lat = as_manifold(lattice, name="lattice mesh")
+        # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
+        solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
+        solid, bodies, islands = _keep_attached(solid, surface)
     t2 = time.perf_counter()
     wall = wall_thickness(inner, surface)
     stats = {
@@ -787,7 +809,19 @@ def build_skin(
     )
     if check:
         solid = checked(solid, "the skinned lattice")
-    return SkinResult(solid=solid, report=report)
+    return SkinResult(solid=solid, report=report, split=split)
+
+
+def _split(lattice: Any, graph: Any, inner: Any, thickness: float) -> Any:
+    """``conformal.skin_split.split_lattice`` of a stitched lattice, or None."""
+    from conformal.part import Part
+    from conformal.skin_split import split_lattice
+
+    arrays = mesh_arrays(lattice)
+    if arrays is None:
+        return None
+    margin = max(WALL_ATOL, 0.01 * thickness)
+    return split_lattice(graph, *arrays, Part(*to_arrays(inner), name="inner"), margin=margin)
 
 
 def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None = None) -> Any:

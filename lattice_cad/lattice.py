@@ -614,7 +614,7 @@ class Lattice:
 
         return self._skinned()
 
-    def _skinned(self, *, shift: float = 0.0, mid_wall: bool = False) -> Mesh:
+    def _skinned(self, *, shift: float = 0.0, mid_wall: bool = False, split: bool = True) -> Mesh:
         """The lattice (with its keep zones) inside its skin, not yet checked; ``shift``
         moves the lattice by that many trim tolerances (``config.TRIM_RTOL`` r) in a
         generic direction, and ``mid_wall`` builds the skin the older way (see
@@ -631,9 +631,19 @@ class Lattice:
             lattice = Mesh(vertices=moved, faces=lattice.faces)
         # checked after rounding to float32 (what the files hold)
         pending = self.__dict__.pop("_pending_offsets", None)
+        # the booleans on the struts near the wall only, the deep ones glued back after the
+        # float32 check (conformal.skin_split): for the stitched lattice as it is
+        local = split and lattice is self._lattice_mesh and self.escape_holes is None
         result = _skin.build_skin(
-            lattice, self.part, self.skin, check=False, mid_wall=mid_wall, offsets=pending
+            lattice,
+            self.part,
+            self.skin,
+            check=False,
+            mid_wall=mid_wall,
+            offsets=pending,
+            graph=self.graph if local else None,
         )
+        self._skin_split = result.split
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
@@ -651,6 +661,7 @@ class Lattice:
         if solid is not self._lattice_mesh:
             try:
                 mesh = _checked_single_precision(solid, "the lattice")
+                mesh = self._glue_deep(mesh)
             except ExportError as exc:
                 if self.skin is not None:
                     # the booleans left surfaces a float32 step apart (a strut grazing the
@@ -684,6 +695,20 @@ class Lattice:
         if self.escape_holes is not None:
             self._verify_escape(mesh)
         return mesh
+
+    def _glue_deep(self, mesh: Mesh) -> Mesh:
+        """The checked skin of the struts near the wall with the deep struts glued back
+        (``conformal.skin_split``); if a cap of the split did not come out of the booleans
+        as it went in, the skin with the whole lattice, checked."""
+        from lattice_cad.core.mesh import Mesh
+
+        split = self.__dict__.pop("_skin_split", None)
+        if split is None:
+            return mesh
+        glued = split.glue(mesh.vertices, mesh.faces)
+        if glued is None:
+            return _checked_single_precision(self._skinned(split=False), "the lattice")
+        return Mesh(vertices=glued[0], faces=glued[1])
 
     def _retrim(self) -> Mesh | None:
         """The trim cut with the part moved off its surface by a quarter of the tolerance
