@@ -772,11 +772,17 @@ def build_skin(
         # the booleans on the elements near the wall only (conformal.skin_split)
         near = _manifold(split.near_vertices, split.near_faces, "the lattice near the wall")
         solid = outer - (inner - near)
-        pieces = solid.decompose()
-        if sum(1 for p_ in pieces if p_.volume() > 0) == 1:
-            bodies, islands = 1, 0
-        else:  # islands, or several bodies joined by deep struts: the whole lattice
+        tol = 1e-4 * float(np.linalg.norm(surface.size))
+
+        def touches(v: NDArray[np.float64]) -> bool:
+            sample = v[:: max(1, len(v) // 2000)]
+            return bool(surface.distance(sample, max_distance=2 * tol).min() <= tol)
+
+        n_bodies = split.bodies(solid.decompose(), touches)
+        if n_bodies is None:  # islands: the booleans on the whole lattice remove them
             split = None
+        else:
+            bodies, islands = n_bodies, 0
     if split is None:
         lat = as_manifold(lattice, name="lattice mesh")
         # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only

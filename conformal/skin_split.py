@@ -76,7 +76,53 @@ class SplitLattice:
     deep_vertices: NDArray[np.float64]
     deep_faces: NDArray[np.int64]
     caps: NDArray[np.int64]
+    cap_piece: NDArray[np.int64]
     counts: dict[str, int]
+
+    def bodies(self, pieces: list[Any], touches: Any) -> int | None:
+        """Bodies of the glued result (positive pieces reaching the outer surface, as
+        ``conformal.skin._keep_attached`` counts them), or None when the glued result has
+        an island (a piece of lattice joined to nothing that reaches the outer surface or
+        to a cavity wall), for the full booleans to remove.
+
+        ``pieces``: the components of the boolean's result (manifold3d Manifolds of the
+        near part, each closed by its caps), joined here by the deep pieces at their caps;
+        ``touches(vertices) -> bool``: whether a piece reaches the outer surface.
+        """
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        from lattice_cad.core.mesh import mesh_arrays
+
+        if sum(1 for p in pieces if p.volume() > 0) <= 1 and len(pieces) <= 1:
+            return len(pieces)
+        arrays = [mesh_arrays(p) for p in pieces]
+        vols = np.array([p.volume() for p in pieces])
+        allv = np.vstack([a[0] for a in arrays])  # type: ignore[index]
+        label = np.repeat(np.arange(len(pieces)), [len(a[0]) for a in arrays])  # type: ignore[index]
+        # the piece holding each cap (its first vertex; a position may repeat in a piece)
+        key = np.dtype((np.void, 24))
+        hk = np.ascontiguousarray(allv).view(key).ravel()
+        nk = np.ascontiguousarray(self.deep_vertices[self.caps[:, 0]]).view(key).ravel()
+        order = np.argsort(hk)
+        pos = np.minimum(np.searchsorted(hk[order], nk), len(hk) - 1)
+        if not np.array_equal(hk[order[pos]], nk):
+            return None
+        n_deep = int(self.cap_piece.max(initial=-1)) + 1
+        n = len(pieces) + n_deep
+        rows, cols = label[order[pos]], len(pieces) + self.cap_piece
+        g = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+        n_groups, group = connected_components(g, directed=False)
+        anchored = np.zeros(n_groups, dtype=bool)
+        anchored[group[: len(pieces)][vols < 0]] = True  # cavity walls are kept
+        bodies = 0
+        for k, (v, _) in enumerate(arrays):  # type: ignore[misc]
+            if vols[k] > 0 and touches(v):
+                anchored[group[k]] = True
+                bodies += 1
+        if not anchored[group[: len(pieces)]].all():
+            return None
+        return bodies
 
     def glue(
         self, vertices: NDArray[np.float64], faces: NDArray[np.int64]
@@ -300,7 +346,8 @@ def split_lattice(
     dmap[dverts] = np.arange(len(dverts))
     if np.any(dmap[caps[cap_deep]] < 0):
         return None
-    if not _every_deep_piece_joined(n_nodes, edges, ncls, ecls, e_idx, s_idx, to_deep):
+    ring_piece = _deep_pieces(n_nodes, edges, ncls, ecls, e_idx, s_idx, to_deep)
+    if ring_piece is None:
         return None  # a deep piece of lattice that joins nothing: an island (full booleans)
     return SplitLattice(
         near_vertices=nv,
@@ -308,6 +355,7 @@ def split_lattice(
         deep_vertices=v32[dverts],
         deep_faces=dmap[deep_f],
         caps=dmap[caps[cap_deep]],
+        cap_piece=np.repeat(ring_piece, P - 2),
         counts={
             "deep": n_deep,
             "near": int((fcls == _NEAR).sum()),
@@ -317,7 +365,7 @@ def split_lattice(
     )
 
 
-def _every_deep_piece_joined(
+def _deep_pieces(
     n_nodes: int,
     edges: NDArray[np.int64],
     ncls: NDArray[np.int64],
@@ -325,9 +373,10 @@ def _every_deep_piece_joined(
     e_idx: NDArray[np.int64],
     s_idx: NDArray[np.int64],
     to_deep: NDArray[np.bool_],
-) -> bool:
-    """Every connected piece of deep elements (hubs and tubes joined at shared rings) has
-    a ring toward a near element."""
+) -> NDArray[np.int64] | None:
+    """The connected piece of deep elements (hubs and tubes joined at shared rings) at each
+    ring toward a near element ((K,) int64, K = to_deep.sum()), or None when a piece has
+    no such ring."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -341,13 +390,14 @@ def _every_deep_piece_joined(
     g = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
     _, label = connected_components(g, directed=False)
     deep = np.concatenate([ncls == _DEEP, ecls == _DEEP])
-    if not deep.any():
-        return True
     # the deep element at each ring toward a near one
     deep_el = np.where(ncls[edges[e_idx, s_idx]] == _DEEP, edges[e_idx, s_idx], n_nodes + e_idx)
+    ring_piece = label[deep_el[to_deep]]
     joined = np.zeros(n, dtype=bool)
-    joined[label[deep_el[to_deep]]] = True
-    return bool(np.all(joined[label[deep]]))
+    joined[ring_piece] = True
+    if not np.all(joined[label[deep]]):
+        return None
+    return ring_piece.astype(np.int64)
 
 
 def _compact(
