@@ -101,6 +101,10 @@ class SkinReport:
     bodies: int = 0
     islands_removed: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
+    #: Triangles of the lattice by element class when the booleans ran on the elements
+    #: near the wall only (``deep``, ``near``, ``wall``, ``caps``; see
+    #: :mod:`conformal.skin_split`); empty when they ran on the whole lattice.
+    split: dict[str, int] = field(default_factory=dict)
 
     def summary(self) -> str:
         """One line for logs and the CLI."""
@@ -807,6 +811,7 @@ def build_skin(
         accurate=bool(np.all(np.abs(wall - thickness) <= tol)),
         bodies=bodies,
         islands_removed=islands,
+        split=dict(split.counts) if split is not None else {},
         seconds={
             "surfaces": t1 - t0,
             "booleans": t2 - t1,
