@@ -40,6 +40,8 @@ STAGES = [
     ("skin: build_skin", "conformal.skin", "build_skin"),
     ("skin: OCCT surfaces", "conformal.skin", "_occt_surfaces"),
     ("skin: OCCT offset", "lattice_cad.occ_impl.shapes", "offset_solid_isolated"),
+    ("skin: OCCT offset (wait)", "lattice_cad.occ_impl.shapes", "fused_offsets_result"),
+    ("skin: split lattice", "conformal.skin", "_split"),
     ("skin: voxel surfaces", "conformal.skin", "_voxel_surfaces"),
     ("skin: distance field", "conformal.skin", "_distance_field"),
     ("skin: marching tets", "conformal.skin", "marching_tets"),

@@ -51,6 +51,8 @@ __all__ = [
     "inset",
     "hollow",
     "build_skin",
+    "start_offsets",
+    "PendingOffsets",
     "add_skin",
     "marching_tets",
     "wall_thickness",
@@ -99,6 +101,10 @@ class SkinReport:
     bodies: int = 0
     islands_removed: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
+    #: Triangles of the lattice by element class when the booleans ran on the elements
+    #: near the wall only (``deep``, ``near``, ``wall``, ``caps``; see
+    #: :mod:`conformal.skin_split`); empty when they ran on the whole lattice.
+    split: dict[str, int] = field(default_factory=dict)
 
     def summary(self) -> str:
         """One line for logs and the CLI."""
@@ -123,6 +129,10 @@ class SkinResult:
 
     solid: Any
     report: SkinReport
+    #: With ``build_skin(graph=...)``: ``solid`` is made from the lattice's elements near
+    #: the wall only (caps included); ``split.glue`` puts the deep ones back into its mesh
+    #: (a ``conformal.skin_split.SplitLattice``). None: ``solid`` is the whole result.
+    split: Any = None
 
 
 #: Fraction of a grid step by which sampling grids are shifted off round coordinates.
@@ -257,24 +267,49 @@ def _as_part(part: Any) -> Any:
 
 
 # ---------------------------------------------------------------- OCCT offsets
-def _fused_solids(solids: Any) -> list[Any]:
-    """The solids of a part fused where they touch (OCCT's general fuse), so that the
-    offset of an assembly leaves no partition wall of twice the thickness between its
-    solids; the solids as they are when there is one or the fuse fails."""
+@dataclass
+class PendingOffsets:
+    """OCCT offsets of a part computing in a child process (:func:`start_offsets`)."""
+
+    worker: Any
+    part: Any
+    thickness: float
+    mid_wall: bool
+
+
+def _offset_depths(thickness: float, mid_wall: bool) -> tuple[float, ...]:
+    return (thickness, 0.5 * thickness) if mid_wall else (thickness,)
+
+
+def start_offsets(
+    part: Any, thickness: float, *, mid_wall: bool = False, worker: Any = None
+) -> PendingOffsets:
+    """Start OCCT's offsets of a B-rep part in a child process and return at once.
+
+    The child (``worker``, a :class:`lattice_cad.core.isolate.IsolatedWorker`, started
+    here when not given) fuses the solids and offsets them while the caller builds the
+    lattice; :func:`build_skin` (``offsets=``) collects the result. On this 2-core
+    machine's GE bracket that hides the child's start-up (importing OpenCascade) and the
+    offset behind the lattice fill and stitch.
+    """
+    from lattice_cad.core.isolate import IsolatedWorker
     from lattice_cad.occ_impl import shapes as occ
 
-    solids = list(solids)
-    if len(solids) <= 1:
-        return solids
-    try:
-        fused = occ.solids(occ.fuse(solids, simplify=True))
-    except Exception:  # OCCT raises Standard_Failure as RuntimeError & co; OCCTFailure
-        return solids
-    return fused or solids
+    if part.shape is None:
+        raise SkinError("OCCT offsets need a B-rep part (STEP, CadQuery or build123d)")
+    worker = IsolatedWorker() if worker is None else worker
+    depths = _offset_depths(thickness, mid_wall)
+    occ.start_fused_offsets(list(part.shape), tuple(-d for d in depths), worker)
+    return PendingOffsets(worker, part, float(thickness), bool(mid_wall))
 
 
-def _occt_surfaces(part: Any, thickness: float, mid_wall: bool = False) -> tuple[Any, ...]:
+def _occt_surfaces(
+    part: Any, thickness: float, mid_wall: bool = False, pending: PendingOffsets | None = None
+) -> tuple[Any, ...]:
     """Outer and inner surfaces of a B-rep part from OCCT's offset (Manifolds).
+
+    ``pending``: the offsets already started by :func:`start_offsets` (used when they are
+    of this part, thickness and ``mid_wall``; otherwise started here).
 
     Raises
     ------
@@ -285,13 +320,20 @@ def _occt_surfaces(part: Any, thickness: float, mid_wall: bool = False) -> tuple
 
     from lattice_cad.occ_impl import shapes as occ
 
+    if pending is not None and not (
+        pending.part is part and pending.thickness == thickness and pending.mid_wall == mid_wall
+    ):
+        pending.worker.close()
+        pending = None
+    if pending is None:
+        pending = start_offsets(part, thickness, mid_wall=mid_wall)
     defl = 0.01 * thickness
     tol = max(WALL_RTOL * thickness, WALL_ATOL)
-    dists = (thickness, 0.5 * thickness) if mid_wall else (thickness,)
+    dists = _offset_depths(thickness, mid_wall)
     out = [manifold3d.Manifold() for _ in range(1 + len(dists))]
-    for k, solid in enumerate(_fused_solids(part.shape)):
+    for k, (solid, offsets) in enumerate(occ.fused_offsets_result(pending.worker)):
         vol = occ.volume(solid)
-        shapes = [solid, *occ.offset_solid_isolated(solid, tuple(-d for d in dists))]
+        shapes = [solid, *offsets]
         meshes = []
         for shape, dist in zip(shapes, (0.0, *dists), strict=True):
             if dist and not 0.0 < occ.volume(shape) < vol:
@@ -595,13 +637,18 @@ def _check_thickness(thickness: Any) -> None:
 
 
 def _surfaces(
-    part: Any, thickness: float, method: str, voxel: float | None, mid_wall: bool = False
+    part: Any,
+    thickness: float,
+    method: str,
+    voxel: float | None,
+    mid_wall: bool = False,
+    pending: PendingOffsets | None = None,
 ) -> tuple[tuple[Any, ...], str, str, float]:
     """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size."""
     fallback = ""
     if method in ("auto", "occt") and part.shape is not None:
         try:
-            occt = _occt_surfaces(part, thickness, mid_wall)
+            occt = _occt_surfaces(part, thickness, mid_wall, pending)
             # the outer surface is the part's own mesh, which every other fill mode cuts
             # by: OCCT's finer tessellation of a convex face lies outside its chords
             return (part_solid(part), *occt[1:]), "occt", "", float("nan")
@@ -615,6 +662,8 @@ def _surfaces(
             fallback = f"{type(exc).__name__}: {exc}"
     elif method == "occt":
         raise SkinError("method='occt' needs a B-rep part (STEP, CadQuery or build123d)")
+    if pending is not None:
+        pending.worker.close()
     h = float(voxel) if voxel is not None else _grid_spacing(part.size, thickness)
     return _voxel_surfaces(part, thickness, h, mid_wall), "voxel", fallback, h
 
@@ -663,6 +712,8 @@ def build_skin(
     voxel: float | None = None,
     check: bool = True,
     mid_wall: bool = False,
+    offsets: PendingOffsets | None = None,
+    graph: Any = None,
 ) -> SkinResult:
     """One solid per solid of the part: its skin united with the lattice inside it.
 
@@ -687,6 +738,13 @@ def build_skin(
         Build the same solid the older way, ``(part - inset) + (lattice & mid-wall inset)``
         (one more surface and boolean, slower): a fallback for the rare result of the
         default ``part - (inset - lattice)`` that cannot be rounded to float32.
+    offsets : PendingOffsets, optional
+        OCCT's offsets already started by :func:`start_offsets` (used when they are of
+        this part, thickness and ``mid_wall``).
+    graph : LatticeGraph, optional
+        The graph ``lattice`` was stitched from (``fast_stitch.stitch``), with
+        ``check=False``: the booleans then run on the lattice's elements near the wall only
+        and ``SkinResult.split`` glues the deep ones back (see :mod:`conformal.skin_split`).
 
     Returns
     -------
@@ -698,7 +756,7 @@ def build_skin(
         raise ValueError(f"method must be 'auto', 'occt' or 'voxel', got {method!r}")
     t0 = time.perf_counter()
     p = _as_part(part)
-    surfaces, used, fallback, h = _surfaces(p, thickness, method, voxel, mid_wall)
+    surfaces, used, fallback, h = _surfaces(p, thickness, method, voxel, mid_wall, offsets)
     outer, inner = surfaces[0], surfaces[1]
     if inner.is_empty():
         thick = 2.0 * p.inscribed_radius()
@@ -711,10 +769,29 @@ def build_skin(
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)
     t1 = time.perf_counter()
-    lat = as_manifold(lattice, name="lattice mesh")
-    # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
-    solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
-    solid, bodies, islands = _keep_attached(solid, surface)
+    split = None
+    if graph is not None and not mid_wall and not check:
+        split = _split(lattice, graph, inner, thickness)
+    if split is not None:
+        # the booleans on the elements near the wall only (conformal.skin_split)
+        near = _manifold(split.near_vertices, split.near_faces, "the lattice near the wall")
+        solid = outer - (inner - near)
+        tol = 1e-4 * float(np.linalg.norm(surface.size))
+
+        def touches(v: NDArray[np.float64]) -> bool:
+            sample = v[:: max(1, len(v) // 2000)]
+            return bool(surface.distance(sample, max_distance=2 * tol).min() <= tol)
+
+        n_bodies = split.bodies(solid.decompose(), touches)
+        if n_bodies is None:  # islands: the booleans on the whole lattice remove them
+            split = None
+        else:
+            bodies, islands = n_bodies, 0
+    if split is None:
+        lat = as_manifold(lattice, name="lattice mesh")
+        # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
+        solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
+        solid, bodies, islands = _keep_attached(solid, surface)
     t2 = time.perf_counter()
     wall = wall_thickness(inner, surface)
     stats = {
@@ -734,6 +811,7 @@ def build_skin(
         accurate=bool(np.all(np.abs(wall - thickness) <= tol)),
         bodies=bodies,
         islands_removed=islands,
+        split=dict(split.counts) if split is not None else {},
         seconds={
             "surfaces": t1 - t0,
             "booleans": t2 - t1,
@@ -742,7 +820,19 @@ def build_skin(
     )
     if check:
         solid = checked(solid, "the skinned lattice")
-    return SkinResult(solid=solid, report=report)
+    return SkinResult(solid=solid, report=report, split=split)
+
+
+def _split(lattice: Any, graph: Any, inner: Any, thickness: float) -> Any:
+    """``conformal.skin_split.split_lattice`` of a stitched lattice, or None."""
+    from conformal.part import Part
+    from conformal.skin_split import split_lattice
+
+    arrays = mesh_arrays(lattice)
+    if arrays is None:
+        return None
+    margin = max(WALL_ATOL, 0.01 * thickness)
+    return split_lattice(graph, *arrays, Part(*to_arrays(inner), name="inner"), margin=margin)
 
 
 def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None = None) -> Any:

@@ -153,6 +153,36 @@ def _self_supporting_rotation(
     return best.rotation
 
 
+def _offset_worker(part: Any, skin: float | None) -> Any:
+    """A child process for OCCT's skin offsets, started (and importing OpenCascade) before
+    the part is loaded, for a skin of a part that may be a B-rep; else None."""
+    if skin is None or (
+        isinstance(part, (str, os.PathLike))
+        and Path(part).suffix.lower() in suffixes(Kind.MESH, action="read")
+    ):
+        return None
+    from lattice_cad.core.isolate import IsolatedWorker
+
+    return IsolatedWorker(warm="lattice_cad.occ_impl.shapes")
+
+
+def _start_offsets(worker: Any, part: Any, skin: float | None) -> Any:
+    """OCCT's offsets of a B-rep part started in ``worker`` (``conformal.skin.start_offsets``),
+    or None (the worker closed) when the part is a mesh."""
+    if worker is None:
+        return None
+    if skin is None or part.shape is None:
+        worker.close()
+        return None
+    from conformal.skin import start_offsets
+
+    try:
+        return start_offsets(part, skin, worker=worker)
+    except Exception:  # noqa: BLE001 - build_skin starts them again and reports the failure
+        worker.close()
+        return None
+
+
 def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
     """A boolean result (skin, trim) rounded to float32 as STL and 3MF store it, checked in
     full (with the folds the rounding makes collapsed), or :class:`ExportError`.
@@ -487,6 +517,7 @@ class Lattice:
         )
         if self_supporting:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
+        worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
         the_part = _load_part(part)
         zones = None
         if keep is not None:  # resolved before the lattice: a wrong selector fails fast
@@ -524,6 +555,7 @@ class Lattice:
         lat.build_report = report
         lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
         lat.overhang_removal = removal
+        lat._pending_offsets = _start_offsets(worker, the_part, skin)
         return lat
 
     def printability(
@@ -595,7 +627,7 @@ class Lattice:
 
         return self._skinned()
 
-    def _skinned(self, *, shift: float = 0.0, mid_wall: bool = False) -> Mesh:
+    def _skinned(self, *, shift: float = 0.0, mid_wall: bool = False, split: bool = True) -> Mesh:
         """The lattice (with its keep zones) inside its skin, not yet checked; ``shift``
         moves the lattice by that many trim tolerances (``config.TRIM_RTOL`` r) in a
         generic direction, and ``mid_wall`` builds the skin the older way (see
@@ -611,7 +643,20 @@ class Lattice:
             moved = lattice.vertices + SHIFT_DIRECTION * step
             lattice = Mesh(vertices=moved, faces=lattice.faces)
         # checked after rounding to float32 (what the files hold)
-        result = _skin.build_skin(lattice, self.part, self.skin, check=False, mid_wall=mid_wall)
+        pending = self.__dict__.pop("_pending_offsets", None)
+        # the booleans on the struts near the wall only, the deep ones glued back after the
+        # float32 check (conformal.skin_split): for the stitched lattice as it is
+        local = split and lattice is self._lattice_mesh and self.escape_holes is None
+        result = _skin.build_skin(
+            lattice,
+            self.part,
+            self.skin,
+            check=False,
+            mid_wall=mid_wall,
+            offsets=pending,
+            graph=self.graph if local else None,
+        )
+        self._skin_split = result.split
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
@@ -629,6 +674,7 @@ class Lattice:
         if solid is not self._lattice_mesh:
             try:
                 mesh = _checked_single_precision(solid, "the lattice")
+                mesh = self._glue_deep(mesh)
             except ExportError as exc:
                 if self.skin is not None:
                     # the booleans left surfaces a float32 step apart (a strut grazing the
@@ -662,6 +708,20 @@ class Lattice:
         if self.escape_holes is not None:
             self._verify_escape(mesh)
         return mesh
+
+    def _glue_deep(self, mesh: Mesh) -> Mesh:
+        """The checked skin of the struts near the wall with the deep struts glued back
+        (``conformal.skin_split``); if a cap of the split did not come out of the booleans
+        as it went in, the skin with the whole lattice, checked."""
+        from lattice_cad.core.mesh import Mesh
+
+        split = self.__dict__.pop("_skin_split", None)
+        if split is None:
+            return mesh
+        glued = split.glue(mesh.vertices, mesh.faces)
+        if glued is None:
+            return _checked_single_precision(self._skinned(split=False), "the lattice")
+        return Mesh(vertices=glued[0], faces=glued[1])
 
     def _retrim(self) -> Mesh | None:
         """The trim cut with the part moved off its surface by a quarter of the tolerance

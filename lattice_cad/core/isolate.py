@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 from lattice_cad.core.errors import ExternalCrash
 
-__all__ = ["run_isolated"]
+__all__ = ["run_isolated", "IsolatedWorker"]
 
 T = TypeVar("T")
 
@@ -48,3 +48,78 @@ def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) ->
         for proc in list(getattr(pool, "_processes", {}).values()):
             proc.kill()
         pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _import(module: str) -> None:
+    """Import ``module`` in the child (warms it up for the calls that follow)."""
+    import importlib
+
+    importlib.import_module(module)
+
+
+class IsolatedWorker:
+    """A child process started now, for calls whose results are needed later.
+
+    :func:`run_isolated` starts its child when it is called and waits; a worker is started
+    ahead of time (``warm`` imports a module in it meanwhile, e.g. OpenCascade's bindings),
+    so the child's start-up and the call overlap with the caller's own work. Results
+    come back with :meth:`result`; :meth:`close` (also on garbage collection) kills the
+    child.
+
+    Parameters
+    ----------
+    warm : str, optional
+        A module the child imports at once.
+    """
+
+    def __init__(self, *, warm: str | None = None) -> None:
+        import weakref
+
+        method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+        self._pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
+            max_workers=1, mp_context=mp.get_context(method)
+        )
+        self._future: Any = None
+        self._finalizer = weakref.finalize(self, _shutdown, self._pool)
+        if warm is not None:
+            self._pool.submit(_import, warm)
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> None:
+        """Start ``fn(*args)`` in the child (after the warm-up); one call per worker."""
+        if self._pool is None or self._future is not None:
+            raise RuntimeError("an IsolatedWorker runs one call")
+        self._future = self._pool.submit(fn, *args)
+
+    @property
+    def submitted(self) -> bool:
+        return self._future is not None
+
+    def result(self, *, timeout: float, what: str) -> Any:
+        """The call's result (its exception re-raised), then the child is ended.
+
+        Raises
+        ------
+        ExternalCrash
+            As :func:`run_isolated`.
+        """
+        if self._future is None:
+            raise RuntimeError("nothing was submitted to this IsolatedWorker")
+        try:
+            return self._future.result(timeout=timeout)
+        except FutureTimeout:
+            raise ExternalCrash(f"{what} did not finish within {timeout:g} s") from None
+        except BrokenProcessPool:
+            raise ExternalCrash(f"{what} crashed (the child process died)") from None
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Kill the child (idempotent)."""
+        self._finalizer()
+        self._pool = None
+
+
+def _shutdown(pool: ProcessPoolExecutor) -> None:
+    for proc in list(getattr(pool, "_processes", {}).values()):
+        proc.kill()
+    pool.shutdown(wait=False, cancel_futures=True)

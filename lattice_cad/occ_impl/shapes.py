@@ -52,6 +52,8 @@ __all__ = [
     "fuse",
     "offset_solid",
     "offset_solid_isolated",
+    "start_fused_offsets",
+    "fused_offsets_result",
     "volume",
     "face_area",
     "bounds",
@@ -186,6 +188,52 @@ def offset_solid_isolated(
     except ExternalCrash as exc:
         raise OCCTFailure(str(exc)) from None
     return [from_bytes(b) for b in data]
+
+
+def _fused_offsets_bytes(
+    breps: list[bytes], distances: tuple[float, ...]
+) -> list[tuple[bytes, list[bytes]]]:
+    """In a child: the solids fused where they touch (as they are when there is one or
+    the fuse fails), and each one's offsets (see :func:`start_fused_offsets`)."""
+    solids_in = [from_bytes(b) for b in breps]
+    fused = solids_in
+    if len(solids_in) > 1:
+        try:
+            fused = solids(fuse(solids_in, simplify=True)) or solids_in
+        except Exception:  # OCCT raises Standard_Failure as RuntimeError & co; OCCTFailure
+            fused = solids_in
+    return [(to_bytes(s), [to_bytes(offset_solid(s, d)) for d in distances]) for s in fused]
+
+
+def start_fused_offsets(solid_list: Any, distances: tuple[float, ...], worker: Any) -> None:
+    """Start, in ``worker`` (a :class:`lattice_cad.core.isolate.IsolatedWorker`), the
+    offsets of the solids fused where they touch (an assembly's offset then leaves no
+    partition wall of twice the thickness between its solids): the caller goes on with
+    its own work meanwhile and collects them with :func:`fused_offsets_result`."""
+    worker.submit(
+        _fused_offsets_bytes,
+        [to_bytes(s) for s in solid_list],
+        tuple(float(d) for d in distances),
+    )
+
+
+def fused_offsets_result(
+    worker: Any, *, timeout: float = 120.0
+) -> list[tuple[TopoDS_Shape, list[TopoDS_Shape]]]:
+    """The (fused solid, its offsets) pairs of :func:`start_fused_offsets`.
+
+    Raises
+    ------
+    OCCTFailure
+        An offset failed, or the child crashed or timed out.
+    """
+    from lattice_cad.core.errors import ExternalCrash
+
+    try:
+        data = worker.result(timeout=timeout, what="OCCT's offset")
+    except ExternalCrash as exc:
+        raise OCCTFailure(str(exc)) from None
+    return [(from_bytes(s), [from_bytes(b) for b in offs]) for s, offs in data]
 
 
 # ---------------------------------------------------------------- measures

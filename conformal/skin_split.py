@@ -1,0 +1,409 @@
+"""The skin's booleans on the part of the lattice near the wall only.
+
+A skin is ``outer - (inner - lattice)`` (:mod:`conformal.skin`). The lattice is by far the
+largest operand (the GE bracket's octet: 1.5 M triangles against the inner surface's
+0.1 M), yet only its struts near the inner surface are cut: the deep ones (inside the
+inner surface, clear of it) come out of the boolean unchanged, and those in the wall (outside
+it, clear of it) vanish. A stitched lattice (:func:`fast_stitch.stitch`) is made of
+elements with known triangles: one hub (or end cap) per node and one tube of ``2 P``
+triangles per strut, joined at the struts' profile rings (``P`` vertices each). So:
+
+1. every hub and tube is classified against the inner surface, with its exact bounding
+   ball (hub) or capsule (tube, sampled along its axis; the distance is 1-Lipschitz):
+   **deep** (inside, clear by ``margin``), **wall** (outside, clear) or **near**;
+2. the near elements, each ring they share with a deep or wall element closed by a fan of
+   ``P - 2`` triangles (no new vertex), form a closed solid ``N``; the booleans run on
+   ``N`` only: ``outer - (inner - N)``; the wall elements are dropped (they lie outside
+   the inner surface, where the result is the solid wall);
+3. the caps toward deep elements lie inside the inner surface, clear of it, so the
+   boolean leaves them as they were; :meth:`SplitLattice.glue` finds them (by their exact
+   float32 coordinates) in the result, removes them and puts the deep elements in their
+   place: the same closed surface as the boolean with the whole lattice.
+
+Nothing is assumed that is not checked: the mesh must have the stitcher's layout, the
+caps must come out of the boolean unchanged (else :meth:`glue` returns None and the
+caller runs the booleans on the whole lattice), and the deep elements must keep their
+triangles and vertices through the rounding to float32 (as the stitcher guarantees).
+The deep elements are not re-checked: they are a part of the stitched lattice, which is
+valid in float32, and clear of everything the boolean made by ``margin``. A caller checks
+the boolean's result (the near part, caps included), before :meth:`glue`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["SplitLattice", "split_lattice"]
+
+#: Sample spacing along a strut for its distance to the inner surface, in strut radii
+#: (at least ``MIN_SPACING`` mm).
+SPACING_RADII = 2.0
+MIN_SPACING = 0.5
+#: Below this fraction of deep triangles the split is not worth it.
+MIN_DEEP_FRACTION = 0.05
+
+_DEEP, _NEAR, _WALL = 0, 1, 2
+
+
+@dataclass
+class SplitLattice:
+    """A stitched lattice split into its near part (closed, for the booleans) and the deep
+    elements glued back after them.
+
+    Attributes
+    ----------
+    near_vertices : (Vn, 3) float64
+        Float32-exact vertices of the near part.
+    near_faces : (Fn, 3) int64
+        Its triangles, caps included (a closed surface).
+    deep_vertices : (Vd, 3) float64
+        Float32-exact vertices of the deep elements.
+    deep_faces : (Fd, 3) int64
+        Their triangles (open at the rings shared with near elements).
+    caps : (C, 3) int64
+        The caps toward deep elements, indices into ``deep_vertices`` (the rings' vertices
+        are deep vertices too), oriented as in the near part.
+    counts : dict
+        Triangles of the lattice that are deep, near and in the wall.
+    """
+
+    near_vertices: NDArray[np.float64]
+    near_faces: NDArray[np.int64]
+    deep_vertices: NDArray[np.float64]
+    deep_faces: NDArray[np.int64]
+    caps: NDArray[np.int64]
+    cap_piece: NDArray[np.int64]
+    counts: dict[str, int]
+
+    def bodies(self, pieces: list[Any], touches: Any) -> int | None:
+        """Bodies of the glued result (positive pieces reaching the outer surface, as
+        ``conformal.skin._keep_attached`` counts them), or None when the glued result has
+        an island (a piece of lattice joined to nothing that reaches the outer surface or
+        to a cavity wall), for the full booleans to remove.
+
+        ``pieces``: the components of the boolean's result (manifold3d Manifolds of the
+        near part, each closed by its caps), joined here by the deep pieces at their caps;
+        ``touches(vertices) -> bool``: whether a piece reaches the outer surface.
+        """
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        from lattice_cad.core.mesh import mesh_arrays
+
+        if sum(1 for p in pieces if p.volume() > 0) <= 1 and len(pieces) <= 1:
+            return len(pieces)
+        arrays = [mesh_arrays(p) for p in pieces]
+        vols = np.array([p.volume() for p in pieces])
+        allv = np.vstack([a[0] for a in arrays])  # type: ignore[index]
+        label = np.repeat(np.arange(len(pieces)), [len(a[0]) for a in arrays])  # type: ignore[index]
+        # the piece holding each cap (its first vertex; a position may repeat in a piece)
+        key = np.dtype((np.void, 24))
+        hk = np.ascontiguousarray(allv).view(key).ravel()
+        nk = np.ascontiguousarray(self.deep_vertices[self.caps[:, 0]]).view(key).ravel()
+        order = np.argsort(hk)
+        pos = np.minimum(np.searchsorted(hk[order], nk), len(hk) - 1)
+        if not np.array_equal(hk[order[pos]], nk):
+            return None
+        n_deep = int(self.cap_piece.max(initial=-1)) + 1
+        n = len(pieces) + n_deep
+        rows, cols = label[order[pos]], len(pieces) + self.cap_piece
+        g = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+        n_groups, group = connected_components(g, directed=False)
+        anchored = np.zeros(n_groups, dtype=bool)
+        anchored[group[: len(pieces)][vols < 0]] = True  # cavity walls are kept
+        bodies = 0
+        for k, (v, _) in enumerate(arrays):  # type: ignore[misc]
+            if vols[k] > 0 and touches(v):
+                anchored[group[k]] = True
+                bodies += 1
+        if not anchored[group[: len(pieces)]].all():
+            return None
+        return bodies
+
+    def glue(
+        self, vertices: NDArray[np.float64], faces: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
+        """The boolean's result (from the near part) with the caps replaced by the deep
+        elements, or None when a cap is not in it unchanged.
+
+        vertices : (V, 3) float64 (float32-exact), faces : (F, 3) int64.
+        Returns vertices (V', 3) float64 and faces (F', 3) int64.
+        """
+        if len(self.caps) == 0:
+            return vertices, faces
+        if len(vertices) + len(self.deep_vertices) >= 1 << 21:
+            return None
+        ring = np.unique(self.caps.ravel())
+        # ring vertices of the deep part -> vertices of the result with the same coordinates
+        where = _find_rows(vertices, self.deep_vertices[ring])
+        if where is None:
+            return None
+        to_out = np.full(len(self.deep_vertices), -1, dtype=np.int64)
+        to_out[ring] = where
+        caps = to_out[self.caps]
+        # the caps, as triangles of the result (same orientation: any rotation of the row)
+        nv = np.int64(len(vertices))
+        fkey = _face_keys(faces, nv)
+        ckey = _face_keys(caps, nv)
+        order = np.argsort(fkey)
+        pos = np.searchsorted(fkey, ckey, sorter=order)
+        pos = np.minimum(pos, len(fkey) - 1)
+        hit = order[pos]
+        if not np.array_equal(fkey[hit], ckey) or len(np.unique(hit)) != len(hit):
+            return None
+        keep = np.ones(len(faces), dtype=bool)
+        keep[hit] = False
+        # the deep vertices not on a ring follow the result's
+        other = to_out < 0
+        to_out[other] = len(vertices) + np.arange(int(other.sum()))
+        v = np.vstack([vertices, self.deep_vertices[other]])
+        f = np.vstack([faces[keep], to_out[self.deep_faces]])
+        return v, f
+
+
+def _face_keys(f: NDArray[np.int64], nv: np.int64) -> NDArray[np.int64]:
+    """(F,) int64: a key of each triangle that is the same for its three rotations (and
+    differs for the reversed triangle); vertex indices below 2**21."""
+    r = np.argmin(f, axis=1)
+    idx = np.arange(len(f))
+    a, b, c = f[idx, r], f[idx, (r + 1) % 3], f[idx, (r + 2) % 3]
+    return (a << 42) | (b << 21) | c
+
+
+def _find_rows(
+    haystack: NDArray[np.float64], needles: NDArray[np.float64]
+) -> NDArray[np.int64] | None:
+    """(K,) int64: the row of ``haystack`` equal to each needle, or None when one is missing
+    or not unique."""
+    h = np.ascontiguousarray(haystack, dtype=np.float64)
+    n = np.ascontiguousarray(needles, dtype=np.float64)
+    key = np.dtype((np.void, 24))
+    hk = h.view(key).ravel()
+    nk = n.view(key).ravel()
+    order = np.argsort(hk)
+    hs = hk[order]
+    lo = np.searchsorted(hs, nk, side="left")
+    hi = np.searchsorted(hs, nk, side="right")
+    if not np.all(hi - lo == 1):
+        return None
+    return order[lo]
+
+
+def _layout(graph: Any, v: NDArray[np.float64], f: NDArray[np.int64]) -> tuple[int, Any] | None:
+    """``P`` and the node face starts (N,) and counts (N,) if ``(v, f)`` is the stitcher's
+    mesh of ``graph`` (its layout checked), else None."""
+    from fast_stitch.stitch import _face_counts
+
+    m = graph.num_edges
+    if m == 0 or len(v) % (2 * m):
+        return None
+    P = len(v) // (2 * m)
+    counts = _face_counts(graph.degree, P)
+    if P < 3 or len(f) != 2 * m * P + int(counts.sum()) or len(v) >= 1 << 21:
+        return None
+    # the tubes: rows 2 P e + 2 k, +1 join the rings (2 e) P + k and (2 e + 1) P + k
+    tubes = f[: 2 * m * P].reshape(m, P, 2, 3)
+    base = (2 * np.arange(m) * P)[:, None]
+    k = np.arange(P)[None, :]
+    if not (
+        np.array_equal(tubes[:, :, 0, 0], base + k) and np.array_equal(tubes[:, :, 1, 0], base + k)
+    ):
+        return None
+    start = 2 * m * P + np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    return P, (start, counts)
+
+
+def split_lattice(
+    graph: Any,
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    inner: Any,
+    *,
+    margin: float,
+) -> SplitLattice | None:
+    """Split a stitched lattice against the inner surface of a skin.
+
+    Parameters
+    ----------
+    graph : LatticeGraph
+        The graph the lattice was stitched from.
+    vertices : (V, 3) float64, faces : (F, 3) int64
+        The lattice as :func:`fast_stitch.stitch` made it (its layout is checked).
+    inner : conformal.Part
+        The inner surface of the skin (the same mesh the booleans use).
+    margin : float
+        Clearance (mm) of the deep and wall elements from the inner surface.
+
+    Returns
+    -------
+    SplitLattice or None
+        None when the mesh is not the stitcher's, when too little is deep to be worth it,
+        or when the float32 rounding touches a deep element.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    lay = _layout(graph, v, f)
+    if lay is None:
+        return None
+    P, (fstart, fcount) = lay
+    nodes, edges = graph.nodes, graph.edges
+    n_nodes, m = len(nodes), len(edges)
+    rings = v.reshape(m, 2, P, 3)
+    centre = rings.mean(axis=2)  # (m, 2, 3)
+    # hub of node n: inside the ball about the node through its farthest ring vertex
+    reach = np.linalg.norm(rings - nodes[edges][:, :, None, :], axis=3).max(axis=2)  # (m, 2)
+    hub_r = np.zeros(n_nodes)
+    np.maximum.at(hub_r, edges.ravel(), reach.ravel())
+    # tube of strut e: inside the capsule about its ring centres, radius its widest ring
+    tube_r = np.linalg.norm(rings - centre[:, :, None, :], axis=3).max(axis=(1, 2))  # (m,)
+    seg = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+    far = float(hub_r.max() + tube_r.max() + 0.5 * seg.max()) + 2.0 * margin
+    dist = inner.distance(nodes, max_distance=far)  # inf beyond: clear of everything below
+    inside = inner.contains(nodes)
+    clear = dist > hub_r + margin
+    ncls = np.where(clear, np.where(inside, _DEEP, _WALL), _NEAR)
+    ncls[graph.degree == 0] = _WALL
+    # tubes between two clear nodes on the same side; the distance is 1-Lipschitz, so along
+    # the segment it is at least (d_a + d_b - |ab|) / 2; else sampled along the axis
+    ecls = np.full(m, _NEAR)
+    same = (ncls[edges[:, 0]] == ncls[edges[:, 1]]) & (ncls[edges[:, 0]] != _NEAR)
+    with np.errstate(invalid="ignore"):
+        sure = 0.5 * (dist[edges[:, 0]] + dist[edges[:, 1]] - seg) > tube_r + margin
+    ecls[same & sure] = ncls[edges[same & sure, 0]]
+    cand = np.flatnonzero(same & ~sure)
+    if len(cand):
+        a, b = centre[cand, 0], centre[cand, 1]
+        length = np.linalg.norm(b - a, axis=1)
+        s = max(MIN_SPACING, SPACING_RADII * float(tube_r.max()))
+        n_seg = np.maximum(1, np.ceil(length / s).astype(np.int64))
+        k_max = int(n_seg.max())
+        t = np.minimum(np.arange(k_max + 1)[None, :] / n_seg[:, None], 1.0)  # (C, K+1)
+        pts = a[:, None, :] + t[:, :, None] * (b - a)[:, None, :]
+        reach_d = float(tube_r.max()) + margin + s  # inf beyond: clear enough
+        d = inner.distance(pts.reshape(-1, 3), max_distance=reach_d).reshape(len(cand), -1)
+        step = length / n_seg
+        with np.errstate(invalid="ignore"):
+            low = 0.5 * (d[:, 1:] + d[:, :-1] - step[:, None])  # a bound between two samples
+        ok = np.all(low > tube_r[cand, None] + margin, axis=1)
+        ecls[cand[ok]] = ncls[edges[cand[ok], 0]]
+    # every face's element
+    fcls = np.empty(len(f), dtype=np.int64)
+    fcls[: 2 * m * P] = np.repeat(ecls, 2 * P)
+    fcls[2 * m * P :] = np.repeat(ncls, fcount)
+    n_deep = int((fcls == _DEEP).sum())
+    if n_deep < MIN_DEEP_FRACTION * len(f):
+        return None
+    # rings between a tube and its hub of different classes
+    hub_cls = ncls[edges]  # (m, 2)
+    tube_cls = np.repeat(ecls[:, None], 2, axis=1)
+    if np.any((hub_cls != tube_cls) & (hub_cls != _NEAR) & (tube_cls != _NEAR)):
+        return None  # deep next to wall: not clear after all
+    e_idx, s_idx = np.nonzero(hub_cls != tube_cls)
+    near_tube = tube_cls[e_idx, s_idx] == _NEAR
+    to_deep = (hub_cls[e_idx, s_idx] == _DEEP) | (tube_cls[e_idx, s_idx] == _DEEP)
+    # the tube uses ring (e, s) in direction +k when sign... read it from its faces: the
+    # first tube triangle of e starts at ring 0 vertex 0 and holds ring 0's edge (0 -> 1)
+    # or (1 -> 0)
+    first = f[2 * P * e_idx]  # (K, 3)
+    base0 = 2 * e_idx * P
+    nxt = np.roll(first, -1, axis=1)
+    plus0 = np.any((first == base0[:, None]) & (nxt == base0[:, None] + 1), axis=1)
+    # ring 1 is used the other way round from ring 0 by a tube
+    tube_plus = np.where(s_idx == 0, plus0, ~plus0)
+    # the cap closes the near element: opposite to the tube if the tube is near, else as
+    # the tube (opposite to the hub)
+    cap_plus = np.where(near_tube, ~tube_plus, tube_plus)
+    rb = ((2 * e_idx + s_idx) * P)[:, None]
+    j = np.arange(1, P - 1)[None, :]
+    c0 = np.broadcast_to(rb, (len(rb), P - 2))
+    c1 = np.where(cap_plus[:, None], rb + j, rb + j + 1)
+    c2 = np.where(cap_plus[:, None], rb + j + 1, rb + j)
+    caps = np.stack([c0, c1, c2], axis=2).reshape(-1, 3)
+    cap_deep = np.repeat(to_deep, P - 2)
+    # the deep elements must survive the rounding to float32 as they are
+    v32 = v.astype(np.float32).astype(np.float64)
+    deep_f = f[fcls == _DEEP]
+    mask = np.zeros(len(v), dtype=bool)
+    mask[deep_f.ravel()] = True
+    used_d = np.flatnonzero(mask)
+    tri = v32[deep_f]
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    if not np.all(np.any(nrm != 0.0, axis=1)):
+        return None
+    u = v32[used_d]
+    order = np.lexsort((u[:, 2], u[:, 1], u[:, 0]))
+    if np.any(np.all(u[order[1:]] == u[order[:-1]], axis=1)):
+        return None  # two deep vertices became one
+    near_f = np.vstack([f[fcls == _NEAR], caps])
+    nv, nf = _compact(v32, near_f)
+    dmap = np.full(len(v), -1, dtype=np.int64)
+    mask[caps[cap_deep].ravel()] = True
+    dverts = np.flatnonzero(mask)
+    dmap[dverts] = np.arange(len(dverts))
+    if np.any(dmap[caps[cap_deep]] < 0):
+        return None
+    ring_piece = _deep_pieces(n_nodes, edges, ncls, ecls, e_idx, s_idx, to_deep)
+    if ring_piece is None:
+        return None  # a deep piece of lattice that joins nothing: an island (full booleans)
+    return SplitLattice(
+        near_vertices=nv,
+        near_faces=nf,
+        deep_vertices=v32[dverts],
+        deep_faces=dmap[deep_f],
+        caps=dmap[caps[cap_deep]],
+        cap_piece=np.repeat(ring_piece, P - 2),
+        counts={
+            "deep": n_deep,
+            "near": int((fcls == _NEAR).sum()),
+            "wall": int((fcls == _WALL).sum()),
+            "caps": int(len(caps)),
+        },
+    )
+
+
+def _deep_pieces(
+    n_nodes: int,
+    edges: NDArray[np.int64],
+    ncls: NDArray[np.int64],
+    ecls: NDArray[np.int64],
+    e_idx: NDArray[np.int64],
+    s_idx: NDArray[np.int64],
+    to_deep: NDArray[np.bool_],
+) -> NDArray[np.int64] | None:
+    """The connected piece of deep elements (hubs and tubes joined at shared rings) at each
+    ring toward a near element ((K,) int64, K = to_deep.sum()), or None when a piece has
+    no such ring."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    m = len(edges)
+    # elements: hubs 0..N-1, tubes N..N+M-1; a deep tube joins its deep hubs
+    e_all = np.repeat(np.arange(m), 2)
+    hub = edges.ravel()
+    both = (ecls[e_all] == _DEEP) & (ncls[hub] == _DEEP)
+    rows, cols = hub[both], n_nodes + e_all[both]
+    n = n_nodes + m
+    g = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+    _, label = connected_components(g, directed=False)
+    deep = np.concatenate([ncls == _DEEP, ecls == _DEEP])
+    # the deep element at each ring toward a near one
+    deep_el = np.where(ncls[edges[e_idx, s_idx]] == _DEEP, edges[e_idx, s_idx], n_nodes + e_idx)
+    ring_piece = label[deep_el[to_deep]]
+    joined = np.zeros(n, dtype=bool)
+    joined[ring_piece] = True
+    if not np.all(joined[label[deep]]):
+        return None
+    return ring_piece.astype(np.int64)
+
+
+def _compact(
+    v: NDArray[np.float64], f: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    used = np.zeros(len(v), dtype=bool)
+    used[f.ravel()] = True
+    new_id = np.cumsum(used) - 1
+    return v[used], new_id[f]

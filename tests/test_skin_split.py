@@ -1,0 +1,113 @@
+"""conformal.skin_split: the skin's booleans on the struts near the wall only, the deep ones
+glued back, give the same solid as the booleans on the whole lattice (real parts)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import fast_stitch
+from conformal import load_part, skin_split
+from lattice_cad.core.errors import ExternalCrash, LatticeWarning
+from lattice_cad.core.isolate import IsolatedWorker
+from lattice_cad.lattice import Lattice
+from tests.conftest import DATA, assert_valid
+
+
+def _triangles(mesh) -> np.ndarray:
+    """(F, 9) float64: each triangle's corners from its smallest, rows sorted (a mesh's
+    triangles as a set, independent of vertex and face order)."""
+    t = mesh.vertices[mesh.faces]  # (F, 3, 3)
+    first = np.lexsort((t[:, :, 2], t[:, :, 1], t[:, :, 0]), axis=1)[:, 0]
+    idx = np.arange(len(t))
+    rot = np.stack([t[idx, (first + k) % 3] for k in range(3)], axis=1).reshape(len(t), 9)
+    return rot[np.lexsort(rot.T[::-1])]
+
+
+def _fill(name: str, per: float):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)  # solids united, struts thinned
+        part = load_part(DATA / name)
+        cell = float(part.size.max()) / per
+        return Lattice.fill(part, "octet", cell, cell / 12, skin=cell / 6)
+
+
+@pytest.mark.parametrize(
+    ("name", "per"),
+    [("step/kcl_flange-with-patterns.step", 10), ("meshes/bunny_closed_odedstein.obj", 10)],
+)
+def test_split_skin_equals_the_skin_of_the_whole_lattice(name, per, monkeypatch):
+    lat = _fill(name, per)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        mesh = lat.mesh()
+    split = lat.skin_report.split
+    assert split and split["deep"] > 0 and split["near"] > 0, lat.skin_report
+    assert fast_stitch.check(mesh).valid
+    assert_valid(mesh, self_intersections=False)
+    assert lat.skin_report.bodies == 1
+    # the same lattice with the booleans on all of it
+    monkeypatch.setattr(skin_split, "split_lattice", lambda *a, **k: None)
+    whole = _fill(name, per)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        ref = whole.mesh()
+    assert not whole.skin_report.split
+    assert len(mesh.faces) == len(ref.faces) and len(mesh.vertices) == len(ref.vertices)
+    np.testing.assert_array_equal(_triangles(mesh), _triangles(ref))
+
+
+def test_glue_refuses_a_result_without_its_caps():
+    lat = _fill("step/kcl_flange-with-patterns.step", 10)
+    from conformal import skin
+    from conformal.part import Part
+
+    p = lat.part
+    h = skin._grid_spacing(p.size, lat.skin)
+    outer, inner = skin._voxel_surfaces(p, lat.skin, h)
+    m = lat._lattice_mesh
+    split = skin_split.split_lattice(
+        lat.graph, m.vertices, m.faces, Part(*skin.to_arrays(inner)), margin=0.02
+    )
+    assert split is not None and len(split.caps)
+    # the near part alone, as a boolean that changed nothing would give it back
+    v, f = split.near_vertices, split.near_faces
+    glued = split.glue(v, f)
+    assert glued is not None
+    assert len(glued[1]) == len(f) - len(split.caps) + len(split.deep_faces)
+    gm = fast_stitch.check((glued[0], glued[1]), self_intersections=False)
+    assert gm.valid, gm  # closed, 2-manifold, consistently oriented, nothing flat
+    # a cap missing (as when a boolean cut it): None, and the caller uses the whole lattice
+    cap = np.sort(split.deep_vertices[split.caps[0]], axis=0)
+    tri = np.sort(v[f], axis=1)
+    hit = np.flatnonzero(np.all(tri == cap[None], axis=(1, 2)))
+    assert len(hit) == 1
+    assert split.glue(v, np.delete(f, hit, axis=0)) is None
+
+
+def test_split_refuses_a_mesh_that_is_not_the_stitchers():
+    lat = _fill("step/kcl_flange-with-patterns.step", 10)
+    m = lat._lattice_mesh
+    from conformal.part import Part
+
+    part = Part(lat.part.vertices, lat.part.faces)
+    assert skin_split.split_lattice(lat.graph, m.vertices, m.faces[::-1], part, margin=0.02) is None
+    assert skin_split.split_lattice(lat.graph, m.vertices[:-6], m.faces, part, margin=0.02) is None
+
+
+def test_isolated_worker_result_error_and_crash():
+    w = IsolatedWorker(warm="json")
+    w.submit(divmod, 17, 5)
+    assert w.result(timeout=60, what="divmod") == (3, 2)
+    w = IsolatedWorker()
+    w.submit(divmod, 1, 0)
+    with pytest.raises(ZeroDivisionError):
+        w.result(timeout=60, what="divmod")
+    import os
+
+    w = IsolatedWorker()
+    w.submit(os.abort)
+    with pytest.raises(ExternalCrash, match="abort crashed"):
+        w.result(timeout=60, what="abort")
