@@ -442,8 +442,19 @@ def bench_refused(
     settings: list[str] | None = None,
     budget: float = 3600.0,
     build_max_struts: int = 600,
+    cell_divisor: float = 8.0,
+    out_path: Path | None = None,
 ) -> list[list[str]]:
-    """Issue 14: count the lattices the exact reference refuses, over every fill mode."""
+    """Issue 14: count the lattices the exact reference refuses, over every fill mode.
+
+    Every part of ``../shared/data`` (STEP and meshes) is filled with every setting of
+    :data:`REFUSED_SETTINGS` (cell = largest extent / ``cell_divisor``, r = cell / 12);
+    each lattice of at most ``max_struts`` struts is clustered (cheap); then the lattices
+    of at most ``build_max_struts`` struts are built **smallest first** until ``budget``
+    seconds are spent, so that the cap, not the order of the files, decides what is built.
+    A lattice is *refused* when ``build_reference`` raises, *incomplete* when some hub or
+    cluster failed, *built* when complete (and its mesh is checked watertight).
+    """
     from pathlib import Path
 
     data = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -452,24 +463,37 @@ def bench_refused(
         files = [f for f in files if any(p in f.name for p in parts)]
     rows: list[list[str]] = []
     t_start = time.perf_counter()
-    counts = {"refused": 0, "refused before": 0, "built": 0, "skipped": 0}
+    counts = {
+        "lattices": 0, "refused": 0, "incomplete": 0, "complete": 0, "refused before": 0,
+        "skipped": 0, "no lattice": 0,
+    }  # fmt: skip
     try:
-        _refused_rows(files, settings, max_struts, build_max_struts, budget, t_start, rows, counts)
+        _refused_rows(
+            files, settings, max_struts, build_max_struts, budget, t_start, rows, counts,
+            cell_divisor,
+        )  # fmt: skip
     except KeyboardInterrupt:  # Ctrl-C: print the partial table
         print("interrupted: partial table", flush=True)
-    print(
-        table(
-            "4. Lattices refused by the exact reference (issue 14; cell = extent / 8, "
-            f"r = cell / 12, at most {max_struts:,} struts, built up to {build_max_struts:,})",
-            ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
-            [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
-        )
+    text = table(
+        "5. Lattices refused by the exact reference (issue 14; cell = extent / "
+        f"{cell_divisor:g}, r = cell / 12, clustered up to {max_struts:,} struts, built "
+        f"smallest first up to {build_max_struts:,} struts within {budget:.0f} s; load "
+        f"{os.getloadavg()[0]:.1f})",
+        ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
+        [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
     )
-    print(
-        f"refused now: {counts['refused']} of {counts['built']} built; refused by the former "
-        f"per-hub check: {counts['refused before']} of {len(rows)} lattices; "
-        f"not built: {counts['skipped']}"
+    built = counts["refused"] + counts["incomplete"] + counts["complete"]
+    text += (
+        f"\nlattices {counts['lattices']} ({counts['no lattice']} fills gave no lattice); "
+        f"built {built}: complete {counts['complete']}, incomplete {counts['incomplete']}, "
+        f"refused {counts['refused']}; not built (cap or budget) {counts['skipped']}; "
+        f"refused by the former per-hub check: {counts['refused before']} of "
+        f"{counts['lattices']}; {time.perf_counter() - t_start:.0f} s wall\n"
     )
+    print(text, flush=True)
+    if out_path is not None:
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        out_path.write_text(text)
     return rows
 
 
@@ -482,6 +506,7 @@ def _refused_rows(
     t_start: float,
     rows: list[list[str]],
     counts: dict[str, int],
+    cell_divisor: float = 8.0,
 ) -> None:
     import resource
     import warnings
@@ -492,7 +517,16 @@ def _refused_rows(
     from reference_boolean.compare import mesh_validity
     from reference_boolean.reference import _unit_specs
 
+    todo: list[tuple[int, list[str], Any]] = []  # (struts, row, graph) to build
     for f in files:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                part = load_part(f)
+        except Exception as exc:  # noqa: BLE001 - report and go on
+            rows.append([f.name[:34], "-", "-", "-", "-", "-", f"part not loaded: {exc!s:.50}"])
+            print("  ".join(rows[-1]), flush=True)
+            continue
         for name, opts in REFUSED_SETTINGS.items():
             if settings and name not in settings:
                 continue
@@ -500,58 +534,64 @@ def _refused_rows(
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    part = load_part(f)
-                    cell = float(np.max(part.size)) / 8.0
+                    cell = float(np.max(part.size)) / cell_divisor
                     lat = Lattice.fill(part, cell_size=cell, radius=cell / 12.0, **opts)
                 g = lat.graph
-            except Exception as exc:
-                rows.append(row + ["-", "-", "-", "-", "-", f"no lattice: {type(exc).__name__}"])
+            except Exception as exc:  # noqa: BLE001 - report and go on
+                counts["no lattice"] += 1
+                rows.append(row + ["-", "-", "-", "-", f"no lattice: {type(exc).__name__}"])
                 print("  ".join(rows[-1]), flush=True)
                 continue
+            counts["lattices"] += 1
             old = find_overlaps(g)
             counts["refused before"] += bool(old)
             row += [f"{g.num_edges:,}", str(int((g.degree == 1).sum()))]
             row.append(f"refused ({len(old)})" if old else "clean")
+            if g.num_edges > max_struts:
+                counts["skipped"] += 1
+                rows.append(row + ["-", f"skipped: {g.num_edges:,} > {max_struts:,} struts"])
+                print("  ".join(rows[-1]), flush=True)
+                continue
             units = _unit_specs(g, True)  # the clustering alone (cheap): never refuses
             multi = [len(m) for m in units.members if len(m) > 1]
-            plan = f"{len(multi)} (max {max(multi, default=1)}), {len(units.specs)} solids"
-            why = ""
-            if g.num_edges > max_struts:
-                why = f"skipped: {g.num_edges:,} > {max_struts:,} struts"
-            elif g.num_edges > build_max_struts:
-                why = f"not built: {g.num_edges:,} > {build_max_struts:,} struts"
-            elif time.perf_counter() - t_start > budget:
-                why = "not built: time budget spent"
-            if why:
+            row.append(f"{len(multi)} (max {max(multi, default=1)}), {len(units.specs)} solids")
+            if g.num_edges > build_max_struts:
                 counts["skipped"] += 1
-                rows.append(row + [plan, why])
+                rows.append(row + [f"not built: {g.num_edges:,} > {build_max_struts:,} struts"])
                 print("  ".join(rows[-1]), flush=True)
                 continue
-            t = time.perf_counter()
-            c0 = time.process_time()
-            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            try:
-                ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
-            except Exception as exc:
-                counts["refused"] += 1
-                rows.append(row + ["-", f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}"])
-                print("  ".join(rows[-1]), flush=True)
-                continue
-            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
-            wall = time.perf_counter() - t
-            counts["built"] += 1
-            row.append(plan)
-            if not ref.complete:
-                counts["refused"] += 1
-                n, why = next(iter(ref.failed.items()))
-                verdict = f"INCOMPLETE {len(ref.failed)} nodes, e.g. {n}: {why[:50]}"
-            else:
-                v = mesh_validity(ref.mesh)
-                verdict = "ok, watertight" if v["valid"] else f"ok, mesh {v}"
-            load = os.getloadavg()[0]
-            rows.append(row + [f"{verdict}; {wall:.0f} s wall, {cpu:.0f} s cpu, load {load:.1f}"])
-            print("  ".join(rows[-1]), flush=True)
+            rows.append(row)
+            todo.append((g.num_edges, row, g))
+    print(f"\n{len(todo)} lattices to build, smallest first\n", flush=True)
+    for _, row, g in sorted(todo, key=lambda t: t[0]):
+        if time.perf_counter() - t_start > budget:
+            counts["skipped"] += 1
+            row.append("not built: time budget spent")
+            continue
+        t = time.perf_counter()
+        c0 = time.process_time()
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        try:
+            ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
+        except Exception as exc:  # noqa: BLE001 - that is what is counted
+            counts["refused"] += 1
+            row.append(f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}")
+            print("  ".join(row), flush=True)
+            continue
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
+        wall = time.perf_counter() - t
+        if not ref.complete:
+            counts["incomplete"] += 1
+            n, why = next(iter(ref.failed.items()))
+            verdict = f"INCOMPLETE {len(ref.failed)} nodes, e.g. {n}: {why[:50]}"
+        else:
+            counts["complete"] += 1
+            v = mesh_validity(ref.mesh)
+            verdict = "ok, watertight" if v["valid"] else f"ok, mesh {v}"
+        load = os.getloadavg()[0]
+        row.append(f"{verdict}; {wall:.0f} s wall, {cpu:.0f} s cpu, load {load:.1f}")
+        print("  ".join(row), flush=True)
 
 
 SECTIONS: dict[str, tuple[Callable[[bool], None], str]] = {
@@ -719,10 +759,17 @@ def main() -> None:
     ap.add_argument(
         "--build-max-struts", type=int, default=600, help="with --refused: build up to this"
     )
+    ap.add_argument(
+        "--cell-divisor", type=float, default=8.0, help="with --refused: cell = extent / this"
+    )
+    ap.add_argument("--out", type=Path, default=None, help="with --refused: save the table")
     a = ap.parse_args()
     if a.refused:
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
-        bench_refused(a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts)
+        bench_refused(
+            a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts, a.cell_divisor,
+            a.out,
+        )
         return
     if a.ge or a.fuse_ab:
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
