@@ -442,34 +442,62 @@ def bench_refused(
     settings: list[str] | None = None,
     budget: float = 3600.0,
     build_max_struts: int = 600,
+    cell_divisor: float = 8.0,
+    out_path: Path | None = None,
+    cache: Path | None = None,
+    suffixes: tuple[str, ...] | None = None,
 ) -> list[list[str]]:
-    """Issue 14: count the lattices the exact reference refuses, over every fill mode."""
+    """Issue 14: count the lattices the exact reference refuses, over every fill mode.
+
+    Every part of ``../shared/data`` (STEP and meshes) is filled with every setting of
+    :data:`REFUSED_SETTINGS` (cell = largest extent / ``cell_divisor``, r = cell / 12);
+    each lattice of at most ``max_struts`` struts is clustered (cheap); then the lattices
+    of at most ``build_max_struts`` struts are built **smallest first** until ``budget``
+    seconds are spent, so that the cap, not the order of the files, decides what is built.
+    A lattice is *refused* when ``build_reference`` raises, *incomplete* when some hub or
+    cluster failed, *built* when complete (and its mesh is checked watertight).
+    """
     from pathlib import Path
 
     data = Path(__file__).resolve().parents[1].parent / "shared" / "data"
     files = sorted((data / "step").glob("*")) + sorted((data / "meshes").glob("*"))
     if parts:
         files = [f for f in files if any(p in f.name for p in parts)]
+    if suffixes:
+        files = [f for f in files if f.parent.name in suffixes]
     rows: list[list[str]] = []
     t_start = time.perf_counter()
-    counts = {"refused": 0, "refused before": 0, "built": 0, "skipped": 0}
+    counts = {
+        "lattices": 0, "refused": 0, "incomplete": 0, "complete": 0, "refused before": 0,
+        "skipped": 0, "no lattice": 0,
+    }  # fmt: skip
     try:
-        _refused_rows(files, settings, max_struts, build_max_struts, budget, t_start, rows, counts)
+        _refused_rows(
+            files, settings, max_struts, build_max_struts, budget, t_start, rows, counts,
+            cell_divisor, cache,
+        )  # fmt: skip
     except KeyboardInterrupt:  # Ctrl-C: print the partial table
         print("interrupted: partial table", flush=True)
-    print(
-        table(
-            "4. Lattices refused by the exact reference (issue 14; cell = extent / 8, "
-            f"r = cell / 12, at most {max_struts:,} struts, built up to {build_max_struts:,})",
-            ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
-            [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
-        )
+    text = table(
+        "5. Lattices refused by the exact reference (issue 14; cell = extent / "
+        f"{cell_divisor:g}, r = cell / 12, clustered up to {max_struts:,} struts, built "
+        f"smallest first up to {build_max_struts:,} struts within {budget:.0f} s of builds; load "
+        f"{os.getloadavg()[0]:.1f})",
+        ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
+        [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
     )
-    print(
-        f"refused now: {counts['refused']} of {counts['built']} built; refused by the former "
-        f"per-hub check: {counts['refused before']} of {len(rows)} lattices; "
-        f"not built: {counts['skipped']}"
+    built = counts["refused"] + counts["incomplete"] + counts["complete"]
+    text += (
+        f"\nlattices {counts['lattices']} ({counts['no lattice']} fills gave no lattice); "
+        f"built {built}: complete {counts['complete']}, incomplete {counts['incomplete']}, "
+        f"refused {counts['refused']}; not built (cap or budget) {counts['skipped']}; "
+        f"refused by the former per-hub check: {counts['refused before']} of "
+        f"{counts['lattices']}; {time.perf_counter() - t_start:.0f} s wall\n"
     )
+    print(text, flush=True)
+    if out_path is not None:
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        out_path.write_text(text)
     return rows
 
 
@@ -482,6 +510,8 @@ def _refused_rows(
     t_start: float,
     rows: list[list[str]],
     counts: dict[str, int],
+    cell_divisor: float = 8.0,
+    cache: Path | None = None,
 ) -> None:
     import resource
     import warnings
@@ -492,66 +522,100 @@ def _refused_rows(
     from reference_boolean.compare import mesh_validity
     from reference_boolean.reference import _unit_specs
 
+    todo: list[tuple[int, list[str], Any]] = []  # (struts, row, graph) to build
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
     for f in files:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                part = load_part(f)
+        except Exception as exc:  # noqa: BLE001 - report and go on
+            rows.append([f.name[:34], "-", "-", "-", "-", "-", f"part not loaded: {exc!s:.50}"])
+            print("  ".join(rows[-1]), flush=True)
+            continue
         for name, opts in REFUSED_SETTINGS.items():
             if settings and name not in settings:
                 continue
             row = [f.name[:34], name]
+            cached = None
+            if cache is not None:
+                cached = cache / f"{f.name}.{name}.{cell_divisor:g}.npz"
             try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    part = load_part(f)
-                    cell = float(np.max(part.size)) / 8.0
-                    lat = Lattice.fill(part, cell_size=cell, radius=cell / 12.0, **opts)
-                g = lat.graph
-            except Exception as exc:
-                rows.append(row + ["-", "-", "-", "-", "-", f"no lattice: {type(exc).__name__}"])
+                if cached is not None and cached.exists():
+                    z = np.load(cached)
+                    if "error" in z:
+                        raise RuntimeError(str(z["error"]))
+                    g = LatticeGraph(z["nodes"], z["edges"], z["radii"])
+                else:
+                    try:
+                        with warnings.catch_warnings():
+                            warnings.simplefilter("ignore")
+                            cell = float(np.max(part.size)) / cell_divisor
+                            lat = Lattice.fill(part, cell_size=cell, radius=cell / 12.0, **opts)
+                        g = lat.graph
+                    except Exception as exc:
+                        if cached is not None:
+                            np.savez(cached, error=np.array(type(exc).__name__))
+                        raise
+                    if cached is not None:
+                        np.savez(cached, nodes=g.nodes, edges=g.edges, radii=g.radii)
+            except Exception as exc:  # noqa: BLE001 - report and go on
+                counts["no lattice"] += 1
+                rows.append(row + ["-", "-", "-", "-", f"no lattice: {type(exc).__name__}"])
                 print("  ".join(rows[-1]), flush=True)
                 continue
+            counts["lattices"] += 1
             old = find_overlaps(g)
             counts["refused before"] += bool(old)
             row += [f"{g.num_edges:,}", str(int((g.degree == 1).sum()))]
             row.append(f"refused ({len(old)})" if old else "clean")
+            if g.num_edges > max_struts:
+                counts["skipped"] += 1
+                rows.append(row + ["-", f"skipped: {g.num_edges:,} > {max_struts:,} struts"])
+                print("  ".join(rows[-1]), flush=True)
+                continue
             units = _unit_specs(g, True)  # the clustering alone (cheap): never refuses
             multi = [len(m) for m in units.members if len(m) > 1]
-            plan = f"{len(multi)} (max {max(multi, default=1)}), {len(units.specs)} solids"
-            why = ""
-            if g.num_edges > max_struts:
-                why = f"skipped: {g.num_edges:,} > {max_struts:,} struts"
-            elif g.num_edges > build_max_struts:
-                why = f"not built: {g.num_edges:,} > {build_max_struts:,} struts"
-            elif time.perf_counter() - t_start > budget:
-                why = "not built: time budget spent"
-            if why:
+            row.append(f"{len(multi)} (max {max(multi, default=1)}), {len(units.specs)} solids")
+            if g.num_edges > build_max_struts:
                 counts["skipped"] += 1
-                rows.append(row + [plan, why])
+                rows.append(row + [f"not built: {g.num_edges:,} > {build_max_struts:,} struts"])
                 print("  ".join(rows[-1]), flush=True)
                 continue
-            t = time.perf_counter()
-            c0 = time.process_time()
-            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            try:
-                ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
-            except Exception as exc:
-                counts["refused"] += 1
-                rows.append(row + ["-", f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}"])
-                print("  ".join(rows[-1]), flush=True)
-                continue
-            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
-            wall = time.perf_counter() - t
-            counts["built"] += 1
-            row.append(plan)
-            if not ref.complete:
-                counts["refused"] += 1
-                n, why = next(iter(ref.failed.items()))
-                verdict = f"INCOMPLETE {len(ref.failed)} nodes, e.g. {n}: {why[:50]}"
-            else:
-                v = mesh_validity(ref.mesh)
-                verdict = "ok, watertight" if v["valid"] else f"ok, mesh {v}"
-            load = os.getloadavg()[0]
-            rows.append(row + [f"{verdict}; {wall:.0f} s wall, {cpu:.0f} s cpu, load {load:.1f}"])
-            print("  ".join(rows[-1]), flush=True)
+            rows.append(row)
+            todo.append((g.num_edges, row, g))
+    print(f"\n{len(todo)} lattices to build, smallest first\n", flush=True)
+    t_build = time.perf_counter()  # the budget is for the builds (the fills come first)
+    for _, row, g in sorted(todo, key=lambda t: t[0]):
+        if time.perf_counter() - t_build > budget:
+            counts["skipped"] += 1
+            row.append("not built: time budget spent")
+            continue
+        t = time.perf_counter()
+        c0 = time.process_time()
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        try:
+            ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
+        except Exception as exc:  # noqa: BLE001 - that is what is counted
+            counts["refused"] += 1
+            row.append(f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}")
+            print("  ".join(row), flush=True)
+            continue
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
+        wall = time.perf_counter() - t
+        if not ref.complete:
+            counts["incomplete"] += 1
+            n, why = next(iter(ref.failed.items()))
+            verdict = f"INCOMPLETE {len(ref.failed)} nodes, e.g. {n}: {why[:50]}"
+        else:
+            counts["complete"] += 1
+            v = mesh_validity(ref.mesh)
+            verdict = "ok, watertight" if v["valid"] else f"ok, mesh {v}"
+        load = os.getloadavg()[0]
+        row.append(f"{verdict}; {wall:.0f} s wall, {cpu:.0f} s cpu, load {load:.1f}")
+        print("  ".join(row), flush=True)
 
 
 SECTIONS: dict[str, tuple[Callable[[bool], None], str]] = {
@@ -564,31 +628,53 @@ DEFAULT_SECTIONS = ("periodic", "irregular", "table2")
 VOLUME_PROFILES = ("volume", "area", "inscribed", "circumscribed")
 
 
-def _volume_lattices(quick: bool) -> list[tuple[str, Any]]:
-    """(name, builder) of the lattices of the volume table; builders return a graph."""
+#: The lattices of the volume table (``--volume-table``; ``--volume-lattices`` picks some).
+VOLUME_LATTICES = ("table2", "ge-bcc", "ge-voxel", "ge-tet", "ge-voxel-10", "ge-tet-10")
+
+
+def _volume_lattices(quick: bool, which: tuple[str, ...] | None = None) -> list[tuple[str, Any]]:
+    """(name, builder) of the lattices of the volume table; builders return a graph.
+
+    ``table2``: the seed's Table 2 box lattice (13 x 13 x 7 cubic cells of 1.5 mm, R 0.25;
+    4 x 4 x 2 with ``quick``); ``ge-bcc``: GE bracket BCC 8 mm r 0.6 inside; ``ge-voxel``
+    and ``ge-tet``: the seed's GE bracket lattices (Box-BCC 5.5 mm clip and tet 5 mm, r
+    0.25); ``ge-voxel-10`` and ``ge-tet-10``: the same kinds at 10 mm cells, r 0.6 (smaller,
+    for a loaded machine).
+    """
     from lattice_cad import Lattice
 
     def ge(cell: str, size: float, radius: float, **kw: Any) -> Any:
         return lambda: Lattice.fill(GE_BRACKET, cell, size, radius, **kw).graph
 
     counts = (4, 4, 2) if quick else (13, 13, 7)
-    out: list[tuple[str, Any]] = [
-        (
+    table = {
+        "table2": (
             f"Table 2 box lattice {counts[0]}x{counts[1]}x{counts[2]} cubic 1.5 mm, R 0.25",
             lambda: block("cubic", counts, cell_size=1.5, radius=0.25),
         ),
-        ("GE bracket BCC 8 mm r 0.6 inside", ge("bcc", 8.0, 0.6, fill="inside")),
-    ]
-    if not quick:
-        out += [
-            ("GE bracket Box-BCC 5.5 mm r 0.6 clip", ge("box-bcc", 5.5, 0.6, fill="clip")),
-            ("GE bracket tet 5 mm r 0.6", ge("bcc", 5.0, 0.6, method="tet")),
-        ]
-    return out
+        "ge-bcc": ("GE bracket BCC 8 mm r 0.6 inside", ge("bcc", 8.0, 0.6, fill="inside")),
+        "ge-voxel": ("GE bracket Box-BCC 5.5 mm r 0.25 clip",
+                     ge("box-bcc", 5.5, 0.25, fill="clip")),
+        "ge-tet": ("GE bracket tet 5 mm r 0.25", ge("bcc", 5.0, 0.25, method="tet")),
+        "ge-voxel-10": ("GE bracket Box-BCC 10 mm r 0.6 clip",
+                        ge("box-bcc", 10.0, 0.6, fill="clip")),
+        "ge-tet-10": ("GE bracket tet 10 mm r 0.6", ge("bcc", 10.0, 0.6, method="tet")),
+    }  # fmt: skip
+    if which is None:
+        which = ("table2", "ge-bcc") if quick else ("table2", "ge-bcc", "ge-voxel", "ge-tet")
+    return [table[k] for k in which]
 
 
-def bench_volume_table(quick: bool, out_path: Path | None = None) -> str:
-    """Volume error and deviation p95 / r of each profile option against the exact reference."""
+def bench_volume_table(
+    quick: bool,
+    out_path: Path | None = None,
+    which: tuple[str, ...] | None = None,
+    samples: int = 20_000,
+) -> str:
+    """Volume error and surface deviation / r of each profile option against the exact
+    reference, at P = 4, 6, 8, 12: the deviation along struts (outside the hub zones, where
+    mesh and reference model the same design) and at hubs (inside them), see
+    :mod:`reference_boolean.regions`."""
     import warnings
 
     from reference_boolean import compare
@@ -597,14 +683,23 @@ def bench_volume_table(quick: bool, out_path: Path | None = None) -> str:
 
     def emit(s: str) -> None:
         print(s, flush=True)
+        if out_path is not None:  # written as it goes: a partial run keeps its tables
+            out_path.parent.mkdir(parents=True, exist_ok=True)
+            with open(out_path, "a") as fh:
+                fh.write(s + "\n")
         text.append(s)
 
+    if out_path is not None and out_path.exists():
+        out_path.unlink()
     emit(
-        f"4. Volume of the fast mesh against the exact reference (cpus {os.cpu_count()}, "
-        f"load {os.getloadavg()[0]:.1f}); error = (V_mesh - V_exact) / V_exact; dev = "
-        "symmetric surface deviation p95 / r (20k samples per direction)\n"
+        f"Volume and surface deviation of the fast mesh against the exact reference (cpus "
+        f"{os.cpu_count()}, load {os.getloadavg()[0]:.1f}); error = (V_mesh - V_exact) / "
+        "V_exact; struts / hubs = symmetric surface deviation p95 / r along struts (outside "
+        "the hub zones: same design in both) / at hubs (inside: convex hub against ball and "
+        f"cylinders), {samples:,} samples per direction plus all vertices; goals: default "
+        "error within 1 % and struts p95 < 0.10 at P = 6\n"
     )
-    for name, build in _volume_lattices(quick):
+    for name, build in _volume_lattices(quick, which):
         t = time.perf_counter()
         try:
             with warnings.catch_warnings():
@@ -614,7 +709,8 @@ def bench_volume_table(quick: bool, out_path: Path | None = None) -> str:
             emit(f"{name}: lattice not built: {type(exc).__name__}: {exc}\n")
             continue
         tg = time.perf_counter() - t
-        t = time.perf_counter()
+        print(f"{name}: {g.num_edges:,} struts; building the reference", flush=True)
+        t, c0 = time.perf_counter(), _cpu()
         try:
             ref = build_reference(g, keep_solids=False)
         except Exception as exc:  # noqa: BLE001 - the reference refuses some lattices
@@ -623,7 +719,7 @@ def bench_volume_table(quick: bool, out_path: Path | None = None) -> str:
                 f"NO REFERENCE: {type(exc).__name__}: {str(exc)[:300]}\n"
             )
             continue
-        tr = time.perf_counter() - t
+        tr, cr = time.perf_counter() - t, _cpu() - c0
         if not ref.complete:
             emit(f"{name}: reference incomplete ({len(ref.failed)} hubs failed): skipped\n")
             continue
@@ -631,52 +727,56 @@ def bench_volume_table(quick: bool, out_path: Path | None = None) -> str:
         r = float(np.median(g.radii))
         leaves = int((g.degree == 1).sum())
         rows = []
-        t = time.perf_counter()
+        t, c0 = time.perf_counter(), _cpu()
         for P in (4, 6, 8, 12):
             row = [str(P)]
             meshes = {}
+            failed: dict[str, str] = {}
+            cpu = float("nan")
             for prof in VOLUME_PROFILES:
                 ts = time.process_time()
-                meshes[prof] = fast_stitch.stitch(g, P, profile=prof)
+                try:
+                    meshes[prof] = fast_stitch.stitch(g, P, profile=prof)
+                except Exception as exc:  # noqa: BLE001 - a profile that does not fit
+                    failed[prof] = type(exc).__name__
                 if prof == "volume":
                     cpu = time.process_time() - ts
-            rep = compare(
-                g, meshes=meshes, reference=ref, union_segments=(), samples=20_000
-            )
+            rep = compare(g, meshes=meshes, reference=ref, union_segments=(), samples=samples)
             for prof in VOLUME_PROFILES:
+                if prof in failed:
+                    row += [failed[prof], "-", "-"]
+                    continue
                 c = rep.comparisons[prof]
+                reg = c.regions
                 row += [
                     f"{c.relative_volume_error:+.3%}",
-                    f"{c.hausdorff['symmetric']['p95'] / r:.3f}",
+                    f"{reg['struts']['symmetric']['p95'] / r:.3f}",
+                    f"{reg['hubs']['symmetric']['p95'] / r:.3f}",
                 ]
-            row.append(f"{cpu:.2f}")
+            frac = next(iter(rep.comparisons.values())).regions["struts"]["symmetric"]["fraction"]
+            row += [f"{frac:.2f}", f"{cpu:.2f}"]
             rows.append(row)
+            print("  ".join(row), flush=True)
         cols = ["P"]
         for prof in VOLUME_PROFILES:
-            label = "default (volume)" if prof == "volume" else prof
-            cols += [f"{label} error", "dev"]
-        cols.append("default stitch cpu s")
+            label = "default" if prof == "volume" else prof
+            cols += [f"{label} error", "struts", "hubs"]
+        cols += ["strut share", "default stitch cpu s"]
+        zones = rep.hub_zone
+        z = zones[zones > 0] if zones is not None else np.zeros(0)
         emit(
             table(
                 f"{name}: {g.num_nodes:,} nodes, {g.num_edges:,} struts, {leaves} leaves, "
-                f"r {r:g}; exact volume {vref:.4f} mm^3 (reference built in {tr:.0f} s, "
-                f"{ref.unique_hubs} distinct hubs; lattice in {tg:.0f} s; meshes and "
-                f"deviations in {time.perf_counter() - t:.0f} s)"
-                + (
-                    "\n(leaves: flat in the mesh; the reference's leaf ends decide whether "
-                    "the two model the same design there)"
-                    if leaves
-                    else ""
-                ),
+                f"r {r:g}; exact volume {vref:.4f} mm^3 (reference {tr:.0f} s wall, {cr:.0f} s "
+                f"CPU, {ref.unique_hubs} distinct hubs, {len(ref.clusters)} clusters; lattice "
+                f"{tg:.0f} s; meshes and deviations {time.perf_counter() - t:.0f} s wall, "
+                f"{_cpu() - c0:.0f} s CPU; load {os.getloadavg()[0]:.1f}); hub zone radius "
+                + (f"{np.median(z) / r:.2f} r median, {z.max() / r:.2f} r max" if len(z) else "-"),
                 cols,
                 rows,
             )
         )
-    result = "\n".join(text) + "\n"
-    if out_path is not None:
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        out_path.write_text(result)
-    return result
+    return "\n".join(text) + "\n"
 
 
 def main() -> None:
@@ -694,6 +794,13 @@ def main() -> None:
         "--volume-table",
         action="store_true",
         help="only the volume/deviation table of the profile options (section 4)",
+    )
+    ap.add_argument(
+        "--volume-lattices", nargs="+", choices=list(VOLUME_LATTICES), default=None,
+        help="with --volume-table: which lattices",
+    )  # fmt: skip
+    ap.add_argument(
+        "--volume-out", default=None, help="with --volume-table: file name in results/"
     )
     ap.add_argument(
         "--irregular-size", type=int, default=None, help="cells per side of the irregular grid"
@@ -719,10 +826,20 @@ def main() -> None:
     ap.add_argument(
         "--build-max-struts", type=int, default=600, help="with --refused: build up to this"
     )
+    ap.add_argument(
+        "--cell-divisor", type=float, default=8.0, help="with --refused: cell = extent / this"
+    )
+    ap.add_argument("--out", type=Path, default=None, help="with --refused: save the table")
+    ap.add_argument("--cache", type=Path, default=None, help="with --refused: graphs cache")
+    ap.add_argument("--folders", nargs="+", default=None, choices=["step", "meshes"],
+                    help="with --refused: only these folders of ../shared/data")
     a = ap.parse_args()
     if a.refused:
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
-        bench_refused(a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts)
+        bench_refused(
+            a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts, a.cell_divisor,
+            a.out, a.cache, tuple(a.folders) if a.folders else None,
+        )
         return
     if a.ge or a.fuse_ab:
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
@@ -737,8 +854,11 @@ def main() -> None:
         config.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump (forked workers)
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
     if a.volume_table:
-        name = "bench_reference_volume" + ("_quick" if a.quick else "") + ".txt"
-        bench_volume_table(a.quick, Path(__file__).resolve().parent / "results" / name)
+        name = a.volume_out or (
+            "bench_reference_volume" + ("_quick" if a.quick else "") + ".txt"
+        )
+        which = tuple(a.volume_lattices) if a.volume_lattices else None
+        bench_volume_table(a.quick, Path(__file__).resolve().parent / "results" / name, which)
         return
     chosen = [n for n in SECTIONS if getattr(a, n) or a.only == n]
     if a.all:

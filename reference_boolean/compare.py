@@ -262,12 +262,20 @@ class MeshComparison:
     valid : dict[str, bool]
         :func:`mesh_validity`.
     hausdorff : dict[str, dict[str, float]]
-        ``"mesh_to_reference"`` / ``"reference_to_mesh"`` / ``"symmetric"`` (max, mean, p95).
+        ``"mesh_to_reference"`` / ``"reference_to_mesh"`` / ``"symmetric"`` (max, mean, p95),
+        over the whole surfaces.
     node_deviation : (N,) float64
         Largest sampled deviation near each node.
     distances : dict[str, (S,) float64]
     timings : dict[str, float]
         ``"mesh_checks"`` and ``"deviation"`` seconds.
+    regions : dict[str, dict[str, dict[str, float]]]
+        The same deviation split by where the samples lie
+        (:func:`reference_boolean.regions.region_stats`): ``"struts"`` (outside every hub
+        zone, where the mesh and the reference model the same design) and ``"hubs"``
+        (inside a hub zone: the convex hub against the ball and cylinders); each with
+        ``"mesh_to_reference"``, ``"reference_to_mesh"``, ``"symmetric"`` (max, mean, p95,
+        samples, fraction). Empty when not measured.
     """
 
     label: str
@@ -279,6 +287,7 @@ class MeshComparison:
     node_deviation: NDArray[np.float64] = field(repr=False)
     distances: dict[str, NDArray[np.float64]] = field(repr=False)
     timings: dict[str, float] = field(default_factory=dict)
+    regions: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready row: label, volume, relative error, triangles, valid, hausdorff."""
@@ -289,6 +298,7 @@ class MeshComparison:
             "triangles": int(len(self.mesh.faces)),
             "valid": dict(self.valid),
             "hausdorff": self.hausdorff,
+            "deviation_regions": self.regions,
             "timings": dict(self.timings),
         }
 
@@ -337,6 +347,11 @@ class ValidationReport:
         radius); see :mod:`reference_boolean.verdict`.
     tolerance_volume : float or None
         Relative volume tolerance of the verdict (None: 0.01).
+    hub_zone : (N,) float64 or None
+        Radius of each node's hub zone (:func:`reference_boolean.regions.hub_zones`), the
+        mask of the strut / hub deviations; None: not measured.
+    hub_zone_factor : float or None
+        The factor the zones were computed with.
     """
 
     graph: LatticeGraph
@@ -360,6 +375,8 @@ class ValidationReport:
     union_reference_volume: float | None = None
     tolerance: float | None = None
     tolerance_volume: float | None = None
+    hub_zone: NDArray[np.float64] | None = field(default=None, repr=False)
+    hub_zone_factor: float | None = None
 
     def verdict(self, label: str | None = None) -> Verdict:
         """PASS / FAIL of the first mesh (or ``label``) against the report's tolerances.
@@ -453,6 +470,7 @@ class ValidationReport:
                 "largest_cluster": max((len(c) for c in ref.clusters), default=1),
             },
             "tessellation": {"tolerance": ref.tolerance, "angular": ref.angular},
+            "hub_zone": self._zone_summary(),
             "worst_nodes": [{"node": n, "deviation": d} for n, d in self.worst_nodes()],
             "verdict": self.verdict().to_dict(),
             "verdicts": {lab: self.verdict(lab).to_dict() for lab in self.comparisons},
@@ -460,6 +478,21 @@ class ValidationReport:
         if self.extra:
             out["extra"] = self.extra
         return out
+
+    def _zone_summary(self) -> dict[str, Any] | None:
+        if self.hub_zone is None:
+            return None
+        from reference_boolean.regions import RULE
+
+        z = self.hub_zone[self.hub_zone > 0]
+        return {
+            "factor": self.hub_zone_factor,
+            "rule": RULE.format(f=self.hub_zone_factor or 0.0),
+            "nodes": int(len(z)),
+            "radius_min": float(z.min()) if len(z) else None,
+            "radius_median": float(np.median(z)) if len(z) else None,
+            "radius_max": float(z.max()) if len(z) else None,
+        }
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the report as ``.json``, ``.md`` or ``.html`` (self-contained, PNGs inline)."""
@@ -485,8 +518,10 @@ def _measure(
     label: str,
     samples: int,
     seed: int,
+    zones: NDArray[np.float64] | None = None,
 ) -> MeshComparison:
-    """Volume, validity and two-sided deviation of one mesh against the reference."""
+    """Volume, validity and two-sided deviation of one mesh against the reference
+    (split into strut and hub regions by ``zones``, :mod:`reference_boolean.regions`)."""
     m = Mesh(
         vertices=np.asarray(mesh.vertices, dtype=np.float64),
         faces=np.asarray(mesh.faces, dtype=np.int64),
@@ -499,6 +534,13 @@ def _measure(
     t = time.perf_counter()
     p1, d1 = surface_deviation(m, reference.mesh, samples=samples, seed=seed)
     p2, d2 = surface_deviation(reference.mesh, m, samples=samples, seed=seed + 1)
+    regions: dict[str, dict[str, dict[str, float]]] = {}
+    if zones is not None:
+        from reference_boolean.regions import in_hub_zone, region_stats
+
+        regions = region_stats(
+            in_hub_zone(p1, graph, zones), d1, in_hub_zone(p2, graph, zones), d2
+        )
     timings["deviation"] = time.perf_counter() - t
     hausdorff = {"mesh_to_reference": _stats(d1), "reference_to_mesh": _stats(d2)}
     hausdorff["symmetric"] = {
@@ -526,6 +568,7 @@ def _measure(
         node_deviation=node_dev,
         distances={"mesh_to_reference": d1, "reference_to_mesh": d2},
         timings=timings,
+        regions=regions,
     )
 
 
@@ -540,6 +583,7 @@ def compare(
     label: str = "mesh",
     seed: int = 0,
     union_hubs: int | None = config.DEFAULT_UNION_HUBS,
+    hub_zone_factor: float | None = config.HUB_ZONE_FACTOR,
     **reference_options: Any,
 ) -> ValidationReport:
     """Measure manifold3d unions and one or more meshes against the exact reference.
@@ -569,6 +613,12 @@ def compare(
         :func:`hub_union`) and compares them with the sum of the same hubs' exact
         volumes: it shows the trend at a bounded cost (the union of a 3.5K-strut
         lattice at 16-128 segments took 170 s). None: union the whole lattice.
+    hub_zone_factor : float or None
+        The deviation is also reported separately along the struts (outside every node's
+        hub zone, where mesh and reference model the same design) and at the hubs (inside,
+        where the convex hub and the ball differ by design); the zones are
+        :func:`reference_boolean.regions.hub_zones` with this factor. None: whole
+        surfaces only.
     **reference_options
         Passed to :func:`build_reference` (``tolerance``, ``workers``, ...).
 
@@ -621,7 +671,14 @@ def compare(
         secs[int(n)] = time.perf_counter() - t
     timings["unions"] = float(sum(secs.values()))
     order = _fit_order(vols, vu) if reference.complete else None
-    comps = {lab: _measure(graph, reference, m, lab, samples, seed) for lab, m in todo}
+    zones = None
+    if hub_zone_factor is not None:
+        from reference_boolean.regions import hub_zones
+
+        zones = hub_zones(graph, factor=float(hub_zone_factor))
+    comps = {
+        lab: _measure(graph, reference, m, lab, samples, seed, zones) for lab, m in todo
+    }
     if comps:
         timings["mesh_checks"] = sum(c.timings["mesh_checks"] for c in comps.values())
         timings["deviation"] = sum(c.timings["deviation"] for c in comps.values())
@@ -650,4 +707,6 @@ def compare(
         comparisons=comps,
         union_scope=scope,
         union_reference_volume=None if sample is None else vu,
+        hub_zone=zones,
+        hub_zone_factor=None if zones is None else float(hub_zone_factor),  # type: ignore[arg-type]
     )

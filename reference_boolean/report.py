@@ -139,7 +139,6 @@ def first_screen(rep: ValidationReport, *, k: int = config.REPORT_WORST_HUBS) ->
 
     v = rep.verdict()
     ref = rep.reference
-    r = v.radius
     figs: list[tuple[str, str]] = []
     comp = rep.comparisons.get(v.label)
     if comp is not None:
@@ -164,23 +163,7 @@ def first_screen(rep: ValidationReport, *, k: int = config.REPORT_WORST_HUBS) ->
     )
     figs.append(("exact volume", f"{ref.volume:.10g} mm^3 (OCCT, reference {state})"))
     if comp is not None:
-        d = v.deviation
-        figs.append(
-            (
-                "surface deviation (two-sided)",
-                f"max {_fmt(d['max'])} mm, p95 {_fmt(d['p95'])} mm, mean {_fmt(d['mean'])} mm",
-            )
-        )
-        if r > 0:
-            figs.append(
-                (
-                    f"... in % of the strut radius ({_fmt(r)} mm"
-                    + ("" if np.ptp(rep.graph.radii) == 0 else ", median")
-                    + ")",
-                    f"max {100 * d['max'] / r:.0f} %, p95 {100 * d['p95'] / r:.0f} %, "
-                    f"mean {100 * d['mean'] / r:.0f} %",
-                )
-            )
+        figs += _deviation_figures(rep, v, comp)
     figs.append(
         (
             "tolerance",
@@ -202,11 +185,87 @@ def first_screen(rep: ValidationReport, *, k: int = config.REPORT_WORST_HUBS) ->
             (
                 f"also compared: {label}",
                 f"{o.status}: volume error {100 * o.volume_error:+.2f} %, deviation p95 "
-                f"{_fmt(o.deviation['p95'])} mm, max {_fmt(o.deviation['max'])} mm",
+                f"{_fmt(o.deviation['p95'])} mm, max {_fmt(o.deviation['max'])} mm"
+                + (" along struts" if o.deviation_region == "struts" else "")
+                + (
+                    f" (hubs: p95 {_fmt(o.deviation_hubs['p95'])} mm)"
+                    if o.deviation_hubs
+                    else ""
+                ),
             )
         )
     places, unranked = worst_places(rep, k) if comp is not None else ([], 0)
     return FirstScreen(verdict=v, figures=figs, places=places, unranked=unranked)
+
+
+def _dev(d: dict[str, float], r: float) -> str:
+    """``max .. mm, p95 .. mm, mean .. mm`` and the same in % of ``r``."""
+    out = f"max {_fmt(d['max'])} mm, p95 {_fmt(d['p95'])} mm, mean {_fmt(d['mean'])} mm"
+    if r > 0:
+        out += (
+            f" (max {100 * d['max'] / r:.0f} %, p95 {100 * d['p95'] / r:.0f} %, "
+            f"mean {100 * d['mean'] / r:.0f} % of r)"
+        )
+    return out
+
+
+def _deviation_figures(rep: ValidationReport, v: Verdict, comp: Any) -> list[tuple[str, str]]:
+    """The deviation lines of the first screen: along struts (judged), at hubs, whole."""
+    from reference_boolean.regions import RULE
+
+    r = v.radius
+    d = v.deviation
+    figs: list[tuple[str, str]] = []
+    struts = v.deviation_region == "struts"
+    figs.append(
+        (
+            "surface deviation along struts (two-sided, judged)"
+            if struts
+            else "surface deviation (two-sided)",
+            f"max {_fmt(d['max'])} mm, p95 {_fmt(d['p95'])} mm, mean {_fmt(d['mean'])} mm"
+            + (
+                f" on {100 * comp.regions['struts']['symmetric']['fraction']:.0f} % of the "
+                "surface: outside the hub zones, where mesh and exact solid model the same "
+                "design"
+                if struts
+                else ""
+            ),
+        )
+    )
+    if r > 0:
+        figs.append(
+            (
+                f"... in % of the strut radius ({_fmt(r)} mm"
+                + ("" if np.ptp(rep.graph.radii) == 0 else ", median")
+                + ")",
+                f"max {100 * d['max'] / r:.0f} %, p95 {100 * d['p95'] / r:.0f} %, "
+                f"mean {100 * d['mean'] / r:.0f} %",
+            )
+        )
+    if comp.regions:
+        h = v.deviation_hubs
+        if comp.regions["hubs"]["symmetric"]["samples"]:
+            figs.append(
+                (
+                    "surface deviation at hubs (not judged)",
+                    _dev(h, r) + "; the designs differ there: the mesh's convex hub fills the "
+                    "crevices between struts where the exact solid shows its node ball "
+                    "(the volume error covers the hubs)",
+                )
+            )
+        else:
+            figs.append(("surface deviation at hubs (not judged)", "no samples in hub zones"))
+        if not struts:
+            figs.append(
+                (
+                    "note",
+                    "too few samples along struts (below "
+                    f"{100 * config.MIN_STRUT_FRACTION:g} %): the whole surface is judged",
+                )
+            )
+        figs.append(("surface deviation, whole surface", _dev(v.deviation_all, r)))
+        figs.append(("hub zone", RULE.format(f=rep.hub_zone_factor or 0.0)))
+    return figs
 
 
 _PICTURES: weakref.WeakKeyDictionary[Any, dict[str, bytes]] = weakref.WeakKeyDictionary()
@@ -337,6 +396,17 @@ def _union_table(d: dict[str, Any]) -> list[_Table]:
     return [(title, ["segments", "volume", "rel. error", "triangles", "valid", "time (s)"], rows)]
 
 
+def _region_cells(row: dict[str, Any]) -> list[str]:
+    """p95 and max of the symmetric deviation along struts and at hubs ("-" if none)."""
+    regs = row.get("deviation_regions") or {}
+    out = []
+    for reg in ("struts", "hubs"):
+        st = regs.get(reg, {}).get("symmetric")
+        ok = st is not None and st["samples"] > 0
+        out += [_g(st["p95"]) if ok else "-", _g(st["max"]) if ok else "-"]
+    return out
+
+
 def _mesh_tables(d: dict[str, Any]) -> list[_Table]:
     """The meshes under test: one summary table, one table per mesh, the worst nodes."""
     meshes = d.get("meshes") or []
@@ -353,15 +423,17 @@ def _mesh_tables(d: dict[str, Any]) -> list[_Table]:
                 _g(sym["max"]),
                 _g(sym["mean"]),
                 _g(sym["p95"]),
+                *_region_cells(row),
                 str(row["triangles"]),
                 str(row["valid"]["valid"]),
             ]
         )
     cols = ["mesh", "volume", "rel. volume error", "Hausdorff max", "mean", "p95"]
+    cols += ["struts p95", "struts max", "hubs p95", "hubs max"]
     out: list[_Table] = [
         (
             "Meshes under test against the reference (one row per mesh; "
-            "symmetric surface deviation)",
+            "symmetric surface deviation: whole surface, along struts, at hubs)",
             [*cols, "triangles", "valid"],
             summary,
         )
@@ -381,6 +453,17 @@ def _mesh_tables(d: dict[str, Any]) -> list[_Table]:
                     f"{_g(st['max'])} / {_g(st['mean'])} / {_g(st['p95'])}",
                 ]
             )
+        for reg, regions in (row.get("deviation_regions") or {}).items():
+            for k in ("mesh_to_reference", "reference_to_mesh", "symmetric"):
+                st = regions[k]
+                rows.append(
+                    [
+                        f"deviation {'along struts' if reg == 'struts' else 'at hubs'}, "
+                        f"{k.replace('_', ' ')} (max / mean / p95; share of samples)",
+                        f"{_g(st['max'])} / {_g(st['mean'])} / {_g(st['p95'])}; "
+                        f"{100 * st['fraction']:.1f} %",
+                    ]
+                )
         out.append((f"Mesh under test: {row['label']}", ["quantity", "value"], rows))
     worst = [[str(w["node"]), _g(w["deviation"])] for w in d["worst_nodes"]]
     out.append(

@@ -69,6 +69,15 @@ def test_first_screen_has_verdict_figures_and_pictures(bracket_report, tmp_path)
     sym = comp.hausdorff["symmetric"]
     assert f"p95 {sym['p95']:.3g} mm" in top and f"max {sym['max']:.3g} mm" in top
     assert f"p95 {100 * sym['p95'] / 0.5:.0f} %" in top  # % of the 0.5 mm strut radius
+    # ... and split: along struts (judged, where both model the same design) and at hubs
+    for region, label in (("struts", "along struts"), ("hubs", "at hubs")):
+        st = comp.regions[region]["symmetric"]
+        assert st["samples"] > 100
+        row = next(ln for ln in top.splitlines() if f"surface deviation {label}" in ln)
+        assert f"p95 {st['p95']:.3g} mm" in row and f"max {st['max']:.3g} mm" in row
+    reg = comp.regions
+    assert reg["struts"]["symmetric"]["p95"] < 0.5 * reg["hubs"]["symmetric"]["p95"]
+    assert "| hub zone |" in top
     # the worst places, worst first, each with its close-up picture beside the .md
     screen = first_screen(rep)
     assert 1 <= len(screen.places) <= 4
@@ -109,7 +118,8 @@ def test_first_screen_pictures_are_not_blank_and_mark_the_worst_hub(bracket_repo
 def test_verdict_fails_a_tiny_tolerance_and_passes_a_large_one(bracket_report, tmp_path):
     rep = bracket_report
     comp = next(iter(rep.comparisons.values()))
-    p95 = comp.hausdorff["symmetric"]["p95"]
+    p95 = comp.regions["struts"]["symmetric"]["p95"]  # the verdict judges the struts
+    assert rep.verdict().deviation_region == "struts" and rep.verdict().deviation["p95"] == p95
     err = abs(comp.relative_volume_error)
     tiny = dataclasses.replace(rep, tolerance=1e-6, tolerance_volume=1e-9)
     assert not tiny.verdict().passed and tiny.verdict().line.startswith("FAIL: mesh not within")

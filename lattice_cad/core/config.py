@@ -250,6 +250,16 @@ DEVIATION_CHUNK = 200_000
 #: solid is within +-(this x radius) mm (issue 14: p95 under 10 % of the radius).
 DEFAULT_DEVIATION_TOLERANCE_REL = 0.1
 
+#: Hub zone of the report's deviation mask, as a multiple of the smallest ball about a node
+#: that holds the exact solid's ball and every intersection of the node's struts
+#: (reference_boolean.regions): 1.5 holds fast_stitch's convex hubs for every profile at
+#: P >= 4 (profile circumradius up to 1.41 r). Beyond the zones both model the same struts.
+HUB_ZONE_FACTOR = 1.5
+
+#: The verdict judges the deviation along struts (outside the hub zones) when at least this
+#: fraction of each surface's samples lies there; else the whole surface.
+MIN_STRUT_FRACTION = 0.05
+
 #: Default volume tolerance of the verdict: |V_mesh - V_exact| / V_exact at most this.
 DEFAULT_VOLUME_TOLERANCE = 0.01
 
