@@ -14,15 +14,31 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from OCP.BRep import BRep_Builder
 from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.BRepExtrema import BRepExtrema_DistShapeShape
 from OCP.gp import gp_Pnt
-from OCP.TopAbs import TopAbs_IN, TopAbs_ON
+from OCP.TopAbs import TopAbs_FACE, TopAbs_IN, TopAbs_ON
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopoDS import TopoDS_Compound
 
 from lattice_cad.core.errors import OCCTFailure
 
 __all__ = ["signed_distance"]
+
+
+def _boundary(solid: Any) -> TopoDS_Compound:
+    """The faces of ``solid`` as a compound (BRepExtrema measures 0 from a point inside a
+    solid: the distance to its boundary needs the faces)."""
+    comp = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(comp)
+    exp = TopExp_Explorer(solid, TopAbs_FACE)
+    while exp.More():
+        builder.Add(comp, exp.Current())
+        exp.Next()
+    return comp
 
 
 def signed_distance(
@@ -56,7 +72,7 @@ def signed_distance(
     tools = []
     for solid in solids:
         dist = BRepExtrema_DistShapeShape()
-        dist.LoadS1(solid)
+        dist.LoadS1(_boundary(solid))
         tools.append((solid, dist))
     for i, (x, y, z) in enumerate(p):
         pnt = gp_Pnt(float(x), float(y), float(z))
