@@ -14,7 +14,6 @@ import warnings
 
 import numpy as np
 import pytest
-
 from conftest import DATA
 
 FLANGE = DATA / "step" / "kcl_flange-with-patterns.step"
