@@ -134,10 +134,12 @@ def cutting_part(part: Any, radius: float) -> Any:
 
     A B-rep part (STEP, CadQuery, build123d) is tessellated again with a chord error of
     ``config.CUT_DEFLECTION_RTOL * radius`` (but not below ``CUT_DEFLECTION_FLOOR`` of its
-    diagonal), so that a lattice cut by that mesh lies outside the *exact* surface by less
-    than ``config.TRIM_RTOL * radius``; a mesh part, or one already tessellated that finely,
-    is returned unchanged. When the finer tessellation fails (it is not closed), the part is
-    returned unchanged with a :class:`~lattice_cad.core.errors.LatticeWarning`.
+    diagonal, nor below what ``config.CUT_MAX_TRIANGLES`` allows), so that a lattice cut
+    by that mesh lies outside the *exact* surface by less than ``config.TRIM_RTOL *
+    radius`` (unless the budget binds: threads, gear teeth); a mesh part, or one already
+    tessellated that finely, is returned unchanged. When the finer tessellation fails (it
+    is not closed), the part is returned unchanged with a
+    :class:`~lattice_cad.core.errors.LatticeWarning`.
 
     Parameters
     ----------
@@ -155,7 +157,11 @@ def cutting_part(part: Any, radius: float) -> Any:
 
     if getattr(part, "shape", None) is None or not radius > 0:
         return part
-    defl = max(config.CUT_DEFLECTION_RTOL * float(radius), CUT_DEFLECTION_FLOOR * part.diagonal)
+    defl = max(
+        config.CUT_DEFLECTION_RTOL * float(radius),
+        CUT_DEFLECTION_FLOOR * part.diagonal,
+        part.deflection * len(part.faces) / config.CUT_MAX_TRIANGLES,  # the budget
+    )
     try:
         return part.refined(defl, angular=config.CUT_ANGULAR_DEFLECTION)
     except PartError as exc:

@@ -561,7 +561,7 @@ class Lattice:
         from conformal.keep import build_keep
         from lattice_cad.core.mesh import Mesh
 
-        result = build_keep(self._lattice_mesh, self.part, self.keep)
+        result = build_keep(self._lattice_mesh, self._cutting_part, self.keep)
         self.keep_report = result.report
         return Mesh(vertices=result.vertices, faces=result.faces)
 

@@ -301,6 +301,12 @@ TRIM_RTOL = 0.01
 CUT_DEFLECTION_RTOL = 0.005
 #: Angular deflection (rad) of that tessellation (the default part's).
 CUT_ANGULAR_DEFLECTION = 0.3
+#: Budget for that tessellation: its chord error is kept at least ``d0 * n0 /
+#: CUT_MAX_TRIANGLES`` (``n0`` triangles at the default chord error ``d0``; triangles grow
+#: at most as 1 / chord error), so parts whose default mesh is already dense (threads,
+#: gear teeth: 340k-410k triangles and minutes of BRepMesh at 0.5 % r) stay affordable;
+#: there the cut may stand out of the exact surface by somewhat more than TRIM_RTOL.
+CUT_MAX_TRIANGLES = 150_000
 
 #: Before several solids of a part are united, their tessellations are rounded to a common
 #: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):
