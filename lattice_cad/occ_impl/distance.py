@@ -58,9 +58,10 @@ def signed_distance(
     Returns
     -------
     (P,) float64
-        Outside all solids: the distance to the nearest solid's boundary; inside one: minus
-        the distance to that solid's boundary (the largest depth over the solids holding
-        the point).
+        Outside all solids: the distance to the nearest solid's boundary (exact for the
+        union); inside one: minus the distance to that solid's boundary (the largest depth
+        over the solids holding the point; for solids that touch, a point near a shared
+        face is deeper in their union than this says).
 
     Raises
     ------
