@@ -306,7 +306,7 @@ CUT_ANGULAR_DEFLECTION = 0.3
 #: at most as 1 / chord error), so parts whose default mesh is already dense (threads,
 #: gear teeth: 340k-410k triangles and minutes of BRepMesh at 0.5 % r) stay affordable;
 #: there the cut may stand out of the exact surface by somewhat more than TRIM_RTOL.
-CUT_MAX_TRIANGLES = 150_000
+CUT_MAX_TRIANGLES = 300_000
 
 #: Before several solids of a part are united, their tessellations are rounded to a common
 #: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):
