@@ -6,7 +6,9 @@ wall does not depend on the lattice) once with ``method="auto"`` (OpenCascade's 
 voxel field if it fails) and once with ``method="voxel"``. The wall is measured from the
 inner surface to the outer one (the definition of an offset) at every vertex *and face
 centre* of the inner surface (``skin.wall_thickness``); ``raw`` is the same measure before
-the inner vertices are projected onto the offset (``skin._project_to_offset``). The goal
+the inner vertices are projected onto the offset (``skin._project_to_offset``). The part is
+tessellated as ``Lattice`` does before it skins (``conformal.trim.cutting_part`` for the
+strut radius r = cell / 12; ``--default-mesh``: the part's default tessellation). The goal
 for the OCCT path: every sample within max(2 % of t, 0.02 mm) of t. Also printed: the
 protrusion of the skin out of the part (largest distance of a vertex outside, in % of
 the benchmark's strut radius cell / 12).
@@ -39,12 +41,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--parts", nargs="*", help="substrings of STEP file names")
     ap.add_argument("--methods", nargs="*", default=["auto", "voxel"])
+    ap.add_argument(
+        "--default-mesh",
+        action="store_true",
+        help="skin the part's default tessellation, not the one Lattice cuts by",
+    )
     args = ap.parse_args()
     import manifold3d
 
     from conformal import load_part
     from conformal import skin as S
-    from conformal.trim import protrusion
+    from conformal.trim import cutting_part, protrusion
 
     files = sorted((DATA / "step").iterdir())
     if args.parts:
@@ -67,6 +74,8 @@ def main() -> None:
                 continue
         cell = float(np.max(part.size)) / 15
         t, r = float(f"{cell / 6:.6g}"), cell / 12
+        if not args.default_mesh:  # the part as Lattice cuts by it (conformal.trim.cutting_part)
+            part = cutting_part(part, r)
         tol = 100 * max(0.02 * t, 0.02) / t
         for method in args.methods:
             c0, w0 = time.process_time(), time.perf_counter()

@@ -136,6 +136,45 @@ class Part:
         faces = self.faces if np.linalg.det(m[:3, :3]) > 0 else self.faces[:, ::-1]
         return Part(v, faces, name=self.name, deflection=self.deflection)
 
+    def refined(self, deflection: float, *, angular: float = 0.3) -> Part:
+        """The same B-rep tessellated with a chord error of at most ``deflection`` (mm).
+
+        A part without a B-rep (a mesh), or one already tessellated that finely, is
+        returned as it is. Results are cached per ``(deflection, angular)``.
+
+        Parameters
+        ----------
+        deflection : float
+            Largest distance (mm) between the new mesh and the exact surface.
+        angular : float
+            Largest angle (rad) between neighbouring normals on curved faces.
+
+        Returns
+        -------
+        Part
+            With the same ``name`` and ``shape``.
+
+        Raises
+        ------
+        PartError
+            The finer tessellation is not closed even after healing.
+        """
+        if not deflection > 0:
+            raise ValueError(f"deflection must be > 0, got {deflection!r}")
+        if self.shape is None or deflection >= self.deflection:
+            return self
+        cache = self.__dict__.setdefault("_refined", {})
+        key = (float(deflection), float(angular))
+        if key not in cache:
+            from lattice_cad.occ_impl import shapes as _occ
+
+            solids = list(self.shape)
+            shape = solids[0] if len(solids) == 1 else _occ.compound(solids)
+            with warnings.catch_warnings():  # the union was announced when it was loaded
+                warnings.simplefilter("ignore", LatticeWarning)
+                cache[key] = _from_shape(shape, self.name, float(deflection), float(angular))
+        return cache[key]
+
     # ------------------------------------------------------------ indexes
     @cached_property
     def _bins2d(self) -> tuple[Any, ...]:

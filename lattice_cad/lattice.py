@@ -606,7 +606,7 @@ class Lattice:
         from conformal.keep import build_keep
         from lattice_cad.core.mesh import Mesh
 
-        result = build_keep(self._lattice_mesh, self.part, self.keep)
+        result = build_keep(self._lattice_mesh, self._cutting_part, self.keep)
         self.keep_report = result.report
         return Mesh(vertices=result.vertices, faces=result.faces)
 
@@ -649,7 +649,7 @@ class Lattice:
         local = split and lattice is self._lattice_mesh and self.escape_holes is None
         result = _skin.build_skin(
             lattice,
-            self.part,
+            self._cutting_part,
             self.skin,
             check=False,
             mid_wall=mid_wall,
@@ -744,7 +744,20 @@ class Lattice:
         from conformal.trim import trim_to_part
 
         radius = float(self.graph.radii.max())
-        return trim_to_part(self._kept_mesh, self.part, radius=radius, check=False, shift=shift)
+        return trim_to_part(
+            self._kept_mesh, self._cutting_part, radius=radius, check=False, shift=shift
+        )
+
+    @cached_property
+    def _cutting_part(self) -> Any:
+        """The part the lattice is cut by (trim, skin, beam clipping): a B-rep part
+        tessellated again for the largest strut radius (``conformal.trim.cutting_part``),
+        so the cut lies within ``config.TRIM_RTOL`` r of the exact surface."""
+        if self.part is None or self.graph.num_edges == 0:
+            return self.part
+        from conformal.trim import cutting_part
+
+        return cutting_part(self.part, float(self.graph.radii.max()))
 
     def _stitched_single_precision(self) -> Mesh:
         """The stitched lattice in single precision: the stitch keeps its clearances through
@@ -1005,7 +1018,7 @@ class Lattice:
             return self.graph
         from conformal.beam_clip import clip_beams
 
-        clipped, self.beam_clip_report = clip_beams(self.graph, self.part, keep=keep)
+        clipped, self.beam_clip_report = clip_beams(self.graph, self._cutting_part, keep=keep)
         if clipped is None:
             raise ExportError(
                 f"no beam fits inside the part ({self.beam_clip_report.summary()}); write "
@@ -1022,7 +1035,9 @@ class Lattice:
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
-        result = _skin.build_skin(manifold3d.Manifold(), self.part, self.skin, check=False)
+        result = _skin.build_skin(
+            manifold3d.Manifold(), self._cutting_part, self.skin, check=False
+        )
         v, f = _skin.to_arrays(result.solid)
         return _checked_single_precision(Mesh(vertices=v, faces=f), "the skin")
 

@@ -229,6 +229,7 @@ def _bodies(mesh):
 
 def _check_lattice_with_zone(lat, selector, t, rng):
     import fast_stitch
+    from conformal.trim import cutting_part
 
     plain = lat.mesh(lattice_only=True)
     mesh = lat.mesh()
@@ -244,7 +245,9 @@ def _check_lattice_with_zone(lat, selector, t, rng):
         rep.volume - rep.lattice_inside, rel=1e-3
     )
     # points of the part near the kept faces are in the printable solid
-    pts = _near_faces(lat.part, _selected_faces_mesh(lat.part, selector, t), t, rng)
+    # (the part as the lattice and its zones are cut by: conformal.trim.cutting_part)
+    cut_by = cutting_part(lat.part, float(lat.graph.radii.max()))
+    pts = _near_faces(cut_by, _selected_faces_mesh(lat.part, selector, t), t, rng)
     inside = _inside_printable(mesh, pts)
     assert inside.all(), pts[~inside][:5]
     # ... which the plain lattice alone does not fill

@@ -18,7 +18,7 @@ import trimesh
 
 import fast_stitch
 from conformal import load_part
-from conformal.trim import protrusion
+from conformal.trim import cutting_part, protrusion
 from lattice_cad import Lattice
 from lattice_cad.core import config
 from lattice_cad.core.mesh import Mesh
@@ -58,6 +58,8 @@ def _assert_cut_and_valid(lat: Lattice, part) -> None:
     assert not rep.failed, rep.summary()
     assert rep.trimmed and rep.within_tolerance
     assert rep.tolerance == pytest.approx(config.TRIM_RTOL * float(lat.graph.radii.max()))
+    # cut by the B-rep tessellated again for r (conformal.trim.cutting_part): checked on it
+    part = cutting_part(part, float(lat.graph.radii.max()))
     assert protrusion(part, m.vertices) <= rep.tolerance
     assert fast_stitch.check(m).valid
     # independent: trimesh (vertices merged) sees a closed solid, and every vertex is

@@ -309,6 +309,21 @@ MAX_BREP_STRUTS = 2_000
 #: the largest strut radius (``conformal.trim``; checked on every vertex and reported).
 TRIM_RTOL = 0.01
 
+#: Before a lattice is cut by a B-rep part (trim, skin), the part is tessellated again with
+#: a chord error of this fraction of the largest strut radius (``conformal.trim.cutting_part``):
+#: the default tessellation (1e-3 of the diagonal) lies outside concave faces (holes, inner
+#: fillets) by up to its deflection, several % of r on real parts; half of TRIM_RTOL leaves
+#: the other half for BRepMesh's own deviation from its target.
+CUT_DEFLECTION_RTOL = 0.005
+#: Angular deflection (rad) of that tessellation (the default part's).
+CUT_ANGULAR_DEFLECTION = 0.3
+#: Budget for that tessellation: its chord error is kept at least ``d0 * n0 /
+#: CUT_MAX_TRIANGLES`` (``n0`` triangles at the default chord error ``d0``; triangles grow
+#: at most as 1 / chord error), so parts whose default mesh is already dense (threads,
+#: gear teeth: 340k-410k triangles and minutes of BRepMesh at 0.5 % r) stay affordable;
+#: there the cut may stand out of the exact surface by somewhat more than TRIM_RTOL.
+CUT_MAX_TRIANGLES = 300_000
+
 #: Before several solids of a part are united, their tessellations are rounded to a common
 #: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):
 #: solids that touch come out of their separate tessellations a float64 ulp or two apart, and

@@ -1,0 +1,95 @@
+"""Exact distances from points to B-rep solids (OCCT), for checking tessellation-based cuts.
+
+:func:`signed_distance` evaluates, point by point, OpenCascade's exact distance to the
+solids' boundaries (``BRepExtrema_DistShapeShape`` on the B-rep faces, not on a mesh) and
+the classification of the point (``BRepClass3d_SolidClassifier``). It costs about a
+millisecond per point and face set, so callers evaluate it only where a cheaper test (a
+fine tessellation) leaves doubt.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from OCP.BRep import BRep_Builder
+from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+from OCP.gp import gp_Pnt
+from OCP.TopAbs import TopAbs_FACE, TopAbs_IN, TopAbs_ON
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopoDS import TopoDS_Compound
+
+from lattice_cad.core.errors import OCCTFailure
+
+__all__ = ["signed_distance"]
+
+
+def _boundary(solid: Any) -> TopoDS_Compound:
+    """The faces of ``solid`` as a compound (BRepExtrema measures 0 from a point inside a
+    solid: the distance to its boundary needs the faces)."""
+    comp = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(comp)
+    exp = TopExp_Explorer(solid, TopAbs_FACE)
+    while exp.More():
+        builder.Add(comp, exp.Current())
+        exp.Next()
+    return comp
+
+
+def signed_distance(
+    solids: Sequence[Any], points: ArrayLike, *, tol: float = 1e-7
+) -> NDArray[np.float64]:
+    """Signed distance of points to the union of B-rep solids, positive outside.
+
+    Parameters
+    ----------
+    solids : sequence of TopoDS_Solid
+        E.g. ``conformal.Part.shape``.
+    points : (P, 3) float64
+    tol : float
+        Classification tolerance (mm): points closer to the boundary count as on it
+        (distance 0 or their exact distance, signed positive only when outside).
+
+    Returns
+    -------
+    (P,) float64
+        Outside all solids: the distance to the nearest solid's boundary (exact for the
+        union); inside one: minus the distance to that solid's boundary (the largest depth
+        over the solids holding the point; for solids that touch, a point near a shared
+        face is deeper in their union than this says).
+
+    Raises
+    ------
+    OCCTFailure
+        BRepExtrema finds no distance for a point.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.empty(len(p), dtype=np.float64)
+    tools = []
+    for solid in solids:
+        dist = BRepExtrema_DistShapeShape()
+        dist.LoadS1(_boundary(solid))
+        tools.append((solid, dist))
+    for i, (x, y, z) in enumerate(p):
+        pnt = gp_Pnt(float(x), float(y), float(z))
+        vertex = BRepBuilderAPI_MakeVertex(pnt).Vertex()
+        best_out, best_in = np.inf, -np.inf
+        for solid, dist in tools:
+            dist.LoadS2(vertex)
+            if not dist.Perform() or dist.NbSolution() == 0:
+                raise OCCTFailure(f"BRepExtrema found no distance from ({x:g}, {y:g}, {z:g})")
+            d = float(dist.Value())
+            state = BRepClass3d_SolidClassifier(solid, pnt, tol).State()
+            if state == TopAbs_IN:
+                best_in = max(best_in, d)
+            elif state == TopAbs_ON:
+                best_in = max(best_in, 0.0)
+            else:
+                best_out = min(best_out, d)
+        out[i] = -best_in if np.isfinite(best_in) else best_out
+    return out
