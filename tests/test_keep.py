@@ -229,7 +229,6 @@ def _bodies(mesh):
 
 def _check_lattice_with_zone(lat, selector, t, rng):
     import fast_stitch
-    from conformal.trim import cutting_part
 
     plain = lat.mesh(lattice_only=True)
     mesh = lat.mesh()
@@ -246,7 +245,7 @@ def _check_lattice_with_zone(lat, selector, t, rng):
     )
     # points of the part near the kept faces are in the printable solid
     # (the part as the lattice and its zones are cut by: conformal.trim.cutting_part)
-    cut_by = cutting_part(lat.part, float(lat.graph.radii.max()))
+    cut_by = lat._cutting_part
     pts = _near_faces(cut_by, _selected_faces_mesh(lat.part, selector, t), t, rng)
     inside = _inside_printable(mesh, pts)
     assert inside.all(), pts[~inside][:5]
