@@ -3,6 +3,7 @@ watertight across seams (trimesh, manifold3d), faults retried, output complete o
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -32,13 +33,13 @@ PART = DATA / "meshes" / "bunny_closed_odedstein.obj"
 REC = np.dtype([("n", "<f4", 3), ("v", "<f4", 9), ("attr", "<u2")])
 
 
-@pytest.fixture(scope="module")
-def client():
-    """Two worker processes with one thread each, as in CI."""
+@contextlib.contextmanager
+def two_worker_client(module):
+    """A Dask client on a LocalCluster of two worker processes with one thread each, as in
+    CI; the test ``module`` travels to the workers by value (tests is no package there)."""
     import cloudpickle
 
-    # the radius callables below travel to the workers by value (tests is no package there)
-    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    cloudpickle.register_pickle_by_value(module)
     cluster = distributed.LocalCluster(
         n_workers=2,
         threads_per_worker=1,
@@ -47,10 +48,18 @@ def client():
         scheduler_kwargs={"dashboard_address": ":0"},
     )
     c = distributed.Client(cluster)
-    yield c
-    c.close()
-    cluster.close()
-    cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    try:
+        yield c
+    finally:
+        c.close()
+        cluster.close()
+        cloudpickle.unregister_pickle_by_value(module)
+
+
+@pytest.fixture(scope="module")
+def client():
+    with two_worker_client(sys.modules[__name__]) as c:
+        yield c
 
 
 def canonical(corners: np.ndarray) -> np.ndarray:

@@ -20,25 +20,15 @@ from lattice_cad.core.mesh import Mesh  # noqa: E402
 from lattice_cad.distributed import fill_sharded, stitch_sharded, write_graph_shards  # noqa: E402
 from lattice_cad.io import read_mesh, save_mesh  # noqa: E402
 from lattice_cad.io.sharded_3mf import read_parts  # noqa: E402
-from tests.test_distributed import canonical, tapered_graph  # noqa: E402
+from tests.test_distributed import canonical, tapered_graph, two_worker_client  # noqa: E402
 
 PART = DATA / "meshes" / "bunny_closed_odedstein.obj"
 
 
 @pytest.fixture(scope="module")
 def client():
-    import cloudpickle
-
-    cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    cluster = distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-        scheduler_kwargs={"dashboard_address": ":0"},
-    )  # fmt: skip
-    c = distributed.Client(cluster)
-    yield c
-    c.close()
-    cluster.close()
-    cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    with two_worker_client(sys.modules[__name__]) as c:
+        yield c
 
 
 def merged(meshes):

@@ -5,6 +5,8 @@ hub scales that a shard computes from part of the lattice are the whole lattice'
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -17,7 +19,7 @@ import fast_stitch  # noqa: E402
 from lattice_cad.distributed import fill_sharded, stitch_sharded, write_graph_shards  # noqa: E402
 from lattice_cad.io.exchange import read_beam_lattice, save_beam_lattice  # noqa: E402
 from lattice_cad.io.sharded_3mf import read_parts  # noqa: E402
-from tests.test_distributed import canonical, tapered_graph  # noqa: E402
+from tests.test_distributed import canonical, tapered_graph, two_worker_client  # noqa: E402
 from tests.test_distributed_3mf import assert_one_closed_solid, merged, reference  # noqa: E402
 
 PART = DATA / "meshes" / "bunny_closed_odedstein.obj"
@@ -25,14 +27,8 @@ PART = DATA / "meshes" / "bunny_closed_odedstein.obj"
 
 @pytest.fixture(scope="module")
 def client():
-    cluster = distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-        scheduler_kwargs={"dashboard_address": ":0"},
-    )  # fmt: skip
-    c = distributed.Client(cluster)
-    yield c
-    c.close()
-    cluster.close()
+    with two_worker_client(sys.modules[__name__]) as c:
+        yield c
 
 
 def balls_and_beams(path):

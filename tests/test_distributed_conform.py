@@ -18,22 +18,21 @@ import conformal  # noqa: E402
 import fast_stitch  # noqa: E402
 from lattice_cad.core.errors import ShardingError  # noqa: E402
 from lattice_cad.distributed import fill_sharded  # noqa: E402
-from tests.test_distributed import assert_closed, canonical, read_stl, single_triangles  # noqa: E402
+from tests.test_distributed import (  # noqa: E402
+    assert_closed,
+    canonical,
+    read_stl,
+    single_triangles,
+    two_worker_client,
+)
 
 MESHES = DATA / "meshes"
 
 
 @pytest.fixture(scope="module")
 def client():
-    """Two worker processes with one thread each, as in CI."""
-    cluster = distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-        scheduler_kwargs={"dashboard_address": ":0"},
-    )  # fmt: skip
-    c = distributed.Client(cluster)
-    yield c
-    c.close()
-    cluster.close()
+    with two_worker_client(sys.modules[__name__]) as c:
+        yield c
 
 
 @pytest.mark.parametrize(
@@ -122,17 +121,12 @@ def test_usual_radius_fit_and_capping_sharded(client, tmp_path, fill, cells):
     np.testing.assert_array_equal(canonical(rec["v"]), ref)
     assert_closed(rec)
     if capped:  # every shard stitched again with the capped scales given: the same
-        import cloudpickle
-
-        cloudpickle.register_pickle_by_value(sys.modules[__name__])
-        try:
-            with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                mp.setattr(st, "_cap_changed", _always_changed)
-                res2 = st.fill_sharded(src, out, "bcc", h, r, shards=4, scheduler=client,
-                                       fill=fill)  # fmt: skip
-        finally:
-            cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+        # _always_changed travels by value: the client fixture registers this module
+        with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mp.setattr(st, "_cap_changed", _always_changed)
+            res2 = st.fill_sharded(src, out, "bcc", h, r, shards=4, scheduler=client,
+                                   fill=fill)  # fmt: skip
         assert "restitch" in res2.seconds
         np.testing.assert_array_equal(canonical(read_stl(out)["v"]), ref)
 
