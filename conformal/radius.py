@@ -401,12 +401,29 @@ def fit_radii(
             np.minimum.at(node_f, el[~strut] - m, factor[~strut])
         else:
             return r, bad
-        new = r * node_f[edges] * edge_f[:, None]
-        new = np.maximum(new, min_radius)
-        if np.array_equal(new, r):
+        if not _scale_radii(r, edges, node_f, edge_f, min_radius):
             break
-        r = new
     return r, bad
+
+
+def _scale_radii(
+    r: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    node_f: NDArray[np.float64],
+    edge_f: NDArray[np.float64],
+    min_radius: float,
+) -> bool:
+    """``r[:] = max(r * node_f[edges] * edge_f[:, None], min_radius)`` in place, by blocks
+    of struts (no (M, 2) temporaries); whether any radius changed."""
+    changed = False
+    for s in range(0, len(edges), _BLOCK):
+        rb = r[s : s + _BLOCK]
+        new = rb * node_f[edges[s : s + _BLOCK]] * edge_f[s : s + _BLOCK, None]
+        np.maximum(new, min_radius, out=new)
+        if not changed and not np.array_equal(new, rb):
+            changed = True
+        rb[...] = new
+    return changed
 
 
 _BLOCK = 1 << 16

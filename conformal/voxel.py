@@ -374,7 +374,8 @@ def voxel_lattice(
         f"a lattice of {len(ijk):,} {c.name} cells (about {len(ijk) * len(c.edges):,} struts)",
         advice="use larger cells",
     )
-    nodes, edges, _ = tile_arrays(c, ijk, cell_size=h, origin=vox.origin)
+    nodes, edges = tile_arrays(c, ijk, cell_size=h, origin=vox.origin)[:2]
+    del ijk  # the builder's peak comes later (fit): hold only the graph by then
     rep.seconds["tile"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     on_surface = np.zeros(len(nodes), dtype=bool)

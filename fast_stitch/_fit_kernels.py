@@ -55,11 +55,12 @@ def incidence(edges, n):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def element_boxes(
-    ids, nodes, edges, radii, end_offset, offsets, inc_edge, inc_side, pad,
+    ids, nodes, edges, radii, scale, end_offset, offsets, inc_edge, inc_side, pad,
     seg_a, seg_b, rad, lo, hi, extent,
 ):  # fmt: skip
     """``_kernels.clearance_elements`` for the elements ``ids`` only (row k: element
-    ``ids[k]``; struts ``0..M-1``, joints ``M + n``). The unit strut direction is
+    ``ids[k]``; struts ``0..M-1``, joints ``M + n``), with the profile radii
+    ``radii * scale`` (computed here: no scaled copy of ``radii``). The unit strut direction is
     computed here as numpy does it for ``fit.clashes``: ``v / norm(v)``, the squares
     summed x, y, z in that order."""
     m = edges.shape[0]
@@ -75,11 +76,11 @@ def element_boxes(
             if not length > 0:
                 length = 1.0
             _strut_capsule(
-                nodes, edges, radii, end_offset, i, vx / length, vy / length, vz / length, k,
+                nodes, edges, radii, scale, end_offset, i, vx / length, vy / length, vz / length, k,
                 seg_a, seg_b, rad,
             )  # fmt: skip
         else:
-            _joint_ball(nodes, radii, end_offset, offsets, inc_edge, inc_side, i - m, k,
+            _joint_ball(nodes, radii, scale, end_offset, offsets, inc_edge, inc_side, i - m, k,
                         seg_a, seg_b, rad)  # fmt: skip
         extent[k] = _element_box(seg_a, seg_b, rad, pad, k, lo, hi)
 

@@ -1059,25 +1059,30 @@ def _excluded(i, j, m, edges, offsets, inc_edge):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _strut_capsule(nodes, edges, radii, end_offset, e, u0, u1, u2, k, seg_a, seg_b, rad):
+def _strut_capsule(
+    nodes, edges, radii, scale, end_offset, e, u0, u1, u2, k, seg_a, seg_b, rad
+):  # fmt: skip
     """Row ``k`` of the clearance elements: strut ``e``'s capsule, its axis between its
     profile centres (``end_offset`` from its nodes along the unit direction ``u``), its
-    radius the larger end radius (shared by :func:`clearance_elements` and
-    ``_fit_kernels.element_boxes``)."""
+    radius the larger end radius times ``scale`` (shared by :func:`clearance_elements` and
+    ``_fit_kernels.element_boxes``; ``max(a, b) * s == max(a * s, b * s)`` in floating
+    point, as rounding is monotone)."""
     a = edges[e, 0]
     b = edges[e, 1]
     for c in range(3):
         uc = u0 if c == 0 else (u1 if c == 1 else u2)
         seg_a[k, c] = nodes[a, c] + end_offset[e, 0] * uc
         seg_b[k, c] = nodes[b, c] - end_offset[e, 1] * uc
-    rad[k] = max(radii[e, 0], radii[e, 1])
+    rad[k] = max(radii[e, 0], radii[e, 1]) * scale
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _joint_ball(nodes, radii, end_offset, offsets, inc_edge, inc_side, n, k, seg_a, seg_b, rad):
+def _joint_ball(
+    nodes, radii, scale, end_offset, offsets, inc_edge, inc_side, n, k, seg_a, seg_b, rad
+):  # fmt: skip
     """Row ``k`` of the clearance elements: the ball of the joint at node ``n`` (degenerate
     axis at the node; radius the distance to its farthest profile vertex, -1 below degree
-    2)."""
+    2; profile radii are ``radii * scale``)."""
     for c in range(3):
         seg_a[k, c] = nodes[n, c]
         seg_b[k, c] = nodes[n, c]
@@ -1086,7 +1091,7 @@ def _joint_ball(nodes, radii, end_offset, offsets, inc_edge, inc_side, n, k, seg
         for t in range(offsets[n], offsets[n + 1]):
             e = inc_edge[t]
             s = inc_side[t]
-            r = max(r, np.sqrt(end_offset[e, s] ** 2 + radii[e, s] ** 2))
+            r = max(r, np.sqrt(end_offset[e, s] ** 2 + (radii[e, s] * scale) ** 2))
     rad[k] = r
 
 
@@ -1132,11 +1137,11 @@ def clearance_elements(
     n_nodes = nodes.shape[0]
     for e in prange(m):
         _strut_capsule(
-            nodes, edges, radii, end_offset, e, unit[e, 0], unit[e, 1], unit[e, 2], e,
+            nodes, edges, radii, 1.0, end_offset, e, unit[e, 0], unit[e, 1], unit[e, 2], e,
             seg_a, seg_b, rad,
         )  # fmt: skip
     for n in prange(n_nodes):
-        _joint_ball(nodes, radii, end_offset, offsets, inc_edge, inc_side, n, m + n,
+        _joint_ball(nodes, radii, 1.0, end_offset, offsets, inc_edge, inc_side, n, m + n,
                     seg_a, seg_b, rad)  # fmt: skip
     for i in prange(m + n_nodes):
         extent[i] = _element_box(seg_a, seg_b, rad, pad, i, lo, hi)

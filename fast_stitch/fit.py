@@ -45,7 +45,10 @@ __all__ = ["end_offsets", "misfits", "clashes"]
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _node_offsets(nodes, edges, radii, offsets, inc_edge, inc_side, shrink, margin, floor_tan, out):
+def _node_offsets(
+    nodes, edges, radii, scale, offsets, inc_edge, inc_side, shrink, margin, floor_tan, out
+):  # fmt: skip
+    """``out[e, s]``: end offsets of every strut end, profile radii ``radii * scale``."""
     for n in prange(offsets.shape[0] - 1):
         lo = offsets[n]
         d = offsets[n + 1] - lo
@@ -64,7 +67,7 @@ def _node_offsets(nodes, edges, radii, offsets, inc_edge, inc_side, shrink, marg
             dirs[t, 0] = vx / nn
             dirs[t, 1] = vy / nn
             dirs[t, 2] = vz / nn
-            rad[t] = radii[e, s]
+            rad[t] = radii[e, s] * scale
         od = np.empty(d)
         det = np.empty(d, dtype=np.int64)
         _kernels.hub_offsets(dirs, rad, shrink, margin, floor_tan, od, det)
@@ -86,12 +89,15 @@ def _incidence(
     return _fit_kernels.incidence(edges, n)  # type: ignore[no-any-return]
 
 
-def _profile_radii(
-    radii: ArrayLike, shape: tuple[int, int], segments: int, profile: str
-) -> NDArray[np.float64]:
-    """(M, 2) float64: circumradii of the stitch's profile polygons."""
-    k = profile_factor(check_segments(segments), profile)
-    return np.ascontiguousarray(np.broadcast_to(radii, shape), dtype=np.float64) * k
+def _radii_array(radii: ArrayLike, shape: tuple[int, int]) -> NDArray[np.float64]:
+    """(M, 2) float64 C-contiguous radii: ``radii`` itself when it already is one (no copy:
+    the profile factor is applied inside the kernels, see :func:`_profile_scale`)."""
+    return np.ascontiguousarray(np.broadcast_to(radii, shape), dtype=np.float64)
+
+
+def _profile_scale(segments: int, profile: str) -> float:
+    """Circumradius of the stitch's profile polygon over the strut radius."""
+    return float(profile_factor(check_segments(segments), profile))
 
 
 def end_offsets(
@@ -125,14 +131,15 @@ def end_offsets(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    radii_a = _profile_radii(radii, edges_a.shape, segments, profile)
+    radii_a = _radii_array(radii, edges_a.shape)
+    scale = _profile_scale(segments, profile)
     n, m = len(nodes_a), len(edges_a)
     inc = _incidence(edges_a, n) if _incidence_arrays is None else _incidence_arrays
     offsets, inc_edge, inc_side = inc
     out = np.zeros((m, 2))
     floor_tan = math.tan(math.radians(90.0 - config.FLOOR_ANGLE_DEG))
     _node_offsets(
-        nodes_a, edges_a, radii_a, offsets, inc_edge, inc_side, bool(shrink),
+        nodes_a, edges_a, radii_a, scale, offsets, inc_edge, inc_side, bool(shrink),
         config.OFFSET_MARGIN, floor_tan, out,
     )  # fmt: skip
     return out
@@ -225,15 +232,18 @@ def clashes(
     """
     nodes_a = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
     edges_a = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
-    radii_a = _profile_radii(radii, edges_a.shape, segments, profile)
+    radii_a = _radii_array(radii, edges_a.shape)
     if len(edges_a) == 0:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0)
     inc = _incidence(edges_a, len(nodes_a))
-    # radii_a are already the polygons' circumradii
     off = end_offsets(
-        nodes_a, edges_a, radii_a, shrink=shrink, profile="inscribed", _incidence_arrays=inc
+        nodes_a, edges_a, radii_a, shrink=shrink, segments=segments, profile=profile,
+        _incidence_arrays=inc,
+    )  # fmt: skip
+    return _clashes(
+        nodes_a, edges_a, radii_a, off, inc, margin,
+        radius_scale=_profile_scale(segments, profile),
     )
-    return _clashes(nodes_a, edges_a, radii_a, off, inc, margin)
 
 
 def _clashes(
@@ -244,9 +254,12 @@ def _clashes(
     inc: tuple[Any, Any, Any],
     margin: float,
     *,
-    block: int = 1 << 16,
+    block: int = 1 << 14,
+    radius_scale: float = 1.0,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """:func:`clashes` with the end offsets and incidence given, by x-slabs of the grid.
+
+    The profile radii are ``radii * radius_scale`` (the kernels multiply: no scaled copy).
 
     The grid is the one of ``fast_stitch.stitch._clearance_elements`` (same origin, cell
     and dims); the elements are boxed a slab at a time (about ``block`` elements), each
@@ -262,8 +275,8 @@ def _clashes(
         seg_a, seg_b, lo, hi = (np.empty((k, 3)) for _ in range(4))
         rad, extent = np.empty(k), np.empty(k)
         _fit_kernels.element_boxes(
-            ids, nodes, edges, radii, off, offsets, inc_edge, inc_side, float(pad),
-            seg_a, seg_b, rad, lo, hi, extent,
+            ids, nodes, edges, radii, float(radius_scale), off, offsets, inc_edge, inc_side,
+            float(pad), seg_a, seg_b, rad, lo, hi, extent,
         )  # fmt: skip
         return seg_a, seg_b, rad, lo, hi, extent
 
@@ -302,6 +315,7 @@ def _clashes(
     nx = int(dims[0])
     start_x, order = _fit_kernels.bucket(first, nx)
     widest = int((last - first).max()) if n_el else 0  # the widest box, in columns
+    del first  # the slabs need `last` only
     cuts = [0]
     for x in range(1, nx):
         if start_x[x] - start_x[cuts[-1]] >= block:
