@@ -46,6 +46,7 @@ __all__ = [
     "check_fit",
     "fit_radii",
     "repair_graph",
+    "unstitchable_dropped",
     "RepairReport",
     "FitError",
     "Profile",
@@ -553,16 +554,9 @@ def repair_graph(
     # neighbour, or crossing another) go in any case, however much has changed
     n_asked, r_asked = len(radii), float(np.min(radii)) if len(radii) else 0.0
     floor = 0.1 * r_asked
-    for _ in range(10):
-        if not len(edges):
-            break
-        _, hopeless = fit_radii(nodes, edges, asked, min_radius=floor, **poly)
-        if not len(hopeless):
-            break
-        keep = np.ones(len(edges), dtype=bool)
-        keep[hopeless] = False
-        rep.dropped += len(hopeless)
-        edges, asked = edges[keep], asked[keep]
+    keep = unstitchable_dropped(nodes, edges, asked, min_radius=floor, **poly)
+    rep.dropped += int((~keep).sum())
+    edges, asked = edges[keep], asked[keep]
     if not len(edges):
         raise FitError(
             f"none of the {n_asked} strut(s) can be stitched at radius {r_asked:g} even when "
@@ -582,6 +576,43 @@ def repair_graph(
     mids = 0.5 * (nodes[edges[bad, 0]] + nodes[edges[bad, 1]])
     rep.where = mids[:10].tolist()
     return nodes, edges, fitted, rep
+
+
+def unstitchable_dropped(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    *,
+    min_radius: float,
+    rounds: int = 10,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: str = config.DEFAULT_PROFILE,
+) -> NDArray[np.bool_]:
+    """(M,) bool: the struts kept when those that cannot be stitched even at ``min_radius``
+    (nearly parallel to a neighbour, or crossing another strut) are dropped.
+
+    :func:`fit_radii` names the hopeless struts; they are dropped and the rest is fitted
+    again (dropping one frees its neighbours), at most ``rounds`` times.
+
+    Parameters
+    ----------
+    nodes : (N, 3) float64, edges : (M, 2) int64, radii : (M, 2) float64
+    min_radius : float
+        The thinnest radius allowed.
+    """
+    keep = np.ones(len(edges), dtype=bool)
+    for _ in range(rounds):
+        idx = np.flatnonzero(keep)
+        if not len(idx):
+            break
+        _, hopeless = fit_radii(
+            nodes, edges[idx], radii[idx], min_radius=min_radius, segments=segments,
+            profile=profile,
+        )  # fmt: skip
+        if not len(hopeless):
+            break
+        keep[idx[hopeless]] = False
+    return keep
 
 
 def _unfit_at(

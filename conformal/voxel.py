@@ -51,6 +51,7 @@ from conformal.radius import (
     check_stitch_profile,
     fit_radii,
     resolve_radii,
+    unstitchable_dropped,
 )
 from lattice_cad.core import config
 from lattice_cad.core.errors import FillError, LatticeWarning
@@ -87,6 +88,7 @@ class BuildReport:
     removed_isolated: int = 0
     removed_islands: int = 0
     thinned_beyond_tolerance: int = 0
+    removed_unstitchable: int = 0
     bodies: int = 0
     fill: str = ""
     radii_reduced: int = 0
@@ -394,11 +396,78 @@ def voxel_lattice(
     if rot is not None:
         nodes = nodes @ rot.T
     t0 = time.perf_counter()
-    graph = _finish(
-        nodes, edges, radius, min_radius, fit, rep, owned=True, segments=segments, profile=profile
-    )
+    try:
+        graph = _finish(
+            nodes, edges, radius, min_radius, fit, rep, owned=True,
+            segments=segments, profile=profile,
+        )  # fmt: skip
+    except FitError as err:
+        if fit != "shrink":
+            raise
+        graph = _finish_without_unstitchable(
+            part, local, rot, nodes, edges, radius, min_radius, rep, err,
+            segments=segments, profile=profile,
+        )  # fmt: skip
     rep.seconds["fit"] = time.perf_counter() - t0
     return (graph, rep) if return_report else graph
+
+
+#: at most this fraction of a voxel lattice's struts may be dropped as unstitchable
+MAX_DROPPED = 0.10
+
+
+def _finish_without_unstitchable(
+    part: Part,
+    local: Part,
+    rot: NDArray[np.float64] | None,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radius: RadiusSpec,
+    min_radius: float | None,
+    rep: BuildReport,
+    err: FitError,
+    *,
+    segments: int,
+    profile: Profile,
+) -> LatticeGraph:
+    """The graph without the few struts that cannot be stitched even at the thinnest radius.
+
+    Where the surface cuts or pulls cells (clip, conform), a strut can end up nearly
+    parallel to a neighbour; no radius above the floor lets both be stitched. Such struts
+    (at most :data:`MAX_DROPPED` of the lattice) are dropped, loose pieces removed, and the
+    rest fitted as usual; ``rep.removed_unstitchable`` counts them and a warning says how
+    many and where. Otherwise ``err`` (the fit's error, which names a strut) is raised.
+    """
+    if not (callable(radius) or np.ndim(radius) == 0):
+        raise err  # per-strut radii are given for these struts: nothing may be dropped
+    r = resolve_radii(radius, nodes, edges)
+    floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
+    keep = unstitchable_dropped(
+        nodes, edges, r, min_radius=floor, segments=segments, profile=profile
+    )
+    dropped = int((~keep).sum())
+    if dropped == 0 or dropped > MAX_DROPPED * len(edges):
+        raise err
+    mids = 0.5 * (nodes[edges[~keep, 0]] + nodes[edges[~keep, 1]])
+    edges = edges[keep]
+    used = np.zeros(len(nodes), dtype=bool)
+    used[edges.ravel()] = True
+    nodes, edges = _renumber(nodes, edges, used)
+    loc = nodes if rot is None else nodes @ rot  # keep_main_components works in part frame
+    loc, edges = keep_main_components(local, loc, edges, rep)
+    nodes = loc if rot is None else loc @ rot.T
+    rep.removed_unstitchable = dropped
+    where = ", ".join("(" + ", ".join(f"{c:.4g}" for c in m) + ")" for m in mids[:3])
+    warnings.warn(
+        f"{dropped} of {len(keep)} strut(s) ({100 * dropped / len(keep):.2g} %) of the lattice "
+        f"of {part.name} were removed: they "
+        f"meet a neighbour too closely to be stitched even at radius {floor:g} (e.g. at "
+        f"{where}); a smaller radius or another cell avoids it",
+        LatticeWarning,
+        stacklevel=3,
+    )
+    return _finish(nodes, edges, radius, min_radius, "shrink", rep, segments=segments,
+                   profile=profile)  # fmt: skip
 
 
 def _mm(h: NDArray[np.float64]) -> str:

@@ -194,3 +194,31 @@ def test_tet_lattice_of_a_mesh_part_has_the_size_asked():
     assert 0.7 * h <= float(np.median(length)) <= 1.3 * h
     assert rep.thinned_beyond_tolerance <= 0.25 * g.num_edges
     assert_valid(fast_stitch.stitch(g, segments=6), self_intersections=False)
+
+
+@pytest.mark.parametrize("name", ["meshes/wingnut.obj", "meshes/dragon_closed_rainbow.obj"])
+def test_conforming_octet_drops_the_struts_no_radius_can_stitch(name):
+    """Octet conform at cell = extent / 15, r = cell / 12 raised FitError on 6 of the 11
+    mesh parts (struts pulled onto the surface nearly parallel to a neighbour). The few
+    that cannot be stitched even at the floor radius are dropped, said in a warning; the
+    rest stitches into one closed body."""
+    import conformal
+
+    part = _part(name)
+    cell = float(part.size.max()) / 15
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LatticeWarning)  # the fit also thins crowded struts
+        g, rep = conformal.voxel_lattice(
+            part, "octet", cell, cell / 12, fill="conform", return_report=True
+        )
+    said = [str(w.message) for w in caught if "meet a neighbour too closely" in str(w.message)]
+    assert len(said) == 1 and f"{rep.removed_unstitchable} of " in said[0]
+    assert 0 < rep.removed_unstitchable <= 0.10 * (g.num_edges + rep.removed_unstitchable)
+    assert np.bincount(g.edges.ravel(), minlength=g.num_nodes).min() >= 1  # no isolated node
+    assert float(g.radii.min()) >= 0.1 * cell / 12 * (1 - 1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)  # crowded struts thinned
+        mesh = fast_stitch.stitch(g)
+    assert fast_stitch.check(mesh).valid
+    independent_check(mesh)
+    assert _bodies(mesh) == rep.bodies == 1
