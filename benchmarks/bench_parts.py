@@ -17,6 +17,9 @@ conform    ``--cell kelvin --fill conform``
 clip       ``--cell bcc --fill clip``
 =========  ============================================
 
+and, when asked with ``--settings``, ``conform-octet``, ``conform-fcc`` and ``clip-octet``
+(the same with other cells).
+
 each added to ``lattice-cad fill PART -o OUT.stl --cell-size CELL --radius R``.
 
 A run is ``ok`` only when the command exits with 0, the STL exists, ``lattice-cad check``
@@ -100,7 +103,13 @@ SETTINGS: dict[str, str] = {
     "tet": "--method tet",
     "conform": "--cell kelvin --fill conform",
     "clip": "--cell bcc --fill clip",
+    # more cells in the modes that pull struts onto the surface (run with --settings)
+    "conform-octet": "--cell octet --fill conform",
+    "conform-fcc": "--cell fcc --fill conform",
+    "clip-octet": "--cell octet --fill clip",
 }
+#: the settings run when --settings is not given (the issue's four and clip)
+DEFAULT_SETTINGS = ("bcc", "skin", "tet", "conform", "clip")
 
 
 def setting_args(setting: str, cell: float) -> list[str]:
@@ -541,7 +550,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         paths = [f for f in paths if any(s in f.name for s in args.parts)]
     if not paths:
         sys.exit("error: no part matches --parts")
-    settings = [s for s in SETTINGS if not args.settings or s in args.settings]
+    settings = [s for s in SETTINGS if s in (args.settings or DEFAULT_SETTINGS)]
 
     keep = args.out is not None
     out_dir = args.out or Path(tempfile.mkdtemp(prefix="bench_parts_"))
