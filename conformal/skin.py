@@ -875,21 +875,24 @@ def marching_tets(
     """
     # no sample on (or within 0.1 % of a voxel of) the surface: a crossing exactly at a grid
     # point would give zero-area triangles; moving it by at most h / 1000 does not
-    step = float(np.abs(np.diff(field, axis=0)).max(initial=0.0))  # field change per voxel
+    from conformal._skin_kernels import marching_tets_keys, max_step_x, unique_inverse
+
+    field = np.ascontiguousarray(field, dtype=np.float64)
+    step = float(max_step_x(field)) if field.size else 0.0  # field change per voxel
     snap = 1e-3 * step if step > 0 else 1e-12
     f = np.where(np.abs(field) < snap, -snap, field)
-    from conformal._skin_kernels import marching_tets_keys
 
     n_grid = f.size
     keys, cat = marching_tets_keys(f, origin, h)  # the triangles, in the order of the tets
     if len(keys) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
     # 1 or 3 inside (one triangle), then the first and the second halves of the quads
-    order = np.concatenate([np.flatnonzero(cat == c) for c in (0, 1, 2)])
+    # (a stable sort by category: the same order as one pass per category)
+    order = np.argsort(cat, kind="stable")
     keys = keys[order]
     # one vertex per crossed grid segment lo - hi, numbered in the order of the keys,
     # interpolated from the lower end
-    uniq, inv = np.unique(keys.ravel(), return_inverse=True)
+    uniq, inv = unique_inverse(keys.ravel())
     faces = inv.reshape(-1, 3).astype(np.int64, copy=False)
     lo, hi = uniq // n_grid, uniq % n_grid
     pa = origin + np.column_stack(np.unravel_index(lo, f.shape)) * h
