@@ -385,6 +385,12 @@ def _distance_field(
     origin : (3,) float64
         Position of grid point ``[0, 0, 0]``.
     """
+    return _finish(_distance_field_steps(part, thickness, h, low))
+
+
+def _distance_field_steps(part: Any, thickness: float, h: float, low: float | None = None) -> Any:
+    """:func:`_distance_field` as a generator: yields between its stages, returns the
+    result (see :func:`_finish`)."""
     from conformal._skin_kernels import edt_squared
 
     pad = 2 * h
@@ -397,6 +403,7 @@ def _distance_field(
     depth = np.sqrt(edt_squared(inside, h))
     depth -= 0.5 * h
     depth[~inside] = -thickness
+    yield
     # exact distances where the level t is extracted (the transform is off by up to half a
     # voxel there)
     low = thickness if low is None else low  # the lowest level extracted
@@ -409,13 +416,31 @@ def _distance_field(
     return depth, origin
 
 
+def _finish(steps: Any) -> Any:
+    """Run a generator of stages (``yield`` between them) to its end; its return value."""
+    try:
+        while True:
+            next(steps)
+    except StopIteration as stop:
+        return stop.value
+
+
 def _voxel_surfaces(
     part: Any, thickness: float, h: float, mid_wall: bool = False
 ) -> tuple[Any, ...]:
     """Outer and inner (and mid-wall) surfaces of a part from its distance field (Manifolds)."""
+    return _finish(_voxel_steps(part, thickness, h, mid_wall))
+
+
+def _voxel_steps(part: Any, thickness: float, h: float, mid_wall: bool = False) -> Any:
+    """:func:`_voxel_surfaces` as a generator of its stages (yields between them, returns
+    the surfaces), so that it can run while OCCT's offset is still computing in its child
+    and be left off when that succeeds (:func:`_surfaces`)."""
     import manifold3d
 
-    depth, origin = _distance_field(part, thickness, h, 0.5 * thickness if mid_wall else None)
+    low = 0.5 * thickness if mid_wall else None
+    depth, origin = yield from _distance_field_steps(part, thickness, h, low)
+    yield
     out = [part_solid(part)]  # touching solids of an assembly united
     # marching tetrahedra give about 20 triangles per voxel face of the surface, mostly on
     # flat walls: manifold3d's simplification (no surface moves by more than the tolerance,
@@ -428,7 +453,11 @@ def _voxel_surfaces(
         if len(f) == 0:
             out.append(manifold3d.Manifold())
             continue
-        out.append(_manifold(v, f, f"the inset by {level:g}").simplify(tol))
+        yield
+        man = _manifold(v, f, f"the inset by {level:g}")
+        del v, f
+        yield
+        out.append(man.simplify(tol))
     return tuple(out)
 
 
@@ -649,8 +678,32 @@ def _surfaces(
     mid_wall: bool = False,
     pending: PendingOffsets | None = None,
 ) -> tuple[tuple[Any, ...], str, str, float]:
-    """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size."""
+    """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size.
+
+    With ``method="auto"`` and OCCT's offsets still computing in their child (``pending``),
+    the voxel surfaces are computed meanwhile, stage by stage, until the child is done:
+    if the offset fails (the GE bracket's does, after ~2 s), that work was not waited for;
+    if it succeeds, at most one stage is spent in vain.
+    """
     fallback = ""
+    h = float(voxel) if voxel is not None else _grid_spacing(part.size, thickness)
+    steps = None  # the voxel surfaces, begun while OCCT's offsets compute
+    voxel_done = None  # ... and finished meanwhile
+    if (
+        method == "auto"
+        and part.shape is not None
+        and pending is not None
+        and pending.part is part
+        and pending.thickness == thickness
+        and pending.mid_wall == mid_wall
+        and pending.worker.running
+    ):
+        steps = _voxel_steps(part, thickness, h, mid_wall)
+        try:
+            while pending.worker.running:
+                next(steps)
+        except StopIteration as stop:
+            voxel_done = stop.value
     if method in ("auto", "occt") and part.shape is not None:
         try:
             occt = _occt_surfaces(part, thickness, mid_wall, pending)
@@ -669,7 +722,9 @@ def _surfaces(
         raise SkinError("method='occt' needs a B-rep part (STEP, CadQuery or build123d)")
     if pending is not None:
         pending.worker.close()
-    h = float(voxel) if voxel is not None else _grid_spacing(part.size, thickness)
+    if steps is not None:
+        surfaces = voxel_done if voxel_done is not None else _finish(steps)
+        return surfaces, "voxel", fallback, h
     return _voxel_surfaces(part, thickness, h, mid_wall), "voxel", fallback, h
 
 
