@@ -308,6 +308,13 @@ def start_offsets(
     return PendingOffsets(worker, part, float(thickness), bool(mid_wall))
 
 
+def _pending_for(pending: PendingOffsets, part: Any, thickness: float, mid_wall: bool) -> bool:
+    """Whether ``pending`` are the offsets of ``part`` (or of the B-rep it was tessellated
+    again from: ``Part.refined``, as ``Lattice`` cuts by), ``thickness`` and ``mid_wall``."""
+    same = pending.part is part or pending.part is getattr(part, "unrefined", None)
+    return same and pending.thickness == thickness and pending.mid_wall == mid_wall
+
+
 def _occt_surfaces(
     part: Any, thickness: float, mid_wall: bool = False, pending: PendingOffsets | None = None
 ) -> tuple[Any, ...]:
@@ -325,9 +332,7 @@ def _occt_surfaces(
 
     from lattice_cad.occ_impl import shapes as occ
 
-    if pending is not None and not (
-        pending.part is part and pending.thickness == thickness and pending.mid_wall == mid_wall
-    ):
+    if pending is not None and not _pending_for(pending, part, thickness, mid_wall):
         pending.worker.close()
         pending = None
     if pending is None:
@@ -693,9 +698,7 @@ def _surfaces(
         method == "auto"
         and part.shape is not None
         and pending is not None
-        and pending.part is part
-        and pending.thickness == thickness
-        and pending.mid_wall == mid_wall
+        and _pending_for(pending, part, thickness, mid_wall)
         and pending.worker.running
     ):
         steps = _voxel_steps(part, thickness, h, mid_wall)
