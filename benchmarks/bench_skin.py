@@ -42,6 +42,7 @@ STAGES = [
     ("skin: OCCT offset", "lattice_cad.occ_impl.shapes", "offset_solid_isolated"),
     ("skin: OCCT offset (wait)", "lattice_cad.occ_impl.shapes", "fused_offsets_result"),
     ("skin: split lattice", "conformal.skin", "_split"),
+    ("skin: surfaces (all)", "conformal.skin", "_surfaces"),
     ("skin: voxel surfaces", "conformal.skin", "_voxel_surfaces"),
     ("skin: distance field", "conformal.skin", "_distance_field"),
     ("skin: marching tets", "conformal.skin", "marching_tets"),
@@ -50,10 +51,12 @@ STAGES = [
     ("skin: wall measure", "conformal.skin", "wall_thickness"),
     ("escape drill", "lattice_cad.lattice", "Lattice._drill"),
     ("escape verify", "lattice_cad.lattice", "Lattice._verify_escape"),
+    ("printability report", "lattice_cad.cli", "_say_printability"),
     ("float32 check (all)", "lattice_cad.lattice", "_checked_single_precision"),
     ("  fast_stitch.check", "fast_stitch", "check"),
     ("  single_precision", "lattice_cad.io", "single_precision"),
     ("write", "lattice_cad.io", "save_mesh"),
+    ("mesh volume", "lattice_cad.core.mesh", "signed_volume"),
 ]
 
 

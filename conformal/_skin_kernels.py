@@ -308,3 +308,65 @@ def edt_squared(inside, h):
             for i in range(nx):
                 d[i, j, k] = o[i]
     return d
+
+
+# ------------------------------------------------------ marching tets helpers
+@njit(cache=True, parallel=True)
+def max_step_x(f):
+    """Largest ``|f[i + 1, j, k] - f[i, j, k]|`` of a (nx, ny, nz) float64 field (0 for
+    ``nx < 2``): the field's change per voxel, as ``np.abs(np.diff(f, axis=0)).max()``
+    without its two temporary copies of the field."""
+    nx, ny, nz = f.shape
+    best = np.zeros(max(nx - 1, 1))
+    for i in prange(nx - 1):
+        b = 0.0
+        for j in range(ny):
+            for k in range(nz):
+                d = abs(f[i + 1, j, k] - f[i, j, k])
+                if d > b:
+                    b = d
+        best[i] = b
+    return best.max()
+
+
+@njit(cache=True)
+def unique_inverse(a):
+    """``np.unique(a, return_inverse=True)`` of (n,) non-negative int64 keys, by hashing
+    (open addressing) and sorting only the distinct keys: ~5x faster than numpy's sort of
+    all ``n`` keys when each key repeats several times (marching tets: ~6x)."""
+    n = len(a)
+    bits = 1
+    while (1 << bits) < 2 * max(n, 1):
+        bits += 1
+    size = 1 << bits
+    mask = np.uint64(size - 1)
+    shift = np.uint64(64 - bits)
+    golden = np.uint64(0x9E3779B97F4A7C15)
+    table = np.full(size, -1, dtype=np.int64)  # slot -> provisional id
+    first = np.empty(n, dtype=np.int64)  # provisional id -> key
+    ids = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        key = a[i]
+        s = (np.uint64(key) * golden) >> shift
+        while True:
+            slot = table[s]
+            if slot < 0:
+                table[s] = m
+                first[m] = key
+                ids[i] = m
+                m += 1
+                break
+            if first[slot] == key:
+                ids[i] = slot
+                break
+            s = (s + np.uint64(1)) & mask
+    keys = first[:m].copy()
+    order = np.argsort(keys)
+    rank = np.empty(m, dtype=np.int64)
+    for r in range(m):
+        rank[order[r]] = r
+    inv = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        inv[i] = rank[ids[i]]
+    return keys[order], inv

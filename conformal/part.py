@@ -86,6 +86,8 @@ class Part:
         self.name = name
         self.shape = shape
         self.deflection = float(deflection)
+        #: The part this one is a finer tessellation of (:meth:`refined`; same B-rep), or None.
+        self.unrefined: Part | None = None
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -173,6 +175,7 @@ class Part:
             with warnings.catch_warnings():  # the union was announced when it was loaded
                 warnings.simplefilter("ignore", LatticeWarning)
                 cache[key] = _from_shape(shape, self.name, float(deflection), float(angular))
+            cache[key].unrefined = self
         return cache[key]
 
     # ------------------------------------------------------------ indexes

@@ -308,6 +308,13 @@ def start_offsets(
     return PendingOffsets(worker, part, float(thickness), bool(mid_wall))
 
 
+def _pending_for(pending: PendingOffsets, part: Any, thickness: float, mid_wall: bool) -> bool:
+    """Whether ``pending`` are the offsets of ``part`` (or of the B-rep it was tessellated
+    again from: ``Part.refined``, as ``Lattice`` cuts by), ``thickness`` and ``mid_wall``."""
+    same = pending.part is part or pending.part is getattr(part, "unrefined", None)
+    return same and pending.thickness == thickness and pending.mid_wall == mid_wall
+
+
 def _occt_surfaces(
     part: Any, thickness: float, mid_wall: bool = False, pending: PendingOffsets | None = None
 ) -> tuple[Any, ...]:
@@ -325,9 +332,7 @@ def _occt_surfaces(
 
     from lattice_cad.occ_impl import shapes as occ
 
-    if pending is not None and not (
-        pending.part is part and pending.thickness == thickness and pending.mid_wall == mid_wall
-    ):
+    if pending is not None and not _pending_for(pending, part, thickness, mid_wall):
         pending.worker.close()
         pending = None
     if pending is None:
@@ -385,6 +390,12 @@ def _distance_field(
     origin : (3,) float64
         Position of grid point ``[0, 0, 0]``.
     """
+    return _finish(_distance_field_steps(part, thickness, h, low))
+
+
+def _distance_field_steps(part: Any, thickness: float, h: float, low: float | None = None) -> Any:
+    """:func:`_distance_field` as a generator: yields between its stages, returns the
+    result (see :func:`_finish`)."""
     from conformal._skin_kernels import edt_squared
 
     pad = 2 * h
@@ -397,6 +408,7 @@ def _distance_field(
     depth = np.sqrt(edt_squared(inside, h))
     depth -= 0.5 * h
     depth[~inside] = -thickness
+    yield
     # exact distances where the level t is extracted (the transform is off by up to half a
     # voxel there)
     low = thickness if low is None else low  # the lowest level extracted
@@ -409,13 +421,31 @@ def _distance_field(
     return depth, origin
 
 
+def _finish(steps: Any) -> Any:
+    """Run a generator of stages (``yield`` between them) to its end; its return value."""
+    try:
+        while True:
+            next(steps)
+    except StopIteration as stop:
+        return stop.value
+
+
 def _voxel_surfaces(
     part: Any, thickness: float, h: float, mid_wall: bool = False
 ) -> tuple[Any, ...]:
     """Outer and inner (and mid-wall) surfaces of a part from its distance field (Manifolds)."""
+    return _finish(_voxel_steps(part, thickness, h, mid_wall))
+
+
+def _voxel_steps(part: Any, thickness: float, h: float, mid_wall: bool = False) -> Any:
+    """:func:`_voxel_surfaces` as a generator of its stages (yields between them, returns
+    the surfaces), so that it can run while OCCT's offset is still computing in its child
+    and be left off when that succeeds (:func:`_surfaces`)."""
     import manifold3d
 
-    depth, origin = _distance_field(part, thickness, h, 0.5 * thickness if mid_wall else None)
+    low = 0.5 * thickness if mid_wall else None
+    depth, origin = yield from _distance_field_steps(part, thickness, h, low)
+    yield
     out = [part_solid(part)]  # touching solids of an assembly united
     # marching tetrahedra give about 20 triangles per voxel face of the surface, mostly on
     # flat walls: manifold3d's simplification (no surface moves by more than the tolerance,
@@ -428,7 +458,11 @@ def _voxel_surfaces(
         if len(f) == 0:
             out.append(manifold3d.Manifold())
             continue
-        out.append(_manifold(v, f, f"the inset by {level:g}").simplify(tol))
+        yield
+        man = _manifold(v, f, f"the inset by {level:g}")
+        del v, f
+        yield
+        out.append(man.simplify(tol))
     return tuple(out)
 
 
@@ -649,8 +683,30 @@ def _surfaces(
     mid_wall: bool = False,
     pending: PendingOffsets | None = None,
 ) -> tuple[tuple[Any, ...], str, str, float]:
-    """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size."""
+    """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size.
+
+    With ``method="auto"`` and OCCT's offsets still computing in their child (``pending``),
+    the voxel surfaces are computed meanwhile, stage by stage, until the child is done:
+    if the offset fails (the GE bracket's does, after ~2 s), that work was not waited for;
+    if it succeeds, at most one stage is spent in vain.
+    """
     fallback = ""
+    h = float(voxel) if voxel is not None else _grid_spacing(part.size, thickness)
+    steps = None  # the voxel surfaces, begun while OCCT's offsets compute
+    voxel_done = None  # ... and finished meanwhile
+    if (
+        method == "auto"
+        and part.shape is not None
+        and pending is not None
+        and _pending_for(pending, part, thickness, mid_wall)
+        and pending.worker.running
+    ):
+        steps = _voxel_steps(part, thickness, h, mid_wall)
+        try:
+            while pending.worker.running:
+                next(steps)
+        except StopIteration as stop:
+            voxel_done = stop.value
     if method in ("auto", "occt") and part.shape is not None:
         try:
             occt = _occt_surfaces(part, thickness, mid_wall, pending)
@@ -669,7 +725,9 @@ def _surfaces(
         raise SkinError("method='occt' needs a B-rep part (STEP, CadQuery or build123d)")
     if pending is not None:
         pending.worker.close()
-    h = float(voxel) if voxel is not None else _grid_spacing(part.size, thickness)
+    if steps is not None:
+        surfaces = voxel_done if voxel_done is not None else _finish(steps)
+        return surfaces, "voxel", fallback, h
     return _voxel_surfaces(part, thickness, h, mid_wall), "voxel", fallback, h
 
 
@@ -875,21 +933,24 @@ def marching_tets(
     """
     # no sample on (or within 0.1 % of a voxel of) the surface: a crossing exactly at a grid
     # point would give zero-area triangles; moving it by at most h / 1000 does not
-    step = float(np.abs(np.diff(field, axis=0)).max(initial=0.0))  # field change per voxel
+    from conformal._skin_kernels import marching_tets_keys, max_step_x, unique_inverse
+
+    field = np.ascontiguousarray(field, dtype=np.float64)
+    step = float(max_step_x(field)) if field.size else 0.0  # field change per voxel
     snap = 1e-3 * step if step > 0 else 1e-12
     f = np.where(np.abs(field) < snap, -snap, field)
-    from conformal._skin_kernels import marching_tets_keys
 
     n_grid = f.size
     keys, cat = marching_tets_keys(f, origin, h)  # the triangles, in the order of the tets
     if len(keys) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
     # 1 or 3 inside (one triangle), then the first and the second halves of the quads
-    order = np.concatenate([np.flatnonzero(cat == c) for c in (0, 1, 2)])
+    # (a stable sort by category: the same order as one pass per category)
+    order = np.argsort(cat, kind="stable")
     keys = keys[order]
     # one vertex per crossed grid segment lo - hi, numbered in the order of the keys,
     # interpolated from the lower end
-    uniq, inv = np.unique(keys.ravel(), return_inverse=True)
+    uniq, inv = unique_inverse(keys.ravel())
     faces = inv.reshape(-1, 3).astype(np.int64, copy=False)
     lo, hi = uniq // n_grid, uniq % n_grid
     pa = origin + np.column_stack(np.unravel_index(lo, f.shape)) * h

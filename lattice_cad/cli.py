@@ -341,9 +341,10 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         with con.step("mesh" + (" + skin" if args.skin else "")):
             mesh = lat.mesh()
         density = ""
+        volume = mesh.volume  # once: a sum over every triangle
         if lat.part is not None and lat.part.volume > 0:
-            density = f", relative density {mesh.volume / lat.part.volume:.3f}"
-        con.say(f"{len(mesh.faces):,} triangles, volume {mesh.volume:.6g} mm^3{density}")
+            density = f", relative density {volume / lat.part.volume:.3f}"
+        con.say(f"{len(mesh.faces):,} triangles, volume {volume:.6g} mm^3{density}")
         if lat.skin_report is not None:
             con.say(lat.skin_report.summary())
         if lat.keep_report is not None:

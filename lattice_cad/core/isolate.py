@@ -94,6 +94,11 @@ class IsolatedWorker:
     def submitted(self) -> bool:
         return self._future is not None
 
+    @property
+    def running(self) -> bool:
+        """A call was submitted and has not finished yet (its result is not in)."""
+        return self._future is not None and self._pool is not None and not self._future.done()
+
     def result(self, *, timeout: float, what: str) -> Any:
         """The call's result (its exception re-raised), then the child is ended.
 

@@ -185,18 +185,20 @@ def collapse_faces(
 
 def _closed_manifold(f: NDArray[np.int64]) -> bool:
     """Every edge used exactly twice, once in each direction."""
-    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    und, cnt = np.unique(np.sort(he, axis=1), axis=0, return_counts=True)
-    if not (cnt == 2).all():
-        return False
-    return len(np.unique(he, axis=0)) == len(he)
+    from lattice_cad.io._rounding_kernels import closed_oriented
+
+    if len(f) == 0:
+        return True
+    f = np.ascontiguousarray(f, dtype=np.int64)
+    return bool(closed_oriented(f, int(f.max()) + 1))
 
 
 def _flat_triangles(v: NDArray[np.float64], f: NDArray[np.int64]) -> NDArray[np.bool_]:
     """(F,) bool: triangles of zero area (exactly, in the coordinates given)."""
-    t = v[f]
-    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    return ~np.any(n != 0.0, axis=1)
+    from lattice_cad.io._rounding_kernels import flat_mask
+
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    return flat_mask(v, np.ascontiguousarray(f, dtype=np.int64))
 
 
 # ---------------------------------------------------------------- utilities

@@ -34,51 +34,28 @@ def flat_triangles(v: NDArray[np.float64], f: NDArray[np.int64]) -> NDArray[np.b
 
     v : (V, 3) float64, f : (F, 3) int64.
     """
-    t = v[f]
-    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    return ~np.any(n != 0.0, axis=1)
+    from lattice_cad.io._rounding_kernels import flat_mask
+
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    return flat_mask(v, np.ascontiguousarray(f, dtype=np.int64))
 
 
 def _corner_fans(f: NDArray[np.int64], n_vertices: int) -> NDArray[np.int64]:
     """(F, 3) int64: the fan (connected set of faces around a vertex, joined across edges
     that have exactly two faces of opposite orientation) of every corner, numbered 0.."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from lattice_cad.io._rounding_kernels import corner_fans
 
-    nf = len(f)
-    corner = np.arange(3 * nf).reshape(nf, 3)
-    # half-edges k -> k+1 of each face, with the corners of their two endpoints
-    a = f.ravel()
-    b = f[:, [1, 2, 0]].ravel()
-    ca = corner.ravel()
-    cb = corner[:, [1, 2, 0]].ravel()
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    key = lo * np.int64(n_vertices) + hi
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    start = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
-    count = np.diff(np.r_[start, len(ks)])
-    two = start[count == 2]
-    h1, h2 = order[two], order[two + 1]
-    opposite = a[h1] == b[h2]  # the two faces use the edge in opposite directions
-    h1, h2 = h1[opposite], h2[opposite]
-    # endpoint a of h1 is endpoint b of h2 and vice versa: join those corners
-    rows = np.concatenate([ca[h1], cb[h1]])
-    cols = np.concatenate([cb[h2], ca[h2]])
-    graph = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(3 * nf,) * 2)
-    _, labels = connected_components(graph, directed=False)
-    return labels.reshape(nf, 3)
+    return corner_fans(np.ascontiguousarray(f, dtype=np.int64), int(n_vertices))
 
 
 def pinched_vertices(f: NDArray[np.int64], n_vertices: int) -> NDArray[np.int64]:
     """(K,) int64: vertices whose faces form more than one fan (or lie on an edge with
     other than two faces)."""
+    from lattice_cad.io._rounding_kernels import pinched
+
     if len(f) == 0:
         return np.zeros(0, dtype=np.int64)
-    fans = _corner_fans(f, n_vertices)
-    pairs = np.unique(np.stack([f.ravel(), fans.ravel()], axis=1), axis=0)
-    n_fans = np.bincount(pairs[:, 0], minlength=n_vertices)
-    return np.flatnonzero(n_fans > 1)
+    return pinched(np.ascontiguousarray(f, dtype=np.int64), int(n_vertices))
 
 
 def _flip_or_collapse(
