@@ -69,6 +69,8 @@ WALL_RTOL = 0.02
 WALL_ATOL = 0.02
 #: The voxel method's surfaces are simplified to this fraction of the wall's accuracy bound.
 SIMPLIFY_FRACTION = 0.25
+#: The voxel method puts the creases of its inner surface back (conformal.skin_crease).
+SHARPEN_CREASES = True
 
 
 @dataclass(frozen=True)
@@ -425,6 +427,10 @@ def _voxel_surfaces(
     tol = SIMPLIFY_FRACTION * WALL_RTOL * thickness
     for level in (thickness, 0.5 * thickness) if mid_wall else (thickness,):
         v, f = marching_tets(depth - level, origin, h)  # depth is sampled at the grid points
+        if SHARPEN_CREASES and len(f):  # the creases back (conformal.skin_crease)
+            from conformal.skin_crease import sharpen
+
+            v, f, _ = sharpen(v, f, part, level, 0.5 * WALL_RTOL * level)
         if len(f) == 0:
             out.append(manifold3d.Manifold())
             continue
