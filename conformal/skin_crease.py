@@ -118,9 +118,12 @@ def _snap_vertices(
     good &= np.linalg.norm(x - x0, axis=1) < 2.0 * level
     out = v.copy()
     out[off[good]] = x[good]
-    n0 = _normals(v, f)
-    for _ in range(10):  # a move that turns a face over is undone
-        bad = np.einsum("ij,ij->i", _normals(out, f), n0) <= 0.0
+    # a move that turns a face against the level set (whose outward normal, for the
+    # inset, is minus the distance gradient) is undone
+    outward = -(n[f[:, 0]] + n[f[:, 1]] + n[f[:, 2]])
+    before = np.einsum("ij,ij->i", _normals(v, f), outward) <= 0.0
+    for _ in range(10):
+        bad = (np.einsum("ij,ij->i", _normals(out, f), outward) <= 0.0) & ~before
         if not bad.any():
             break
         idx = f[bad].ravel()
@@ -128,117 +131,118 @@ def _snap_vertices(
     return out, int(np.count_nonzero(np.any(out != v, axis=1)))
 
 
-def _split(
+def _crease_splits(
     v: NDArray[np.float64],
     f: NDArray[np.int64],
     surface: Any,
     level: float,
     tol: float,
-    grad: NDArray[np.float64],
-    off: NDArray[np.float64],
-    gok: NDArray[np.bool_],
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], int]:
-    """Split the faces whose centres are off the level at their crease points.
-
-    Returns the new vertices and faces, for each face the index of its new apex vertex
-    (-1: not a child of a split), and the number of faces split.
-    """
-    dc = surface.distance(v[f].mean(axis=1), max_distance=2.0 * level)
-    bad = np.flatnonzero(np.isfinite(dc) & (np.abs(dc - level) > tol) & gok[f].all(axis=1))
-    apex = np.full(len(f), -1, dtype=np.int64)
-    if not len(bad):
-        return v, f, apex, 0
-    tri = v[f[bad]]
-    centre = tri.mean(axis=1)
-    p = _plane_points(grad[f[bad]], off[f[bad]], centre)
-    # the point must lie on the level and over the face (barycentric coordinates of its
-    # projection inside), and no part of the face may turn over
-    dp = surface.distance(p, max_distance=2.0 * level)
-    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    nrm = np.cross(e1, e2)
-    nn = np.einsum("ij,ij->i", nrm, nrm)
-    w = p - tri[:, 0]
-    b1 = np.einsum("ij,ij->i", np.cross(w, e2), nrm) / nn
-    b2 = np.einsum("ij,ij->i", np.cross(e1, w), nrm) / nn
-    good = np.isfinite(dp) & (np.abs(dp - level) <= 0.5 * tol) & (nn > 0)
-    good &= (b1 > 0.02) & (b2 > 0.02) & (1.0 - b1 - b2 > 0.02)
-    for k in range(3):
-        a, c = tri[:, k], tri[:, (k + 1) % 3]
-        good &= np.einsum("ij,ij->i", np.cross(c - a, p - a), nrm) > 0
-    bad, p = bad[good], p[good]
-    if not len(bad):
-        return v, f, apex, 0
-    nv = len(v)
-    new = nv + np.arange(len(bad), dtype=np.int64)
-    a, b, c = f[bad, 0], f[bad, 1], f[bad, 2]
-    f = f.copy()
-    f[bad] = np.stack([a, b, new], axis=1)
-    f = np.vstack([f, np.stack([b, c, new], axis=1), np.stack([c, a, new], axis=1)])
-    apex = np.full(len(f), -1, dtype=np.int64)
-    apex[bad] = new
-    apex[len(f) - 2 * len(bad) :] = np.concatenate([new, new])
-    return np.vstack([v, p]), f, apex, len(bad)
-
-
-def _flip(
-    v: NDArray[np.float64],
-    f: NDArray[np.int64],
-    apex: NDArray[np.int64],
-    surface: Any,
-    level: float,
-    tol: float,
-) -> tuple[NDArray[np.int64], int]:
-    """Flip the base edge ``a b`` of two children ``(a, b, p)``, ``(b, a, q)`` of split
-    faces to ``p q`` where the two new faces lie closer to the level (each child has one
-    base edge, so the flips of a pass are disjoint)."""
-    kids = np.flatnonzero(apex >= 0)
-    if not len(kids):
-        return f, 0
-    # children are stored with the apex last: (a, b, p)
-    a, b = f[kids, 0], f[kids, 1]
+    cos_crease: float = 0.985,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], int]:
+    """Split every edge across a crease (its ends' distance gradients more than about
+    10 degrees apart, its midpoint off the level) at the crease point over it: on both
+    ends' tangent planes (their crease line) and on the plane through the edge across the
+    surface. Every face is then split conformingly by its split edges (1: in two, 2: a
+    triangle at the crease and a quad in two, 3: in four), so the surface stays closed
+    and 2-manifold; a split whose faces would turn against the level set is not made."""
+    d, grad, off, gok = _gradients(v, surface, level)
     nv = np.int64(len(v))
-    key = a * nv + b
-    order = np.argsort(key)
-    skey = key[order]
-    twin = b * nv + a
-    pos = np.minimum(np.searchsorted(skey, twin), len(skey) - 1)
-    has = skey[pos] == twin
-    i = kids[has]
-    j = kids[order[pos[has]]]
-    keep = i < j  # each pair once
-    i, j = i[keep], j[keep]
-    if not len(i):
-        return f, 0
-    a, b, p, q = f[i, 0], f[i, 1], f[i, 2], f[j, 2]
-    old = np.abs(
-        np.stack(
-            [
-                surface.distance(v[f[i]].mean(axis=1), max_distance=2.0 * level),
-                surface.distance(v[f[j]].mean(axis=1), max_distance=2.0 * level),
-            ]
-        )
-        - level
-    ).max(axis=0)
-    n1 = np.stack([a, q, p], axis=1)
-    n2 = np.stack([b, p, q], axis=1)
-    new = np.abs(
-        np.stack(
-            [
-                surface.distance(v[n1].mean(axis=1), max_distance=2.0 * level),
-                surface.distance(v[n2].mean(axis=1), max_distance=2.0 * level),
-                surface.distance(0.5 * (v[p] + v[q]), max_distance=2.0 * level),
-            ]
-        )
-        - level
-    ).max(axis=0)
-    ref = _normals(v, f[i]) + _normals(v, f[j])
-    ok = np.isfinite(new) & (new < old) & (new <= tol)
-    for tri in (n1, n2):
-        ok &= np.einsum("ij,ij->i", _normals(v, tri), ref) > 0
-    i, j = i[ok], j[ok]
-    f = f.copy()
-    f[i], f[j] = n1[ok], n2[ok]
-    return f, len(i)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.minimum(e[:, 0], e[:, 1]) * nv + np.maximum(e[:, 0], e[:, 1])
+    ukey, inv = np.unique(key, return_inverse=True)
+    a, b = ukey // nv, ukey % nv
+    cand = gok[a] & gok[b] & (np.einsum("ij,ij->i", grad[a], grad[b]) < cos_crease)
+    idx = np.flatnonzero(cand)
+    if not len(idx):
+        return v, f, 0
+    a, b = a[idx], b[idx]
+    mid = 0.5 * (v[a] + v[b])
+    dm = surface.distance(mid, max_distance=2.0 * level)
+    # the plane through the edge across the surface: spanned by the edge and the mean
+    # outward normal of the level set at its ends
+    nrm = -(grad[a] + grad[b])
+    sec = np.cross(v[b] - v[a], nrm)
+    sec /= np.maximum(np.linalg.norm(sec, axis=1, keepdims=True), 1e-300)
+    normals = np.stack([grad[a], grad[b], sec], axis=1)
+    offsets = np.stack([off[a], off[b], np.einsum("ij,ij->i", sec, mid)], axis=1)
+    p = _plane_points(normals, offsets, mid)
+    dp = surface.distance(p, max_distance=2.0 * level)
+    length = np.linalg.norm(v[b] - v[a], axis=1)
+    near = np.minimum(np.linalg.norm(p - v[a], axis=1), np.linalg.norm(p - v[b], axis=1))
+    good = np.isfinite(dm) & (np.abs(dm - level) > tol) & np.isfinite(dp)
+    good &= (np.abs(dp - level) <= 0.5 * tol) & (near > 0.05 * length)
+    good &= np.linalg.norm(p - mid, axis=1) < length
+    split = np.full(len(ukey), -1, dtype=np.int64)
+    split[idx[good]] = nv + np.arange(int(good.sum()))
+    newv = p[good]
+    for _ in range(5):
+        ev = split[inv].reshape(3, -1).T  # (F, 3): new vertex on edge k (k, k+1) or -1
+        vv = np.vstack([v, newv])
+        nf, owner = _subdivide(f, ev)
+        # orientation against the level set's outward normal at the face's corners
+        g_all = np.vstack([grad, _gradients(newv, surface, level)[1]]) if len(newv) else grad
+        nt = _normals_of(vv[nf[:, 0]], vv[nf[:, 1]], vv[nf[:, 2]])
+        out = -(g_all[nf[:, 0]] + g_all[nf[:, 1]] + g_all[nf[:, 2]])
+        flipped = np.einsum("ij,ij->i", nt, out) <= 0
+        flipped &= (ev[owner] >= 0).any(axis=1)  # only faces this pass made
+        if not flipped.any():
+            break
+        bad_faces = np.unique(owner[flipped])
+        drop = np.unique(inv.reshape(3, -1).T[bad_faces].ravel())
+        split[drop] = -1
+    used = np.unique(split[split >= 0])
+    if not len(used):
+        return v, f, 0
+    # renumber the new vertices that are still used
+    remap = np.full(len(newv), -1, dtype=np.int64)
+    remap[used - nv] = nv + np.arange(len(used))
+    split = np.where(split >= 0, remap[np.maximum(split - nv, 0)], -1)
+    ev = split[inv].reshape(3, -1).T
+    nf, _ = _subdivide(f, ev)
+    return np.vstack([v, newv[used - nv]]), nf, len(used)
+
+
+def _subdivide(
+    f: NDArray[np.int64], ev: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Faces (F, 3) split by new vertices on their edges (``ev[i, k]``: the vertex on
+    edge ``f[i, k] f[i, k+1]``, -1 for none), conformingly. Returns the new faces and,
+    for each, the index of the face it came from."""
+    out, owner = [], []
+    cnt = (ev >= 0).sum(axis=1)
+    zero = np.flatnonzero(cnt == 0)
+    out.append(f[zero])
+    owner.append(zero)
+    for k in range(3):  # rotate so the split edges come first
+        a, b, c = f[:, k], f[:, (k + 1) % 3], f[:, (k + 2) % 3]
+        eab, ebc = ev[:, k], ev[:, (k + 1) % 3]
+        one = np.flatnonzero((cnt == 1) & (eab >= 0))
+        out += [np.stack([a[one], eab[one], c[one]], 1), np.stack([eab[one], b[one], c[one]], 1)]
+        owner += [one, one]
+        # two split edges: ab and bc split, ca not (the crease runs ab -> bc around b)
+        two = np.flatnonzero((cnt == 2) & (eab >= 0) & (ebc >= 0))
+        m, n = eab[two], ebc[two]
+        out += [
+            np.stack([m, b[two], n], 1),
+            np.stack([a[two], m, n], 1),
+            np.stack([a[two], n, c[two]], 1),
+        ]
+        owner += [two, two, two]
+    three = np.flatnonzero(cnt == 3)
+    a, b, c = f[three, 0], f[three, 1], f[three, 2]
+    m, n, o = ev[three, 0], ev[three, 1], ev[three, 2]
+    out += [
+        np.stack([a, m, o], 1),
+        np.stack([m, b, n], 1),
+        np.stack([o, n, c], 1),
+        np.stack([m, n, o], 1),
+    ]
+    owner += [three] * 4
+    return np.vstack(out).astype(np.int64), np.concatenate(owner).astype(np.int64)
+
+
+def _normals_of(a: Any, b: Any, c: Any) -> Any:
+    return np.cross(b - a, c - a)
 
 
 def sharpen(
@@ -248,7 +252,7 @@ def sharpen(
     level: float,
     tol: float,
     *,
-    rounds: int = 3,
+    rounds: int = 4,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], dict[str, int]]:
     """The level set ``d = level`` of the distance to ``surface`` with its creases put back.
 
@@ -262,9 +266,9 @@ def sharpen(
     level : float
         The distance (the wall thickness), > 0.
     tol : float
-        Faces whose centres are farther than this off the level are split and flipped.
+        Faces whose centres are farther than this off the level are refined.
     rounds : int
-        Passes of split-and-flip.
+        Passes of crease splits.
 
     Returns
     -------
@@ -272,21 +276,20 @@ def sharpen(
     faces : (F', 3) int64
         Closed, oriented and 2-manifold as the input.
     counts : dict
-        ``{"split": faces split, "flipped": edges flipped}`` over all rounds.
+        ``{"moved": vertices snapped, "split": edges split at crease points}``.
     """
     v = np.asarray(v, dtype=np.float64)
     f = np.asarray(f, dtype=np.int64)
-    counts = {"moved": 0, "split": 0, "flipped": 0}
+    counts = {"moved": 0, "split": 0}
     if not len(f):
         return v, f, counts
     v = project_to_level(v, f, surface, level)
     v, counts["moved"] = _snap_vertices(v, f, surface, level, tol)
     for _ in range(rounds):
-        _, grad, off, gok = _gradients(v, surface, level)
-        v, f, apex, n_split = _split(v, f, surface, level, tol, grad, off, gok)
-        if not n_split:
+        v, f, n = _crease_splits(v, f, surface, level, tol)
+        v, moved = _snap_vertices(v, f, surface, level, tol)
+        counts["split"] += n
+        counts["moved"] += moved
+        if not (n or moved):
             break
-        f, n_flip = _flip(v, f, apex, surface, level, tol)
-        counts["split"] += n_split
-        counts["flipped"] += n_flip
     return v, f, counts
