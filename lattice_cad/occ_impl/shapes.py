@@ -205,13 +205,18 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         No way gives one valid solid; the message names each way's failure (with OCCT's
         ``BRepOffset_Error`` code).
     """
-    why = []
-    for join in OFFSET_JOINS:
-        what = f"offset by {distance:g} ({'arc' if join == GeomAbs_Arc else 'intersection'} joins)"
+    why: list[str] = []
+    shape, divided = solid, False
+    ways = list(OFFSET_JOINS)
+    while ways:
+        join = ways.pop(0)
+        what = f"offset by {distance:g} ({'arc' if join == GeomAbs_Arc else 'intersection'} joins"
+        what += ", faces split to C1)" if divided else ")"
+        err = ""
         try:
             mk = BRepOffsetAPI_MakeOffsetShape()
             with occt_errors(what):
-                mk.PerformByJoin(solid, float(distance), tol, BRepOffset_Skin, False, False, join)
+                mk.PerformByJoin(shape, float(distance), tol, BRepOffset_Skin, False, False, join)
             err = _offset_error(mk)
             if not mk.IsDone():
                 raise OCCTFailure(f"{what}: IsDone() is false" + (f" ({err})" if err else ""))
@@ -219,7 +224,31 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
                 return _as_one_solid(mk.Shape(), what)
         except OCCTFailure as exc:
             why.append(str(exc))
+        if err == "C0Geometry" and not divided:
+            # OCCT offsets C1 surfaces only: split the C0 faces (B-splines with kinks) at
+            # their kinks into C1 patches and start again
+            split = _split_to_c1(shape)
+            if split is not None:
+                shape, divided, ways = split, True, list(OFFSET_JOINS)
     raise OCCTFailure("; ".join(why))
+
+
+def _split_to_c1(shape: TopoDS_Shape) -> TopoDS_Shape | None:
+    """``shape`` with every face (and edge) that is only C0 split into C1 pieces
+    (ShapeUpgrade_ShapeDivideContinuity), or None when nothing was split."""
+    from OCP.GeomAbs import GeomAbs_C1
+    from OCP.ShapeUpgrade import ShapeUpgrade_ShapeDivideContinuity
+
+    div = ShapeUpgrade_ShapeDivideContinuity(shape)
+    div.SetBoundaryCriterion(GeomAbs_C1)
+    div.SetPCurveCriterion(GeomAbs_C1)
+    div.SetSurfaceCriterion(GeomAbs_C1)
+    div.SetTolerance(1e-4)
+    with occt_errors("splitting C0 faces"):
+        if not div.Perform():
+            return None
+        out = div.Result()
+    return None if out is None or out.IsNull() else out
 
 
 def _offsets_bytes(brep: bytes, distances: tuple[float, ...]) -> list[bytes]:
