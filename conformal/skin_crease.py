@@ -57,14 +57,33 @@ def _gradients(
     return d, n, s, ok
 
 
+def _project(
+    v: NDArray[np.float64], f: NDArray[np.int64], surface: Any, level: float, tol: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`project_to_level`, the gradients (V, 3) and the vertices left off the
+    level by more than ``tol`` (V,) bool."""
+    d, n, _, ok = _gradients(np.asarray(v, dtype=np.float64), surface, level)
+    out = project_to_level(v, f, surface, level, gradients=(d, n, ok))
+    moved = np.any(out != v, axis=1)
+    return out, n, ok & ~moved & (np.abs(d - level) > tol)
+
+
 def project_to_level(
-    v: NDArray[np.float64], f: NDArray[np.int64], surface: Any, level: float
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    surface: Any,
+    level: float,
+    *,
+    gradients: Any = None,
 ) -> NDArray[np.float64]:
     """(V, 3) float64: the vertices moved along their distance gradients onto ``d = level``
     (``surface``: a :class:`conformal.part.Part`); a vertex whose move would turn a face
     over stays where it was."""
     v0 = np.asarray(v, dtype=np.float64)
-    d, n, _, ok = _gradients(v0, surface, level)
+    if gradients is None:
+        d, n, _, ok = _gradients(v0, surface, level)
+    else:
+        d, n, ok = gradients
     out = v0.copy()
     out[ok] = v0[ok] + (level - d[ok])[:, None] * n[ok]
     n0 = _normals(v0, f)
@@ -92,13 +111,20 @@ def _plane_points(
 
 
 def _snap_vertices(
-    v: NDArray[np.float64], f: NDArray[np.int64], surface: Any, level: float, tol: float
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    surface: Any,
+    level: float,
+    tol: float,
+    fixed: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.float64], int]:
     """Move the vertices still off the level (a projection would turn a face over: near
     a crease or a corner) to the point nearest them on the tangent planes of their own
-    and their neighbours' closest level points, where no face turns over."""
+    and their neighbours' closest level points, where no face turns over. ``fixed``
+    (V,) bool: vertices that stay (the rim of a piece cut out of a larger surface)."""
     d, n, s, ok = _gradients(v, surface, level)
-    off = np.flatnonzero(ok & (np.abs(d - level) > tol))
+    movable = ok if fixed is None else ok & ~np.pad(fixed, (0, len(v) - len(fixed)))
+    off = np.flatnonzero(movable & (np.abs(d - level) > tol))
     if not len(off):
         return v, 0
     a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
@@ -153,9 +179,10 @@ def _crease_splits(
     nv = np.int64(len(v))
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     key = np.minimum(e[:, 0], e[:, 1]) * nv + np.maximum(e[:, 0], e[:, 1])
-    ukey, inv = np.unique(key, return_inverse=True)
+    ukey, inv, count = np.unique(key, return_inverse=True, return_counts=True)
     a, b = ukey // nv, ukey % nv
     cand = gok[a] & gok[b] & (np.einsum("ij,ij->i", grad[a], grad[b]) < cos_crease)
+    cand &= count == 2  # an edge of the rim of a piece is never split
     idx = np.flatnonzero(cand)
     if not len(idx):
         return v, f, 0
@@ -256,7 +283,7 @@ def sharpen(
     level: float,
     tol: float,
     *,
-    rounds: int = 4,
+    rounds: int = 2,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], dict[str, int]]:
     """The level set ``d = level`` of the distance to ``surface`` with its creases put back.
 
@@ -287,13 +314,39 @@ def sharpen(
     counts = {"moved": 0, "split": 0}
     if not len(f):
         return v, f, counts
-    v = project_to_level(v, f, surface, level)
-    v, counts["moved"] = _snap_vertices(v, f, surface, level, tol)
+    v, grad, near = _project(v, f, surface, level, tol)
+    # the work is local: the faces with a vertex within two edges of a crease (or of a
+    # vertex off the level), cut out as a piece whose rim stays as it is
+    fg = grad[f]
+    cos = np.minimum.reduce(
+        [np.einsum("ij,ij->i", fg[:, k], fg[:, (k + 1) % 3]) for k in range(3)]
+    )
+    hot = np.zeros(len(v), dtype=bool)
+    hot[f[(cos < 0.985) | near[f].any(axis=1)].ravel()] = True
+    for _ in range(2):
+        hot[f[hot[f].any(axis=1)].ravel()] = True
+    inside = hot[f].all(axis=1)
+    piece = hot[f].any(axis=1)
+    if not piece.any():
+        return v, f, counts
+    ids = np.flatnonzero(hot | np.isin(np.arange(len(v)), f[piece].ravel()))
+    local = np.full(len(v), -1, dtype=np.int64)
+    local[ids] = np.arange(len(ids))
+    pv, pf = v[ids], local[f[piece]]
+    rim = np.zeros(len(ids), dtype=bool)
+    rim[local[f[piece & ~inside].ravel()]] = True  # vertices of the piece's outer faces
+    pv, counts["moved"] = _snap_vertices(pv, pf, surface, level, tol, rim)
     for _ in range(rounds):
-        v, f, n = _crease_splits(v, f, surface, level, tol)
-        v, moved = _snap_vertices(v, f, surface, level, tol)
+        pv, pf, n = _crease_splits(pv, pf, surface, level, tol)
+        pv, moved = _snap_vertices(pv, pf, surface, level, tol, rim)
         counts["split"] += n
         counts["moved"] += moved
         if not (n or moved):
             break
+    # back into the whole surface: the piece's vertices moved, its new ones appended
+    v = v.copy()
+    v[ids] = pv[: len(ids)]
+    glob = np.concatenate([ids, len(v) + np.arange(len(pv) - len(ids))])
+    v = np.vstack([v, pv[len(ids) :]])
+    f = np.vstack([f[~piece], glob[pf]])
     return v, f, counts

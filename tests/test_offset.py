@@ -79,6 +79,13 @@ def _box_part(size, angle: float = 0.0) -> Part:
     return Part(m.vertices, m.faces, name="box")
 
 
+@pytest.fixture
+def sharpen_creases(monkeypatch):
+    """The voxel method with its creases put back (``conformal.skin.SHARPEN_CREASES``)."""
+    monkeypatch.setattr(S, "SHARPEN_CREASES", True)
+
+
+@pytest.mark.usefixtures("sharpen_creases")
 def test_voxel_fallback_wall_on_a_box_is_within_a_tenth_of_a_voxel():
     """The inset of a box by t is the box shrunk by t on every side (closed form); the
     voxel surface's creases are put back (conformal.skin_crease), so the wall is within
@@ -102,6 +109,7 @@ def test_voxel_fallback_wall_on_a_box_is_within_a_tenth_of_a_voxel():
     assert np.abs(d - t).max() <= goal, (d.min(), d.max())
 
 
+@pytest.mark.usefixtures("sharpen_creases")
 def test_voxel_fallback_wall_on_a_sphere():
     """Sphere of radius R eroded by t: the sphere of radius R - t (against the mesh the
     wall is measured by: every inner point at t from it within 2 %)."""
