@@ -71,8 +71,8 @@ WALL_ATOL = 0.02
 SIMPLIFY_FRACTION = 0.25
 #: The voxel method puts the creases of its inner surface back (conformal.skin_crease):
 #: box and sphere walls within max(2 % t, h/10) instead of +5.6 %; on real parts the p99
-#: wall drops 2-3 points but the max stays +13..+25 % (thin-cavity rims), for 2-5x the
-#: voxel method's CPU time (featuretype: +10 s on ~6 s). Off until it is cheaper.
+#: wall goes from +9..+14 % to +0.5..+12 % but the max stays +13..+22 % (thin-cavity
+#: rims), for 2-4x the voxel method's CPU time. Off until it is cheaper.
 SHARPEN_CREASES = False
 
 
