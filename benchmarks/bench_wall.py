@@ -17,6 +17,7 @@ Run::
 
     python benchmarks/bench_wall.py                 # all STEP parts
     python benchmarks/bench_wall.py --parts kcl_ --methods auto
+    python benchmarks/bench_wall.py --methods voxel --sharpen   # creases put back
 """
 
 from __future__ import annotations
@@ -46,6 +47,11 @@ def main() -> None:
         action="store_true",
         help="skin the part's default tessellation, not the one Lattice cuts by",
     )
+    ap.add_argument(
+        "--sharpen",
+        action="store_true",
+        help="the voxel method puts its creases back (conformal.skin.SHARPEN_CREASES)",
+    )
     args = ap.parse_args()
     import manifold3d
 
@@ -53,6 +59,7 @@ def main() -> None:
     from conformal import skin as S
     from conformal.trim import cutting_part, protrusion
 
+    S.SHARPEN_CREASES = bool(args.sharpen)
     files = sorted((DATA / "step").iterdir())
     if args.parts:
         files = [f for f in files if any(s in f.name for s in args.parts)]

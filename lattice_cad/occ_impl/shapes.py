@@ -19,18 +19,22 @@ from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
 from OCP.BRepBndLib import BRepBndLib
-from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_Transform
+from OCP.BRepBuilderAPI import (
+    BRepBuilderAPI_Copy,
+    BRepBuilderAPI_MakeSolid,
+    BRepBuilderAPI_Transform,
+)
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepOffset import BRepOffset_Skin
 from OCP.BRepOffsetAPI import BRepOffsetAPI_MakeOffsetShape
 from OCP.BRepTools import BRepTools
-from OCP.GeomAbs import GeomAbs_Arc
+from OCP.GeomAbs import GeomAbs_Arc, GeomAbs_Intersection
 from OCP.gp import gp_Trsf, gp_Vec
 from OCP.GProp import GProp_GProps
 from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
-from OCP.ShapeFix import ShapeFix_Shape
+from OCP.ShapeFix import ShapeFix_Shape, ShapeFix_Solid
 from OCP.TopAbs import TopAbs_COMPOUND, TopAbs_FACE, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
@@ -141,23 +145,110 @@ def fuse(
     return res
 
 
+def _offset_error(mk: Any) -> str:
+    """The name of BRepOffset_MakeOffset's error code (``""`` when it has none)."""
+    try:
+        err = mk.MakeOffset().Error()
+    except Exception:  # pragma: no cover - bindings without the accessor
+        return ""
+    name = str(getattr(err, "name", err))
+    return "" if name.endswith("NoError") else name.replace("BRepOffset_", "")
+
+
+def _as_one_solid(out: TopoDS_Shape, what: str) -> TopoDS_Shape:
+    """The one valid solid of an offset result: as it is, else healed by ShapeFix_Shape,
+    else made from its one closed shell (OCCT's offset can return the shell of the
+    offset, or a solid with small tolerance faults)."""
+    if out is None or out.IsNull():
+        raise OCCTFailure(f"{what}: null shape")
+    found = solids(out)
+    if len(found) == 1 and is_valid(found[0]):
+        return found[0]
+    candidates = []
+    fix = ShapeFix_Shape(out)
+    fix.Perform()
+    candidates.append(fix.Shape())
+    if not found and count(out, TopAbs_SHELL) == 1:
+        exp = TopExp_Explorer(out, TopAbs_SHELL)
+        mk = BRepBuilderAPI_MakeSolid(TopoDS.Shell_s(exp.Current()))
+        if mk.IsDone():
+            sfix = ShapeFix_Solid(mk.Solid())
+            sfix.Perform()
+            candidates.append(sfix.Solid())
+    for cand in candidates:
+        got = solids(cand) if cand is not None and not cand.IsNull() else []
+        if len(got) == 1 and is_valid(got[0]) and volume(got[0]) > 0.0:
+            return got[0]
+    if len(found) > 1:
+        raise OCCTFailure(f"{what}: {len(found)} solids instead of 1")
+    if not found:
+        raise OCCTFailure(f"{what}: no solid (not healed by ShapeFix)")
+    raise OCCTFailure(f"{what}: BRepCheck_Analyzer reports an invalid shape (not healed)")
+
+
+#: The ways :func:`offset_solid` tries, in order: OCCT's offset with arc joins (the true
+#: offset: a concave edge of the part becomes a cylinder of radius ``|distance|``), then
+#: with intersection joins (where the arcs fail; the caller checks the wall thickness).
+OFFSET_JOINS = (GeomAbs_Arc, GeomAbs_Intersection)
+
+
 def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> TopoDS_Shape:
-    """The solid offset by ``distance`` (negative: inward), edges joined by arcs.
+    """The solid offset by ``distance`` (negative: inward).
+
+    Tries arc joins, then intersection joins (:data:`OFFSET_JOINS`); a result that is not
+    one valid solid is healed (ShapeFix, a solid made of its shell) before it is refused.
+    The caller checks that the result is the offset asked for (its wall thickness).
 
     Raises
     ------
     OCCTFailure
-        The offset is not done, has errors, is BRepCheck-invalid or is not one solid.
+        No way gives one valid solid; the message names each way's failure (with OCCT's
+        ``BRepOffset_Error`` code).
     """
-    mk = BRepOffsetAPI_MakeOffsetShape()
-    mk.PerformByJoin(solid, float(distance), tol, BRepOffset_Skin, False, False, GeomAbs_Arc)
-    check_done(mk, f"offset by {distance:g}")
-    out = mk.Shape()
-    check_valid(out, f"offset by {distance:g}")
-    found = solids(out)
-    if len(found) != 1:
-        raise OCCTFailure(f"offset by {distance:g}: {len(found)} solids instead of 1")
-    return found[0]
+    why: list[str] = []
+    shape, divided = solid, False
+    ways = list(OFFSET_JOINS)
+    while ways:
+        join = ways.pop(0)
+        what = f"offset by {distance:g} ({'arc' if join == GeomAbs_Arc else 'intersection'} joins"
+        what += ", faces split to C1)" if divided else ")"
+        err = ""
+        try:
+            mk = BRepOffsetAPI_MakeOffsetShape()
+            with occt_errors(what):
+                mk.PerformByJoin(shape, float(distance), tol, BRepOffset_Skin, False, False, join)
+            err = _offset_error(mk)
+            if not mk.IsDone():
+                raise OCCTFailure(f"{what}: IsDone() is false" + (f" ({err})" if err else ""))
+            with occt_errors(what):
+                return _as_one_solid(mk.Shape(), what)
+        except OCCTFailure as exc:
+            why.append(str(exc))
+        if err == "C0Geometry" and not divided:
+            # OCCT offsets C1 surfaces only: split the C0 faces (B-splines with kinks) at
+            # their kinks into C1 patches and start again
+            split = _split_to_c1(shape)
+            if split is not None:
+                shape, divided, ways = split, True, list(OFFSET_JOINS)
+    raise OCCTFailure("; ".join(why))
+
+
+def _split_to_c1(shape: TopoDS_Shape) -> TopoDS_Shape | None:
+    """``shape`` with every face (and edge) that is only C0 split into C1 pieces
+    (ShapeUpgrade_ShapeDivideContinuity), or None when nothing was split."""
+    from OCP.GeomAbs import GeomAbs_C1
+    from OCP.ShapeUpgrade import ShapeUpgrade_ShapeDivideContinuity
+
+    div = ShapeUpgrade_ShapeDivideContinuity(shape)
+    div.SetBoundaryCriterion(GeomAbs_C1)
+    div.SetPCurveCriterion(GeomAbs_C1)
+    div.SetSurfaceCriterion(GeomAbs_C1)
+    div.SetTolerance(1e-4)
+    with occt_errors("splitting C0 faces"):
+        if not div.Perform():
+            return None
+        out = div.Result()
+    return None if out is None or out.IsNull() else out
 
 
 def _offsets_bytes(brep: bytes, distances: tuple[float, ...]) -> list[bytes]:
