@@ -94,7 +94,6 @@ def test_closed_form_volume_with_exposed_sphere_agrees_with_gprop():
 
 
 def test_fallbacks_are_taken_and_counted(monkeypatch):
-    tetra = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=float)
     rng = np.random.default_rng(3)
     dirs = _random_dirs(rng, 9)
     cases = {

@@ -439,14 +439,13 @@ def build_direct(
             face,
             tol,
         )
-        circ = BRepBuilderAPI_MakeEdge(
-            Geom_Circle(gp_Circ(gp_Ax2(_pnt(h[j] * u[j]), _dir(u[j]), _dir(x[j])), r)), v_top, v_top,
-            0.0, _TWO_PI,
-        )  # fmt: skip
+        circle = Geom_Circle(gp_Circ(gp_Ax2(_pnt(h[j] * u[j]), _dir(u[j]), _dir(x[j])), r))
+        circ = BRepBuilderAPI_MakeEdge(circle, v_top, v_top, 0.0, _TWO_PI)
         if not circ.IsDone():
             raise DirectNotApplicable(f"stump {j}: midpoint circle failed")
         circ_e = circ.Edge()
-        bb.UpdateEdge(circ_e, Geom2d_Line(gp_Pnt2d(0.0, float(h[j])), gp_Dir2d(1.0, 0.0)), face, tol)
+        top = Geom2d_Line(gp_Pnt2d(0.0, float(h[j])), gp_Dir2d(1.0, 0.0))
+        bb.UpdateEdge(circ_e, top, face, tol)
         bb.Add(wire, seam_e.Oriented(TopAbs_FORWARD))
         bb.Add(wire, circ_e.Oriented(TopAbs_REVERSED))
         bb.Add(wire, seam_e.Oriented(TopAbs_REVERSED))
