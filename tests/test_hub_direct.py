@@ -25,9 +25,20 @@ def _spec(dirs, radii, lengths=1.0):
     return max(specs, key=lambda s: len(s.vecs))
 
 
-def _build(spec, direct: bool, monkeypatch):
+def _build(spec, direct: bool, monkeypatch, attempts=None):
     monkeypatch.setattr(truss, "DIRECT", direct)
-    return truss.build_hub(spec, deflection=TOL, angular=config.DEFAULT_ANGULAR, keep_brep=True)
+    if attempts is not None:
+        monkeypatch.setattr(truss, "ATTEMPTS", attempts)
+    try:
+        return truss.build_hub(
+            spec, deflection=TOL, angular=config.DEFAULT_ANGULAR, keep_brep=True
+        )
+    finally:
+        monkeypatch.undo()
+
+
+#: One general fuse of the sphere and the stumps (the chain's second attempt).
+PLAIN = (("fuse", 0.0, True),)
 
 
 def _compare(spec, monkeypatch):
@@ -39,11 +50,19 @@ def _compare(spec, monkeypatch):
     assert new.status == "ok" and old.status == "ok"
     assert new.attempts == ["direct: ok"], new.attempts
     assert not old.attempts[-1].startswith("direct")
-    assert new.volume == pytest.approx(old.volume, rel=1e-6)
+    if abs(new.volume / old.volume - 1.0) > 1e-6:
+        # the chain's pairwise tree fuse lost 1e-5 of the volume on one seeded boundary hub
+        # below; there the one general fuse decides (it agrees with the direct solid)
+        assert old.attempts[-1].startswith("tree")
+        plain = _build(spec, False, monkeypatch, PLAIN)
+        assert plain.status == "ok"
+        assert new.volume == pytest.approx(plain.volume, rel=1e-6)
+    else:
+        assert new.volume == pytest.approx(old.volume, rel=1e-6)
     # the direct solid itself: valid, and GProp agrees with the closed form
     solid = from_bytes(new.brep)
     check_valid(solid, "direct hub")
-    assert volume(solid, eps=config.VOLUME_EPS) == pytest.approx(new.volume, rel=1e-9)
+    assert volume(solid, eps=config.VOLUME_EPS) == pytest.approx(new.volume, rel=1e-7)
     # midpoint circle contract: K points at 2 pi k / K of the strut's frame, same K
     assert [len(c) for c in new.circles] == [len(c) for c in old.circles]
     for j, (cn, co) in enumerate(zip(new.circles, old.circles, strict=True)):
@@ -70,6 +89,7 @@ def _random_dirs(rng, d):
 
 @pytest.mark.parametrize("seed", range(8))
 def test_random_hubs_agree_with_the_booleans(seed, monkeypatch):
+    """Stumps all round the node (the sphere is covered: no sphere face)."""
     rng = np.random.default_rng(1000 + seed)
     d = int(rng.integers(6, 15))
     spec = _spec(_random_dirs(rng, d), 0.08, lengths=rng.uniform(0.8, 1.6, d))
@@ -77,31 +97,55 @@ def test_random_hubs_agree_with_the_booleans(seed, monkeypatch):
     _compare(spec, monkeypatch)
 
 
-def test_closed_form_volume_with_exposed_sphere_agrees_with_gprop():
-    """analytic_volume also covers hubs whose sphere shows (the ball term and the caps):
-    checked against GProp of the boolean hub on hubs the direct B-rep does not build."""
+@pytest.mark.parametrize("seed", range(6))
+def test_random_boundary_hubs_agree_with_the_booleans(seed, monkeypatch):
+    """Stumps in a half space or a cone, as at a part's surface: one sphere face bounded by
+    circle arcs, besides the cylinder faces."""
+    rng = np.random.default_rng(2000 + seed)
+    d = int(rng.integers(3, 9))
+    dirs: list[np.ndarray] = []
+    while len(dirs) < d:  # in the half space x > 0 (or a cone), at least 35 deg apart
+        v = rng.normal(size=3)
+        v[0] = abs(v[0]) + (0.5 if seed % 2 else 0.0)
+        v /= np.linalg.norm(v)
+        if all(v @ w < np.cos(np.radians(35)) for w in dirs):
+            dirs.append(v)
+    spec = _spec(np.array(dirs), 0.08, lengths=rng.uniform(0.8, 1.6, d))
+    assert hub_direct.direct_applies(spec) == ""
+    from lattice_cad.occ_impl.truss import sphere_is_covered
+
+    assert not sphere_is_covered(spec.radius, spec.vecs, spec.r_node, spec.r_mid)
+    _compare(spec, monkeypatch)
+
+
+def test_bent_strut_hub(monkeypatch):
+    """Two stumps (a strut bent at its node): the exposed sphere is one lune."""
+    _compare(_spec(np.array([[1, 0, 0], [-1, 0.3, 0.1]], float), 0.08), monkeypatch)
+
+
+def test_closed_form_volume_agrees_with_gprop_of_the_booleans():
+    """analytic_volume against GProp of the boolean hub (ball term, caps, ellipse arcs)."""
+    from lattice_cad.occ_impl.shapes import volume
+
     rng = np.random.default_rng(5)
     cases = [np.array([[1, 0, 0], [1, 1, 0], [1, 0, 1], [1, -1, -1]], float),  # half space
              np.array([[1, 0, 0], [-1, 0.2, 0], [0, 1, 0]], float),  # degree 3
-             rng.normal(size=(5, 3)) + [2, 0, 0]]  # fmt: skip
+             np.array([[1, 0, 0], [-1, 0.3, 0.1]], float),  # degree 2: a sphere band
+             rng.normal(size=(5, 3)) + [2, 0, 0], _random_dirs(rng, 11)]  # fmt: skip
     for dirs in cases:
         spec = _spec(dirs, 0.1)
-        assert hub_direct.direct_applies(spec) != ""
-        ref = truss.build_hub_solid(spec)
-        assert ref.status == "ok"
+        ref = volume(truss.make_hub_shape(spec, construction="fuse"),
+                     eps=config.VOLUME_EPS)  # fmt: skip
         va = hub_direct.analytic_volume(spec.radius, spec.vecs, float(spec.r_mid[0]), spec.xdirs)
-        assert va == pytest.approx(ref.volume, rel=1e-6)
+        assert va == pytest.approx(ref, rel=1e-6)
 
 
 def test_fallbacks_are_taken_and_counted(monkeypatch):
     rng = np.random.default_rng(3)
     dirs = _random_dirs(rng, 9)
     cases = {
-        # different radii: not covered, booleans
+        # different radii: booleans
         "stumps of different radii": _spec(dirs, rng.uniform(0.06, 0.1, 9)),
-        # all struts in one half space: the sphere is on the boundary
-        "the sphere is part of the boundary": _spec(
-            np.array([[1, 0, 0], [1, 1, 0], [1, 0, 1], [1, -1, -1], [1, 1, -1]], float), 0.1),
         # short stumps: a bisector ellipse reaches a midpoint disc (the booleans then
         # report the disc as not intact: a clean lattice has no such hub)
         "a stump reaches": _spec(dirs, 0.07, lengths=0.2),
@@ -112,6 +156,14 @@ def test_fallbacks_are_taken_and_counted(monkeypatch):
             res = _build(spec, True, monkeypatch)
             assert res.status == "ok" and len(res.attempts) == 1
             assert not res.attempts[0].startswith("direct")
+    # a straight strut through its node: the exposed sphere is a band (two boundary
+    # loops); declined inside build_direct, built by the booleans, the attempt recorded
+    spec = _spec(np.array([[1, 0, 0], [-1, 0, 0]], float), 0.08)
+    assert hub_direct.direct_applies(spec) == ""
+    res = _build(spec, True, monkeypatch)
+    assert res.status == "ok"
+    assert res.attempts[0].startswith("direct: DirectNotApplicable")
+    assert res.attempts[-1].endswith(": ok") and len(res.attempts) == 2
     # a symmetric node (BCC: four stumps meet at each triple point) is declined inside
     # build_direct; the booleans then build it and the attempt is recorded
     bcc = np.array([[x, y, z] for x in (1, -1) for y in (1, -1) for z in (1, -1)], float)

@@ -38,6 +38,7 @@ four stumps meeting at one point, as in symmetric voxel nodes). Everything else 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -241,18 +242,16 @@ def direct_applies(spec: object) -> str:
 
     ``spec`` is a :class:`lattice_cad.occ_impl.truss.HubSpec`.
     """
-    from lattice_cad.occ_impl.truss import sphere_is_covered
-
     vecs = np.asarray(spec.vecs, dtype=np.float64)  # type: ignore[attr-defined]
     r_node = np.asarray(spec.r_node, dtype=np.float64)  # type: ignore[attr-defined]
     r_mid = np.asarray(spec.r_mid, dtype=np.float64)  # type: ignore[attr-defined]
     r = float(r_mid[0])
-    if len(vecs) < 4:
-        return "fewer than 4 stumps"
+    if len(vecs) < 2:
+        return "fewer than 2 stumps"
     if np.any(np.abs(r_node - r) > 1e-12 * r) or np.any(np.abs(r_mid - r) > 1e-12 * r):
         return "stumps of different radii or tapered"
-    if not sphere_is_covered(float(spec.radius), vecs, r_node, r_mid):  # type: ignore[attr-defined]
-        return "the sphere is part of the boundary"
+    if not float(spec.radius) > r * (1.0 + 1e-9):  # type: ignore[attr-defined]
+        return "the sphere is not larger than the stumps"
     h = np.linalg.norm(vecs, axis=1)
     u = vecs / h[:, None]
     ca = np.clip(u @ u.T, -1.0, 1.0)
@@ -340,27 +339,48 @@ def build_direct(
     bb = BRep_Builder()
     origin = gp_Pnt(0.0, 0.0, 0.0)
 
-    # 1. the envelope of every face, its vertices (triple points and seam points)
+    R = float(radius)
+    c = math.sqrt(max(R * R - r * r, 0.0))
+    if not c > 1e-9 * r:
+        raise DirectNotApplicable("the sphere is not larger than the stumps")
+    # 1. the envelope of every face (owner -1: the sphere), its vertices (where three
+    # stumps meet, where two stumps meet the sphere, and the seam points)
     loops = []  # per face: list of (k, theta0, theta1, key0, key1)
     points: dict[object, NDArray[np.float64]] = {}
     for j in range(d):
-        breaks, owner, A, B = envelope(u, x, y, j)
+        breaks, owner, A, B = envelope(u, x, y, j, floor=c / r)
         segs = []
         m = len(owner)
         if m < 2:
             raise DirectNotApplicable(f"stump {j}: one neighbour all around")
+        if owner[0] != owner[-1]:
+            raise DirectNotApplicable(f"stump {j}: a vertex on the seam")
+        keys = []
+        for i in range(m + 1):  # the vertex at breaks[i], between pieces i - 1 and i
+            th = float(breaks[i])
+            k = int(owner[min(i, m - 1)])
+            s = c if k < 0 else r * (A[k] * math.cos(th) + B[k] * math.sin(th))
+            if s <= 0.0:  # pragma: no cover - the floor c > 0 is in the envelope
+                raise DirectNotApplicable(f"stump {j}: its side reaches the node")
+            p = s * u[j] + r * (math.cos(th) * x[j] + math.sin(th) * y[j])
+            if i in (0, m):
+                key: object = ("s", j)
+            else:
+                k0, k1 = int(owner[i - 1]), int(owner[i])
+                if k0 >= 0 and k1 >= 0:  # three stumps: one such point
+                    key = frozenset((j, k0, k1))
+                else:  # two stumps and the sphere: two such points, mirror images
+                    a_, b_ = min(j, k0 + k1 + 1), max(j, k0 + k1 + 1)
+                    side = float(p @ np.cross(u[a_], u[b_]))
+                    if abs(side) < 1e-9 * r:
+                        raise DirectNotApplicable(f"stump {j}: an arc touches the sphere")
+                    key = ("S", a_, b_, side > 0)
+            if key not in points:
+                points[key] = p
+            keys.append(key)
         for i in range(m):
-            k = int(owner[i])
-            th0, th1 = float(breaks[i]), float(breaks[i + 1])
-            key0 = ("s", j) if i == 0 else frozenset((j, k, int(owner[i - 1])))
-            key1 = ("s", j) if i == m - 1 else frozenset((j, k, int(owner[i + 1])))
-            for key, th in ((key0, th0), (key1, th1)):
-                if key not in points:
-                    s = r * (A[k] * math.cos(th) + B[k] * math.sin(th))
-                    if s <= 0.0:
-                        raise DirectNotApplicable(f"stump {j}: its side reaches the node")
-                    points[key] = s * u[j] + r * (math.cos(th) * x[j] + math.sin(th) * y[j])
-            segs.append((k, th0, th1, key0, key1))
+            segs.append((int(owner[i]), float(breaks[i]), float(breaks[i + 1]), keys[i],
+                         keys[i + 1]))  # fmt: skip
         loops.append(segs)
     verts = {key: _vertex(bb, p, tol) for key, p in points.items()}
 
@@ -369,6 +389,8 @@ def build_direct(
     on_ell: dict[tuple[int, int], dict[object, float]] = {}
     for j, segs in enumerate(loops):
         for k, _, _, k0, k1 in segs:
+            if k < 0:
+                continue
             pair = (min(j, k), max(j, k))
             if pair not in ells:
                 ells[pair] = _Ellipse(u, pair[0], pair[1], r)
@@ -404,6 +426,7 @@ def build_direct(
         return out if fwd else out[::-1]
 
     # 3. faces
+    floor_arcs: list[tuple[int, float, float, object, object, object]] = []
     shell = TopoDS_Shell()
     bb.MakeShell(shell)
     for j in range(d):
@@ -414,8 +437,18 @@ def build_direct(
         wire = TopoDS_Wire()
         bb.MakeWire(wire)
         segs = loops[j]
-        # bottom: ellipse arcs in increasing theta
+        # bottom: ellipse arcs and sphere circle arcs in increasing theta
         for k, th0, th1, k0, k1 in segs:
+            if k < 0:  # on the circle where the sphere meets this stump (parameter theta)
+                circle = Geom_Circle(gp_Circ(gp_Ax2(_pnt(c * u[j]), _dir(u[j]), _dir(x[j])), r))
+                mk = BRepBuilderAPI_MakeEdge(circle, verts[k0], verts[k1], th0, th1)
+                if not mk.IsDone():
+                    raise DirectNotApplicable(f"stump {j}: sphere circle arc failed")
+                edge = mk.Edge()
+                bb.UpdateEdge(edge, Geom2d_Line(gp_Pnt2d(0.0, c), gp_Dir2d(1.0, 0.0)), face, tol)
+                bb.Add(wire, edge.Oriented(TopAbs_FORWARD))
+                floor_arcs.append((j, th0, th1, k0, k1, edge))
+                continue
             pair = (min(j, k), max(j, k))
             for ekey, fwd in arc_edges(pair, k0, k1):
                 edge, t0, t1 = edges[ekey]
@@ -461,6 +494,8 @@ def build_direct(
         bb.Add(dw, circ_e.Oriented(TopAbs_FORWARD))
         bb.Add(disc, dw)
         bb.Add(shell, disc)
+    if floor_arcs:
+        bb.Add(shell, _sphere_face(bb, floor_arcs, u, x, y, R, c, tol))
     shell.Closed(True)
     solid = TopoDS_Solid()
     bb.MakeSolid(solid)
@@ -474,6 +509,182 @@ def _vertex(bb: BRep_Builder, p: NDArray[np.float64], tol: float) -> object:
     v = TopoDS_Vertex()
     bb.MakeVertex(v, _pnt(p), tol)
     return v
+
+
+def _sphere_axis(
+    u: NDArray[np.float64], f: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Axis and x direction of the sphere surface with both poles well inside stumps' caps
+    (``p . u_k > f`` for some ``k``), so that no pole lies on the exposed sphere face."""
+    i = np.arange(64) + 0.5
+    zc = 1.0 - i / 64.0  # a half sphere of candidates (a and -a give the same poles)
+    phi = math.pi * (1.0 + 5**0.5) * i
+    rho = np.sqrt(1 - zc * zc)
+    fib = np.column_stack([rho * np.cos(phi), rho * np.sin(phi), zc])
+    cands = np.vstack([u, fib])
+    proj = cands @ u.T  # (n, d)
+    score = np.minimum(proj.max(axis=1), (-proj).max(axis=1)) - f
+    best = int(np.argmax(score))
+    if score[best] < 0.2:
+        raise DirectNotApplicable("no sphere axis with both poles inside stumps")
+    z = cands[best] / np.linalg.norm(cands[best])
+    xd = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    return z, xd / np.linalg.norm(xd)
+
+
+def _sphere_face(
+    bb: BRep_Builder,
+    arcs: list[tuple[int, float, float, object, object, object]],
+    u: NDArray[np.float64],
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    R: float,
+    c: float,
+    tol: float,
+) -> TopoDS_Face:
+    """The exposed part of the sphere: one face bounded by the circle arcs (used reversed).
+
+    Declines (:class:`DirectNotApplicable`) unless the arcs form one loop that does not
+    wind round the sphere's axis and runs counter-clockwise in the surface's parameters
+    (one disc-like face, both poles covered)."""
+    from OCP.Geom import Geom_SphericalSurface
+
+    r = math.sqrt(R * R - c * c)
+    start = {}
+    for a in arcs:
+        if a[4] in start:
+            raise DirectNotApplicable("the exposed sphere has a degenerate boundary")
+        start[a[4]] = a  # in the sphere face the arc runs from key1 back to key0
+    # one loop through every arc
+    loop = [arcs[0]]
+    while True:
+        nxt = start.get(loop[-1][3])
+        if nxt is None:
+            raise DirectNotApplicable("the exposed sphere's boundary is not closed")
+        if nxt is loop[0]:
+            break
+        loop.append(nxt)
+        if len(loop) > len(arcs):
+            raise DirectNotApplicable("the exposed sphere's boundary does not close")
+    if len(loop) != len(arcs):
+        raise DirectNotApplicable("the exposed sphere has more than one boundary loop")
+    z, xs = _sphere_axis(u, c / R)
+    ys = np.cross(z, xs)
+    prev_u = None
+    first_u = None
+    area = 0.0
+    samples = []
+    for j, th0, th1, _, _, edge in loop:
+        n = max(_FIT_POINTS, int(24 * (th1 - th0) / math.pi) + 1)
+        t = np.linspace(th0, th1, n)
+        p = c * u[j] + r * (np.cos(t)[:, None] * x[j] + np.sin(t)[:, None] * y[j])
+        uu = np.unwrap(np.arctan2(p @ ys, p @ xs))
+        vv = np.arcsin(np.clip(p @ z / R, -1.0, 1.0))
+        if prev_u is None:
+            first_u = uu[-1]
+        else:  # the arc runs from th1 to th0 in this face: its th1 end meets prev_u
+            uu += _TWO_PI * round((prev_u - uu[-1]) / _TWO_PI)
+        prev_u = uu[0]
+        # shoelace over the reversed arc (from th1 to th0)
+        area += 0.5 * float(np.sum(uu[1:] * vv[:-1] - uu[:-1] * vv[1:]))
+        samples.append((t, uu, vv, edge))
+    if abs(prev_u - first_u) > 1e-6:
+        raise DirectNotApplicable("the exposed sphere winds round the sphere's axis")
+    if area <= 0.0:
+        raise DirectNotApplicable("the exposed sphere is not a disc in the surface parameters")
+    # turn the seam (u = 0) away from the face: its u range inside (0, 2 pi)
+    umin = min(float(sm[1].min()) for sm in samples)
+    umax = max(float(sm[1].max()) for sm in samples)
+    gap = _TWO_PI - (umax - umin)
+    if gap < 1e-3:
+        raise DirectNotApplicable("the exposed sphere spans every longitude")
+    a = umin - 0.5 * gap
+    xs, ys = math.cos(a) * xs + math.sin(a) * ys, -math.sin(a) * xs + math.cos(a) * ys
+    surf = Geom_SphericalSurface(gp_Ax3(gp_Pnt(0.0, 0.0, 0.0), _dir(z), _dir(xs)), R)
+    face = TopoDS_Face()
+    bb.MakeFace(face, surf, tol)
+    wire = TopoDS_Wire()
+    bb.MakeWire(wire)
+    for (t, uu, _, edge), (j, *_rest) in zip(samples, loop, strict=True):
+        _fit_pcurve(bb, edge, face, float(t[0]), float(t[-1]),
+                    _sphere_uv(c, r, R, u[j], x[j], y[j], z, xs, ys, float(uu[0] - a)),
+                    (R, R), tol)  # fmt: skip
+        bb.Add(wire, edge.Oriented(TopAbs_REVERSED))
+    bb.Add(face, wire)
+    return face
+
+
+def _sphere_uv(
+    c: float,
+    r: float,
+    R: float,
+    uj: NDArray[np.float64],
+    xj: NDArray[np.float64],
+    yj: NDArray[np.float64],
+    z: NDArray[np.float64],
+    xs: NDArray[np.float64],
+    ys: NDArray[np.float64],
+    ref: float,
+) -> Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """Sphere parameters of the circle ``c uj + r (cos t xj + sin t yj)``, longitude
+    unwrapped from ``ref`` at the first ``t``."""
+
+    def exact(t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        p = c * uj + r * (np.cos(t)[:, None] * xj + np.sin(t)[:, None] * yj)
+        lon = np.unwrap(np.arctan2(p @ ys, p @ xs))
+        lon += _TWO_PI * round((ref - lon[0]) / _TWO_PI)
+        return lon, np.arcsin(np.clip(p @ z / R, -1.0, 1.0))
+
+    return exact
+
+
+def _fit_pcurve(
+    bb: BRep_Builder,
+    edge: object,
+    face: TopoDS_Face,
+    t0: float,
+    t1: float,
+    exact: Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]],
+    scale: tuple[float, float],
+    tol: float,
+) -> None:
+    """Attach the parameter curve ``exact(t) -> (pu, pv)`` of ``edge`` on ``face`` for the
+    edge parameters ``t0 <= t <= t1``: a B-spline fit through exact points, its parameter
+    mapped onto ``[t0, t1]``. Checked at the midpoints between the fitted points (error
+    times ``scale``, mm per unit of u and of v, below ``tol / 10``), with twice the points
+    until it is (else :class:`DirectNotApplicable`); BRepCheck then checks the curve
+    against the 3D edge."""
+    n = max(_FIT_POINTS, int(24 * abs(t1 - t0) / math.pi) + 1)
+    for _ in range(4):
+        t = np.linspace(t0, t1, 2 * n - 1)
+        pu, pv = exact(t)
+        pts = TColgp_Array1OfPnt2d(1, n)
+        par = TColStd_Array1OfReal(1, n)
+        for i in range(n):
+            pts.SetValue(i + 1, gp_Pnt2d(float(pu[2 * i]), float(pv[2 * i])))
+            par.SetValue(i + 1, float(t[2 * i]))
+        fit = Geom2dAPI_PointsToBSpline(pts, par, 3, 8, GeomAbs_C2, 1e-3 * tol)
+        if not fit.IsDone():
+            raise DirectNotApplicable("parameter curve fit failed")
+        curve = fit.Curve()
+        # the fit's parameter is (t - t0) / (t1 - t0)
+        err = 0.0
+        for i in range(1, 2 * n - 1, 2):
+            q = curve.Value((float(t[i]) - t0) / (t1 - t0))
+            err = max(err, abs(q.X() - pu[i]) * scale[0] + abs(q.Y() - pv[i]) * scale[1])
+        if err < 0.1 * tol:
+            break
+        n *= 2
+    else:
+        raise DirectNotApplicable(f"parameter curve fit error {err:.2g} mm")
+    # give it the edge's range
+    nk = curve.NbKnots()
+    knots = TColStd_Array1OfReal(1, nk)
+    curve.Knots(knots)
+    for i in range(1, nk + 1):
+        knots.SetValue(i, t0 + (t1 - t0) * knots(i))
+    curve.SetKnots(knots)
+    bb.UpdateEdge(edge, curve, face, tol)
 
 
 def _pcurve_on_cylinder(
@@ -493,27 +704,16 @@ def _pcurve_on_cylinder(
     """The parameter curve of an ellipse arc on cylinder ``j`` (B-spline in the ellipse
     parameter: ``theta`` linear, ``s`` a cosine), ``theta`` unwrapped into the face's
     piece ``[th0, th1]``."""
-    t = np.linspace(t0, t1, _FIT_POINTS)
+    t = np.array([t0, t1])
     p = ell.point(t)
     th = np.unwrap(np.arctan2(p @ yj, p @ xj))
     lo, hi = min(th0, th1), max(th0, th1)
-    mid = 0.5 * (th[0] + th[-1])
-    th += _TWO_PI * round((0.5 * (lo + hi) - mid) / _TWO_PI)
-    s = p @ uj
-    pts = TColgp_Array1OfPnt2d(1, _FIT_POINTS)
-    par = TColStd_Array1OfReal(1, _FIT_POINTS)
-    for i in range(_FIT_POINTS):
-        pts.SetValue(i + 1, gp_Pnt2d(float(th[i]), float(s[i])))
-        par.SetValue(i + 1, float(t[i]))
-    fit = Geom2dAPI_PointsToBSpline(pts, par, 3, 8, GeomAbs_C2, 1e-3 * tol)
-    if not fit.IsDone():
-        raise DirectNotApplicable("parameter curve fit failed")
-    curve = fit.Curve()
-    # the fit's parameter is (t - t0) / (t1 - t0): give it the edge's range
-    nk = curve.NbKnots()
-    knots = TColStd_Array1OfReal(1, nk)
-    curve.Knots(knots)
-    for i in range(1, nk + 1):
-        knots.SetValue(i, t0 + (t1 - t0) * knots(i))
-    curve.SetKnots(knots)
-    bb.UpdateEdge(edge, curve, face, tol)
+    shift = _TWO_PI * round((0.5 * (lo + hi) - 0.5 * (th[0] + th[-1])) / _TWO_PI)
+    ref = th[0] + shift
+
+    def exact(tt: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        q = ell.point(tt)
+        a = np.unwrap(np.arctan2(q @ yj, q @ xj))
+        return a + _TWO_PI * round((ref - a[0]) / _TWO_PI), q @ uj
+
+    _fit_pcurve(bb, edge, face, t0, t1, exact, (ell.r, 1.0), tol)
