@@ -647,13 +647,16 @@ def _fit_pcurve(
     exact: Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]],
     scale: tuple[float, float],
     tol: float,
+    *,
+    check: bool = True,
 ) -> None:
     """Attach the parameter curve ``exact(t) -> (pu, pv)`` of ``edge`` on ``face`` for the
     edge parameters ``t0 <= t <= t1``: a B-spline fit through exact points, its parameter
     mapped onto ``[t0, t1]``. Checked at the midpoints between the fitted points (error
     times ``scale``, mm per unit of u and of v, below ``tol / 10``), with twice the points
-    until it is (else :class:`DirectNotApplicable`); BRepCheck then checks the curve
-    against the 3D edge."""
+    until it is (else :class:`DirectNotApplicable`); without ``check`` (the smooth
+    cylinder curves) that is left to BRepCheck, which checks every curve against its 3D
+    edge."""
     n = max(_FIT_POINTS, int(24 * abs(t1 - t0) / math.pi) + 1)
     for _ in range(4):
         t = np.linspace(t0, t1, 2 * n - 1)
@@ -667,6 +670,8 @@ def _fit_pcurve(
         if not fit.IsDone():
             raise DirectNotApplicable("parameter curve fit failed")
         curve = fit.Curve()
+        if not check:
+            break
         # the fit's parameter is (t - t0) / (t1 - t0)
         err = 0.0
         for i in range(1, 2 * n - 1, 2):
@@ -716,4 +721,4 @@ def _pcurve_on_cylinder(
         a = np.unwrap(np.arctan2(q @ yj, q @ xj))
         return a + _TWO_PI * round((ref - a[0]) / _TWO_PI), q @ uj
 
-    _fit_pcurve(bb, edge, face, t0, t1, exact, (ell.r, 1.0), tol)
+    _fit_pcurve(bb, edge, face, t0, t1, exact, (ell.r, 1.0), tol, check=False)

@@ -19,6 +19,13 @@ midpoint discs. A failure is never an exception leaking out of
 attempt) after the retries (:data:`ATTEMPTS`: pairwise fuses in a balanced tree, one
 general fuse, a fuzzy value, untrimmed primitives, then fusing one stump at a time).
 
+Hubs whose stumps are cylinders of one radius (most hubs of a lattice) are first built
+without a boolean, face by face (:mod:`lattice_cad.occ_impl.hub_direct`, :data:`DIRECT`):
+the same solid, checked the same way (BRepCheck, one solid, positive volume, intact
+midpoint circles), its volume in closed form; the retries above are its fallback, and
+``HubResult.attempts`` says which path built each hub (``"direct: ok"`` or the boolean
+construction, after a ``"direct: ..."`` line where the direct path declined).
+
 Midpoint circles (how both hubs of a strut get identical vertices)
 ------------------------------------------------------------------
 Each stump is built with ``gp_Ax2(node, axis, xdir)`` where ``xdir`` is the
