@@ -118,6 +118,15 @@ def test_random_boundary_hubs_agree_with_the_booleans(seed, monkeypatch):
     _compare(spec, monkeypatch)
 
 
+def test_symmetric_nodes(monkeypatch):
+    """Four or more faces at one vertex (BCC: at the cube's face directions; with the box
+    struts of Box-BCC too): one vertex, not several close ones."""
+    bcc = np.array([[x, y, z] for x in (1, -1) for y in (1, -1) for z in (1, -1)], float)
+    _compare(_spec(bcc, 0.1), monkeypatch)
+    _compare(_spec(np.vstack([bcc, np.eye(3), -np.eye(3)]), 0.1), monkeypatch)
+    _compare(_spec(bcc[bcc[:, 0] > 0], 0.1), monkeypatch)  # half a BCC node: the sphere shows
+
+
 def test_bent_strut_hub(monkeypatch):
     """Two stumps (a strut bent at its node): the exposed sphere is one lune."""
     _compare(_spec(np.array([[1, 0, 0], [-1, 0.3, 0.1]], float), 0.08), monkeypatch)
@@ -164,19 +173,6 @@ def test_fallbacks_are_taken_and_counted(monkeypatch):
     assert res.status == "ok"
     assert res.attempts[0].startswith("direct: DirectNotApplicable")
     assert res.attempts[-1].endswith(": ok") and len(res.attempts) == 2
-    # a symmetric node (BCC: four stumps meet at each triple point) is declined inside
-    # build_direct; the booleans then build it and the attempt is recorded
-    bcc = np.array([[x, y, z] for x in (1, -1) for y in (1, -1) for z in (1, -1)], float)
-    spec = _spec(bcc, 0.1)
-    assert hub_direct.direct_applies(spec) == ""
-    with pytest.raises(hub_direct.DirectNotApplicable, match="more than three faces"):
-        hub_direct.build_direct(spec.radius, spec.vecs, 0.1, spec.xdirs, tol=1e-7)
-    res = _build(spec, True, monkeypatch)
-    assert res.status == "ok"
-    assert res.attempts[0].startswith("direct: DirectNotApplicable")
-    assert res.attempts[-1].endswith(": ok") and len(res.attempts) == 2
-    old = _build(spec, False, monkeypatch)
-    assert res.volume == pytest.approx(old.volume, rel=1e-12)
     # a direct solid that fails its check falls back too (the check is not skipped)
     spec = _spec(dirs, 0.08)
     monkeypatch.setattr(truss, "DIRECT", True)

@@ -76,9 +76,14 @@ __all__ = [
 ]
 
 _TWO_PI = 2.0 * math.pi
-#: A third sinusoid this close (relative to r) to the top two at a breakpoint makes the
-#: triple point degenerate (four faces at one point): the direct path declines.
-_TIE = 1e-7
+#: Envelope pieces narrower than this (rad) are rounding where four or more faces meet at
+#: one point (symmetric nodes): merged into a single vertex.
+_MERGE = 1e-9
+#: Pieces between _MERGE and this (rad) would make edges shorter than the tolerance: the
+#: direct path declines.
+_NARROW = 1e-5
+#: Vertices closer than this (relative to r) are one vertex.
+_SAME_POINT = 1e-7
 #: Discs must clear the bisector ellipses' highest points by this fraction of r.
 _DISC_MARGIN = 1e-3
 #: Points of each parameter-curve fit (B-spline through exact points of the pcurve).
@@ -165,18 +170,20 @@ def envelope(
     else:
         labels = others
     own = labels[np.argmax(vals, axis=1)]
+    # pieces narrower than _MERGE are rounding at a point where four or more functions
+    # meet (symmetric nodes): dropped, their ends joined; a real piece narrower than
+    # _NARROW would give an edge below the tolerance: declined
+    wide = np.diff(t) >= _MERGE
+    if not wide.any():  # pragma: no cover - the pieces span 2 pi
+        raise DirectNotApplicable(f"stump {j}: no envelope")
+    lo, hi, own = t[:-1][wide], t[1:][wide], own[wide]
+    cut = 0.5 * (hi[:-1] + lo[1:])
     keep = np.concatenate([[True], own[1:] != own[:-1]])
-    breaks = np.concatenate([t[:-1][keep], [_TWO_PI]])
+    breaks = np.concatenate([[0.0], cut[keep[1:]], [_TWO_PI]])
     owner = own[keep]
-    # degenerate breakpoints: a third function ties with the two that meet there
-    tb = breaks[1:-1]
-    if len(tb):
-        vb = np.cos(tb)[:, None] * A[others] + np.sin(tb)[:, None] * B[others]
-        if floor is not None:
-            vb = np.column_stack([vb, np.full(len(tb), floor)])
-        vb = np.sort(vb, axis=1)
-        if vb.shape[1] >= 3 and np.any(vb[:, -1] - vb[:, -3] < _TIE * (1.0 + vb[:, -1])):
-            raise DirectNotApplicable(f"stump {j}: more than three faces meet at one point")
+    if np.diff(breaks).min() < _NARROW:
+        raise DirectNotApplicable(f"stump {j}: nearly degenerate (a piece of "
+                                  f"{np.diff(breaks).min():.1e} rad)")  # fmt: skip
     return breaks, owner.astype(np.int64), A, B
 
 
@@ -347,14 +354,26 @@ def build_direct(
     # stumps meet, where two stumps meet the sphere, and the seam points)
     loops = []  # per face: list of (k, theta0, theta1, key0, key1)
     points: dict[object, NDArray[np.float64]] = {}
+    where: list[NDArray[np.float64]] = []
+
+    def vertex_key(p: NDArray[np.float64]) -> int:
+        """The vertex at ``p``: one index per point (the faces compute each vertex of theirs,
+        up to rounding; four or more faces may meet at one)."""
+        if where:
+            dist = np.linalg.norm(np.asarray(where) - p, axis=1)
+            i = int(np.argmin(dist))
+            if dist[i] < _SAME_POINT * r:
+                return i
+        where.append(p)
+        points[len(where) - 1] = p
+        return len(where) - 1
+
     for j in range(d):
         breaks, owner, A, B = envelope(u, x, y, j, floor=c / r)
         segs = []
         m = len(owner)
         if m < 2:
             raise DirectNotApplicable(f"stump {j}: one neighbour all around")
-        if owner[0] != owner[-1]:
-            raise DirectNotApplicable(f"stump {j}: a vertex on the seam")
         keys = []
         for i in range(m + 1):  # the vertex at breaks[i], between pieces i - 1 and i
             th = float(breaks[i])
@@ -363,21 +382,7 @@ def build_direct(
             if s <= 0.0:  # pragma: no cover - the floor c > 0 is in the envelope
                 raise DirectNotApplicable(f"stump {j}: its side reaches the node")
             p = s * u[j] + r * (math.cos(th) * x[j] + math.sin(th) * y[j])
-            if i in (0, m):
-                key: object = ("s", j)
-            else:
-                k0, k1 = int(owner[i - 1]), int(owner[i])
-                if k0 >= 0 and k1 >= 0:  # three stumps: one such point
-                    key = frozenset((j, k0, k1))
-                else:  # two stumps and the sphere: two such points, mirror images
-                    a_, b_ = min(j, k0 + k1 + 1), max(j, k0 + k1 + 1)
-                    side = float(p @ np.cross(u[a_], u[b_]))
-                    if abs(side) < 1e-9 * r:
-                        raise DirectNotApplicable(f"stump {j}: an arc touches the sphere")
-                    key = ("S", a_, b_, side > 0)
-            if key not in points:
-                points[key] = p
-            keys.append(key)
+            keys.append(vertex_key(p))
         for i in range(m):
             segs.append((int(owner[i]), float(breaks[i]), float(breaks[i + 1]), keys[i],
                          keys[i + 1]))  # fmt: skip
@@ -458,9 +463,10 @@ def build_direct(
         # seam (u = 2 pi going up: FORWARD; u = 0 going down: REVERSED) and top circle
         p_top = h[j] * u[j] + r * x[j]
         v_top = _vertex(bb, p_top, tol)
-        s0 = float(points[("s", j)] @ u[j])
+        seam_key = segs[0][3]
+        s0 = float(points[seam_key] @ u[j])
         seam = BRepBuilderAPI_MakeEdge(
-            Geom_Line(gp_Lin(_pnt(r * x[j]), _dir(u[j]))), verts[("s", j)], v_top, s0, float(h[j])
+            Geom_Line(gp_Lin(_pnt(r * x[j]), _dir(u[j]))), verts[seam_key], v_top, s0, float(h[j])
         )
         if not seam.IsDone():
             raise DirectNotApplicable(f"stump {j}: seam edge failed")
