@@ -13,26 +13,32 @@ directions), above the sphere and below the midpoint disc. In the cylinder's coo
 ``s_low(theta) <= s <= h_j`` with ``s_low(theta) = r * max_k g_k(theta)``,
 ``g_k = (a_k cos theta + b_k sin theta) / (1 - u_j . u_k)`` (``a_k, b_k`` the components of
 ``u_k`` along the frame): an upper envelope of sinusoids, computed exactly
-(:func:`envelope`). Its pieces are arcs of the bisector ellipses; its breakpoints are the
-points where three cylinders meet.
+(:func:`envelope`), together with the constant ``c = sqrt(R^2 - r^2)`` where the sphere of
+radius ``R`` shows. Its pieces are arcs of the bisector ellipses and of the circle where the
+stump meets the sphere; its breakpoints are the points where three (or, at symmetric nodes,
+more) stumps meet, or two stumps and the sphere.
 
 :func:`build_direct` builds that solid face by face: one face per stump on a
 ``Geom_CylindricalSurface`` (seam at ``xdir``, so the midpoint circle starts at ``xdir`` as
 the contract of :mod:`lattice_cad.occ_impl.truss` asks), bounded below by the shared
-ellipse arcs (exact ``Geom_Ellipse`` 3D curves; the parameter curves, ``theta`` linear
-and ``s`` a cosine in the ellipse parameter, are B-spline fits with the edge tolerance
-covering their error) and above by the midpoint circle; one planar disc per stump. The
-edges are shared between the faces (no sewing), the shell is closed, and the solid is
+ellipse arcs (exact ``Geom_Ellipse`` 3D curves; their parameter curves, ``theta`` linear
+and ``s`` a cosine in the ellipse parameter, are B-spline fits to 1e-3 of the edge
+tolerance) and sphere circle arcs (exact ``Geom_Circle``, parameter curve a line), and
+above by the midpoint circle; one planar disc per stump; where the sphere shows, one face
+on a ``Geom_SphericalSurface`` bounded by the circle arcs (its poles put inside stumps,
+its seam turned away from the face; parameter curves fitted and checked). The edges and
+vertices are shared between the faces (no sewing), the shell is closed, and the solid is
 checked by ``BRepCheck_Analyzer`` like every other hub. Its volume comes from
 :func:`analytic_volume` (closed form, divergence theorem on the same envelope) instead
 of GProp.
 
-It covers hubs whose ball lies inside the union of the stumps
-(:func:`lattice_cad.occ_impl.truss.sphere_is_covered`: the sphere is then not part of the
-boundary), with every midpoint disc intact (``h_k >= r cot(alpha_jk / 2)`` with a margin,
-the highest point of each bisector ellipse below both discs) and generic triple points (no
-four stumps meeting at one point, as in symmetric voxel nodes). Everything else raises
-:class:`DirectNotApplicable` and the caller falls back to the boolean chain.
+:func:`direct_applies` says which hubs it covers: cylinder stumps of one radius below the
+sphere's, every midpoint disc intact (``h_k >= r cot(alpha_jk / 2)`` with a margin: the
+highest point of each bisector ellipse below both discs). Inside :func:`build_direct` it
+declines (:class:`DirectNotApplicable`) what it does not build: an exposed sphere that is
+not one disc-like face (a straight strut's band, several islands), nearly degenerate
+vertices (pieces of the envelope narrower than 1e-5 rad), a stump that touches no other
+one. The caller then falls back to the boolean chain.
 """
 
 from __future__ import annotations
