@@ -140,6 +140,7 @@ def use_main(on: bool) -> None:
         cov = lambda *a, **k: False  # noqa: E731
         att = tuple(x for x in att if x[0] != "tree")
         catt = tuple(x for x in catt if x[0] != "tree")
+    truss.DIRECT = not on  # main builds every hub with booleans (no hub_direct)
     truss.sphere_is_covered = cluster.sphere_is_covered = cov
     truss.ATTEMPTS = cluster.ATTEMPTS = att
     cluster.CLUSTER_ATTEMPTS = catt

@@ -183,6 +183,7 @@ def test_forced_occt_failure_is_reported(monkeypatch):
         return real(spec, **kw)
 
     monkeypatch.setattr(_occ, "make_hub_shape", broken)
+    monkeypatch.setattr(_occ, "DIRECT", False)  # the boolean chain's retries, not hub_direct
     g = star_graph([[1, 0, 0], [0, 1, 0], [0, 0, 1]], lengths=1.0, radii=0.1)
     ref = build_reference(g, workers=0)
     assert not ref.complete
