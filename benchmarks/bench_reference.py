@@ -629,7 +629,44 @@ VOLUME_PROFILES = ("volume", "area", "inscribed", "circumscribed")
 
 
 #: The lattices of the volume table (``--volume-table``; ``--volume-lattices`` picks some).
-VOLUME_LATTICES = ("table2", "ge-bcc", "ge-voxel", "ge-tet", "ge-voxel-10", "ge-tet-10")
+#: ``-win``: a window of the lattice (:func:`window`), where the whole one takes too long.
+VOLUME_LATTICES = (
+    "table2", "ge-bcc", "ge-voxel", "ge-tet", "ge-voxel-10", "ge-tet-10", "ge-voxel-win",
+    "ge-tet-win",
+)  # fmt: skip
+
+#: Hubs in a window of the ``-win`` lattices (``--window``), and the seed of its centre.
+WINDOW_HUBS = 150
+WINDOW_SEED = 0
+
+
+def window(g: LatticeGraph, hubs: int, seed: int = 0) -> LatticeGraph:
+    """A sample of a lattice too big for the reference: the ``hubs`` nodes with struts nearest
+    to a seeded random one, and the struts between them (struts leaving the window are
+    dropped, so nodes at its border have a lower degree; unused nodes are removed).
+
+    Parameters
+    ----------
+    g : LatticeGraph
+    hubs : int
+    seed : int
+
+    Returns
+    -------
+    LatticeGraph
+        Nodes ``(n, 3) float64``, edges ``(m, 2) int64``, radii ``(m, 2) float64``.
+    """
+    used = np.flatnonzero(g.degree > 0)
+    c = g.nodes[np.random.default_rng(seed).choice(used)]
+    d = np.linalg.norm(g.nodes[used] - c, axis=1)
+    take = np.zeros(g.num_nodes, dtype=bool)
+    take[used[np.argsort(d, kind="stable")[:hubs]]] = True
+    keep = take[g.edges].all(axis=1)
+    e = g.edges[keep]
+    live = np.unique(e)
+    new = np.full(g.num_nodes, -1, dtype=np.int64)
+    new[live] = np.arange(len(live))
+    return LatticeGraph(g.nodes[live], new[e], g.radii[keep])
 
 
 def _volume_lattices(quick: bool, which: tuple[str, ...] | None = None) -> list[tuple[str, Any]]:
@@ -659,6 +696,15 @@ def _volume_lattices(quick: bool, which: tuple[str, ...] | None = None) -> list[
         "ge-voxel-10": ("GE bracket Box-BCC 10 mm r 0.6 clip",
                         ge("box-bcc", 10.0, 0.6, fill="clip")),
         "ge-tet-10": ("GE bracket tet 10 mm r 0.6", ge("bcc", 10.0, 0.6, method="tet")),
+        "ge-voxel-win": (
+            f"GE bracket Box-BCC 5.5 mm r 0.25 clip, WINDOW of {WINDOW_HUBS} hubs "
+            f"(seed {WINDOW_SEED})",
+            lambda: window(ge("box-bcc", 5.5, 0.25, fill="clip")(), WINDOW_HUBS, WINDOW_SEED),
+        ),
+        "ge-tet-win": (
+            f"GE bracket tet 5 mm r 0.25, WINDOW of {WINDOW_HUBS} hubs (seed {WINDOW_SEED})",
+            lambda: window(ge("bcc", 5.0, 0.25, method="tet")(), WINDOW_HUBS, WINDOW_SEED),
+        ),
     }  # fmt: skip
     if which is None:
         which = ("table2", "ge-bcc") if quick else ("table2", "ge-bcc", "ge-voxel", "ge-tet")
@@ -780,6 +826,7 @@ def bench_volume_table(
 
 
 def main() -> None:
+    global WINDOW_HUBS, WINDOW_SEED
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -802,6 +849,10 @@ def main() -> None:
     ap.add_argument(
         "--volume-out", default=None, help="with --volume-table: file name in results/"
     )
+    ap.add_argument("--window", type=int, default=WINDOW_HUBS,
+                    help="with --volume-table: hubs in a -win lattice's window")  # fmt: skip
+    ap.add_argument("--window-seed", type=int, default=WINDOW_SEED,
+                    help="with --volume-table: seed of the window's centre")  # fmt: skip
     ap.add_argument(
         "--irregular-size", type=int, default=None, help="cells per side of the irregular grid"
     )
@@ -854,6 +905,7 @@ def main() -> None:
         config.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump (forked workers)
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
     if a.volume_table:
+        WINDOW_HUBS, WINDOW_SEED = a.window, a.window_seed
         name = a.volume_out or (
             "bench_reference_volume" + ("_quick" if a.quick else "") + ".txt"
         )
