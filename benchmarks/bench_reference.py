@@ -32,8 +32,10 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import math
 import os
 import resource
+import signal
 import tempfile
 import time
 import warnings
@@ -486,11 +488,15 @@ def bench_refused(
         ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
         [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
     )
-    built = counts["refused"] + counts["incomplete"] + counts["complete"]
+    built = (
+        counts["refused"] + counts["incomplete"] + counts["complete"]
+        + counts.get("case timeout", 0)
+    )  # fmt: skip
     text += (
         f"\nlattices {counts['lattices']} ({counts['no lattice']} fills gave no lattice); "
         f"built {built}: complete {counts['complete']}, incomplete {counts['incomplete']}, "
-        f"refused {counts['refused']}; not built (cap or budget) {counts['skipped']}; "
+        f"refused {counts['refused']}; stopped by the case timeout "
+        f"{counts.get('case timeout', 0)}; not built (cap or budget) {counts['skipped']}; "
         f"refused by the former per-hub check: {counts['refused before']} of "
         f"{counts['lattices']}; {time.perf_counter() - t_start:.0f} s wall\n"
     )
@@ -499,6 +505,20 @@ def bench_refused(
         out_path.parent.mkdir(parents=True, exist_ok=True)
         out_path.write_text(text)
     return rows
+
+
+#: Wall seconds after which one lattice's reference build is stopped (``--case-timeout``;
+#: 0: none). Counted apart from refusals: the build was not finished, not refused.
+CASE_TIMEOUT = 0.0
+
+
+class _CaseTimeout(BaseException):
+    """Raised by SIGALRM in the middle of a build (a BaseException, so that the reference's
+    worker pool is ended on the way out, as for Ctrl-C)."""
+
+
+def _case_alarm(signum: int, frame: Any) -> None:
+    raise _CaseTimeout()
 
 
 def _refused_rows(
@@ -595,13 +615,27 @@ def _refused_rows(
         t = time.perf_counter()
         c0 = time.process_time()
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        before = signal.signal(signal.SIGALRM, _case_alarm)
+        if CASE_TIMEOUT > 0:
+            signal.alarm(int(math.ceil(CASE_TIMEOUT)))
         try:
             ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
+        except _CaseTimeout:  # the hub workers are ended by build_reference itself
+            counts["case timeout"] = counts.get("case timeout", 0) + 1
+            row.append(
+                f"TIMEOUT: stopped after {CASE_TIMEOUT:.0f} s wall (not refused; "
+                f"{time.process_time() - c0:.0f} s cpu here), load {os.getloadavg()[0]:.1f}"
+            )
+            print("  ".join(row), flush=True)
+            continue
         except Exception as exc:  # noqa: BLE001 - that is what is counted
             counts["refused"] += 1
             row.append(f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}")
             print("  ".join(row), flush=True)
             continue
+        finally:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, before)
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
         wall = time.perf_counter() - t
@@ -881,11 +915,15 @@ def main() -> None:
         "--cell-divisor", type=float, default=8.0, help="with --refused: cell = extent / this"
     )
     ap.add_argument("--out", type=Path, default=None, help="with --refused: save the table")
+    ap.add_argument("--case-timeout", type=float, default=0.0,
+                    help="with --refused: wall seconds per lattice build (0: none)")  # fmt: skip
     ap.add_argument("--cache", type=Path, default=None, help="with --refused: graphs cache")
     ap.add_argument("--folders", nargs="+", default=None, choices=["step", "meshes"],
                     help="with --refused: only these folders of ../shared/data")
     a = ap.parse_args()
     if a.refused:
+        global CASE_TIMEOUT
+        CASE_TIMEOUT = a.case_timeout
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
         bench_refused(
             a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts, a.cell_divisor,
