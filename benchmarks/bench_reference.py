@@ -674,7 +674,12 @@ WINDOW_HUBS = 150
 WINDOW_SEED = 0
 
 
-def window(g: LatticeGraph, hubs: int, seed: int = 0) -> LatticeGraph:
+#: Where a window is centred (``--window-at``): a random node, or a random leaf (a strut
+#: end at the part's surface, where clipped lattices have their clusters).
+WINDOW_AT = "random"
+
+
+def window(g: LatticeGraph, hubs: int, seed: int = 0, at: str | None = None) -> LatticeGraph:
     """A sample of a lattice too big for the reference: the ``hubs`` nodes with struts nearest
     to a seeded random one, and the struts between them (struts leaving the window are
     dropped, so nodes at its border have a lower degree; unused nodes are removed).
@@ -684,6 +689,8 @@ def window(g: LatticeGraph, hubs: int, seed: int = 0) -> LatticeGraph:
     g : LatticeGraph
     hubs : int
     seed : int
+    at : {"random", "leaf"}, optional
+        The centre: any node with struts, or a leaf (default :data:`WINDOW_AT`).
 
     Returns
     -------
@@ -691,7 +698,11 @@ def window(g: LatticeGraph, hubs: int, seed: int = 0) -> LatticeGraph:
         Nodes ``(n, 3) float64``, edges ``(m, 2) int64``, radii ``(m, 2) float64``.
     """
     used = np.flatnonzero(g.degree > 0)
-    c = g.nodes[np.random.default_rng(seed).choice(used)]
+    leaves = np.flatnonzero(g.degree == 1)
+    pool = leaves if (at or WINDOW_AT) == "leaf" and len(leaves) else used
+    if (at or WINDOW_AT) == "leaf" and not len(leaves):
+        print("window: the lattice has no leaves; centred at a random node", flush=True)
+    c = g.nodes[np.random.default_rng(seed).choice(pool)]
     d = np.linalg.norm(g.nodes[used] - c, axis=1)
     take = np.zeros(g.num_nodes, dtype=bool)
     take[used[np.argsort(d, kind="stable")[:hubs]]] = True
@@ -732,11 +743,12 @@ def _volume_lattices(quick: bool, which: tuple[str, ...] | None = None) -> list[
         "ge-tet-10": ("GE bracket tet 10 mm r 0.6", ge("bcc", 10.0, 0.6, method="tet")),
         "ge-voxel-win": (
             f"GE bracket Box-BCC 5.5 mm r 0.25 clip, WINDOW of {WINDOW_HUBS} hubs "
-            f"(seed {WINDOW_SEED})",
+            f"(seed {WINDOW_SEED}, centred at a {WINDOW_AT} node)",
             lambda: window(ge("box-bcc", 5.5, 0.25, fill="clip")(), WINDOW_HUBS, WINDOW_SEED),
         ),
         "ge-tet-win": (
-            f"GE bracket tet 5 mm r 0.25, WINDOW of {WINDOW_HUBS} hubs (seed {WINDOW_SEED})",
+            f"GE bracket tet 5 mm r 0.25, WINDOW of {WINDOW_HUBS} hubs (seed {WINDOW_SEED}, "
+            f"centred at a {WINDOW_AT} node)",
             lambda: window(ge("bcc", 5.0, 0.25, method="tet")(), WINDOW_HUBS, WINDOW_SEED),
         ),
     }  # fmt: skip
@@ -860,7 +872,7 @@ def bench_volume_table(
 
 
 def main() -> None:
-    global WINDOW_HUBS, WINDOW_SEED
+    global WINDOW_HUBS, WINDOW_SEED, WINDOW_AT
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -887,6 +899,8 @@ def main() -> None:
                     help="with --volume-table: hubs in a -win lattice's window")  # fmt: skip
     ap.add_argument("--window-seed", type=int, default=WINDOW_SEED,
                     help="with --volume-table: seed of the window's centre")  # fmt: skip
+    ap.add_argument("--window-at", choices=["random", "leaf"], default=WINDOW_AT,
+                    help="with --volume-table: window centre")  # fmt: skip
     ap.add_argument(
         "--irregular-size", type=int, default=None, help="cells per side of the irregular grid"
     )
@@ -943,7 +957,7 @@ def main() -> None:
         config.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump (forked workers)
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
     if a.volume_table:
-        WINDOW_HUBS, WINDOW_SEED = a.window, a.window_seed
+        WINDOW_HUBS, WINDOW_SEED, WINDOW_AT = a.window, a.window_seed, a.window_at
         name = a.volume_out or (
             "bench_reference_volume" + ("_quick" if a.quick else "") + ".txt"
         )
