@@ -103,3 +103,14 @@ def test_overview_highlights_the_worst_hubs(lattice):
     assert int((np.abs(img - rgb).max(axis=-1) < 0.12).sum()) > 50
     greenish = (img[..., 1] > img[..., 0] + 0.08) & (img[..., 1] > img[..., 2] + 0.05)
     assert int(greenish.sum()) > 400
+
+
+def test_hub_zone_of_nearly_parallel_struts_is_bounded_by_the_struts():
+    """Two struts 1e-9 rad apart (a clipped lattice has such) must not give a hub zone of
+    ~1e8 r that swallows the whole lattice: it ends with the node's longest strut."""
+    from reference_boolean.regions import hub_zones
+    from tests.conftest import star_graph
+
+    g = star_graph([[1, 0, 0], [1, 1e-9, 0], [-1, 0, 0]], lengths=[1.0, 0.8, 1.0], radii=R)
+    z = hub_zones(g)
+    assert 0 < z[0] <= 1.5 * np.hypot(1.0, R) + 1e-12
