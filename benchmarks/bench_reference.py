@@ -32,8 +32,10 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import math
 import os
 import resource
+import signal
 import tempfile
 import time
 import warnings
@@ -486,11 +488,15 @@ def bench_refused(
         ["part", "fill", "struts", "leaves", "former check", "clusters, solids", "reference"],
         [r + [""] * (7 - len(r)) if len(r) < 7 else r for r in rows],
     )
-    built = counts["refused"] + counts["incomplete"] + counts["complete"]
+    built = (
+        counts["refused"] + counts["incomplete"] + counts["complete"]
+        + counts.get("case timeout", 0)
+    )  # fmt: skip
     text += (
         f"\nlattices {counts['lattices']} ({counts['no lattice']} fills gave no lattice); "
         f"built {built}: complete {counts['complete']}, incomplete {counts['incomplete']}, "
-        f"refused {counts['refused']}; not built (cap or budget) {counts['skipped']}; "
+        f"refused {counts['refused']}; stopped by the case timeout "
+        f"{counts.get('case timeout', 0)}; not built (cap or budget) {counts['skipped']}; "
         f"refused by the former per-hub check: {counts['refused before']} of "
         f"{counts['lattices']}; {time.perf_counter() - t_start:.0f} s wall\n"
     )
@@ -499,6 +505,20 @@ def bench_refused(
         out_path.parent.mkdir(parents=True, exist_ok=True)
         out_path.write_text(text)
     return rows
+
+
+#: Wall seconds after which one lattice's reference build is stopped (``--case-timeout``;
+#: 0: none). Counted apart from refusals: the build was not finished, not refused.
+CASE_TIMEOUT = 0.0
+
+
+class _CaseTimeout(BaseException):
+    """Raised by SIGALRM in the middle of a build (a BaseException, so that the reference's
+    worker pool is ended on the way out, as for Ctrl-C)."""
+
+
+def _case_alarm(signum: int, frame: Any) -> None:
+    raise _CaseTimeout()
 
 
 def _refused_rows(
@@ -595,13 +615,27 @@ def _refused_rows(
         t = time.perf_counter()
         c0 = time.process_time()
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        before = signal.signal(signal.SIGALRM, _case_alarm)
+        if CASE_TIMEOUT > 0:
+            signal.alarm(int(math.ceil(CASE_TIMEOUT)))
         try:
             ref = build_reference(g, keep_solids=False, hub_timeout=120.0)
+        except _CaseTimeout:  # the hub workers are ended by build_reference itself
+            counts["case timeout"] = counts.get("case timeout", 0) + 1
+            row.append(
+                f"TIMEOUT: stopped after {CASE_TIMEOUT:.0f} s wall (not refused; "
+                f"{time.process_time() - c0:.0f} s cpu here), load {os.getloadavg()[0]:.1f}"
+            )
+            print("  ".join(row), flush=True)
+            continue
         except Exception as exc:  # noqa: BLE001 - that is what is counted
             counts["refused"] += 1
             row.append(f"REFUSED: {type(exc).__name__}: {str(exc)[:60]}")
             print("  ".join(row), flush=True)
             continue
+        finally:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, before)
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu = time.process_time() - c0 + (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
         wall = time.perf_counter() - t
@@ -629,7 +663,55 @@ VOLUME_PROFILES = ("volume", "area", "inscribed", "circumscribed")
 
 
 #: The lattices of the volume table (``--volume-table``; ``--volume-lattices`` picks some).
-VOLUME_LATTICES = ("table2", "ge-bcc", "ge-voxel", "ge-tet", "ge-voxel-10", "ge-tet-10")
+#: ``-win``: a window of the lattice (:func:`window`), where the whole one takes too long.
+VOLUME_LATTICES = (
+    "table2", "ge-bcc", "ge-voxel", "ge-tet", "ge-voxel-10", "ge-tet-10", "ge-voxel-win",
+    "ge-tet-win",
+)  # fmt: skip
+
+#: Hubs in a window of the ``-win`` lattices (``--window``), and the seed of its centre.
+WINDOW_HUBS = 150
+WINDOW_SEED = 0
+
+
+#: Where a window is centred (``--window-at``): a random node, or a random leaf (a strut
+#: end at the part's surface, where clipped lattices have their clusters).
+WINDOW_AT = "random"
+
+
+def window(g: LatticeGraph, hubs: int, seed: int = 0, at: str | None = None) -> LatticeGraph:
+    """A sample of a lattice too big for the reference: the ``hubs`` nodes with struts nearest
+    to a seeded random one, and the struts between them (struts leaving the window are
+    dropped, so nodes at its border have a lower degree; unused nodes are removed).
+
+    Parameters
+    ----------
+    g : LatticeGraph
+    hubs : int
+    seed : int
+    at : {"random", "leaf"}, optional
+        The centre: any node with struts, or a leaf (default :data:`WINDOW_AT`).
+
+    Returns
+    -------
+    LatticeGraph
+        Nodes ``(n, 3) float64``, edges ``(m, 2) int64``, radii ``(m, 2) float64``.
+    """
+    used = np.flatnonzero(g.degree > 0)
+    leaves = np.flatnonzero(g.degree == 1)
+    pool = leaves if (at or WINDOW_AT) == "leaf" and len(leaves) else used
+    if (at or WINDOW_AT) == "leaf" and not len(leaves):
+        print("window: the lattice has no leaves; centred at a random node", flush=True)
+    c = g.nodes[np.random.default_rng(seed).choice(pool)]
+    d = np.linalg.norm(g.nodes[used] - c, axis=1)
+    take = np.zeros(g.num_nodes, dtype=bool)
+    take[used[np.argsort(d, kind="stable")[:hubs]]] = True
+    keep = take[g.edges].all(axis=1)
+    e = g.edges[keep]
+    live = np.unique(e)
+    new = np.full(g.num_nodes, -1, dtype=np.int64)
+    new[live] = np.arange(len(live))
+    return LatticeGraph(g.nodes[live], new[e], g.radii[keep])
 
 
 def _volume_lattices(quick: bool, which: tuple[str, ...] | None = None) -> list[tuple[str, Any]]:
@@ -659,6 +741,16 @@ def _volume_lattices(quick: bool, which: tuple[str, ...] | None = None) -> list[
         "ge-voxel-10": ("GE bracket Box-BCC 10 mm r 0.6 clip",
                         ge("box-bcc", 10.0, 0.6, fill="clip")),
         "ge-tet-10": ("GE bracket tet 10 mm r 0.6", ge("bcc", 10.0, 0.6, method="tet")),
+        "ge-voxel-win": (
+            f"GE bracket Box-BCC 5.5 mm r 0.25 clip, WINDOW of {WINDOW_HUBS} hubs "
+            f"(seed {WINDOW_SEED}, centred at a {WINDOW_AT} node)",
+            lambda: window(ge("box-bcc", 5.5, 0.25, fill="clip")(), WINDOW_HUBS, WINDOW_SEED),
+        ),
+        "ge-tet-win": (
+            f"GE bracket tet 5 mm r 0.25, WINDOW of {WINDOW_HUBS} hubs (seed {WINDOW_SEED}, "
+            f"centred at a {WINDOW_AT} node)",
+            lambda: window(ge("bcc", 5.0, 0.25, method="tet")(), WINDOW_HUBS, WINDOW_SEED),
+        ),
     }  # fmt: skip
     if which is None:
         which = ("table2", "ge-bcc") if quick else ("table2", "ge-bcc", "ge-voxel", "ge-tet")
@@ -780,6 +872,7 @@ def bench_volume_table(
 
 
 def main() -> None:
+    global WINDOW_HUBS, WINDOW_SEED, WINDOW_AT
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -802,6 +895,12 @@ def main() -> None:
     ap.add_argument(
         "--volume-out", default=None, help="with --volume-table: file name in results/"
     )
+    ap.add_argument("--window", type=int, default=WINDOW_HUBS,
+                    help="with --volume-table: hubs in a -win lattice's window")  # fmt: skip
+    ap.add_argument("--window-seed", type=int, default=WINDOW_SEED,
+                    help="with --volume-table: seed of the window's centre")  # fmt: skip
+    ap.add_argument("--window-at", choices=["random", "leaf"], default=WINDOW_AT,
+                    help="with --volume-table: window centre")  # fmt: skip
     ap.add_argument(
         "--irregular-size", type=int, default=None, help="cells per side of the irregular grid"
     )
@@ -830,11 +929,15 @@ def main() -> None:
         "--cell-divisor", type=float, default=8.0, help="with --refused: cell = extent / this"
     )
     ap.add_argument("--out", type=Path, default=None, help="with --refused: save the table")
+    ap.add_argument("--case-timeout", type=float, default=0.0,
+                    help="with --refused: wall seconds per lattice build (0: none)")  # fmt: skip
     ap.add_argument("--cache", type=Path, default=None, help="with --refused: graphs cache")
     ap.add_argument("--folders", nargs="+", default=None, choices=["step", "meshes"],
                     help="with --refused: only these folders of ../shared/data")
     a = ap.parse_args()
     if a.refused:
+        global CASE_TIMEOUT
+        CASE_TIMEOUT = a.case_timeout
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
         bench_refused(
             a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts, a.cell_divisor,
@@ -854,6 +957,7 @@ def main() -> None:
         config.TRIM_FRACTION = 0.0  # stump_start() then returns 0 for every stump (forked workers)
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
     if a.volume_table:
+        WINDOW_HUBS, WINDOW_SEED, WINDOW_AT = a.window, a.window_seed, a.window_at
         name = a.volume_out or (
             "bench_reference_volume" + ("_quick" if a.quick else "") + ".txt"
         )

@@ -276,6 +276,12 @@ class MeshComparison:
         (inside a hub zone: the convex hub against the ball and cylinders); each with
         ``"mesh_to_reference"``, ``"reference_to_mesh"``, ``"symmetric"`` (max, mean, p95,
         samples, fraction). Empty when not measured.
+    node_worst_point : (N, 3) float64 or None
+        Where :attr:`node_deviation` was sampled: the sample (on either surface) of the
+        largest distance among those nearest to each node (NaN where none).
+    node_worst_side : (N,) int8 or None
+        Which surface that sample lies on: 0 the mesh (distance to the reference), 1 the
+        reference (distance to the mesh), -1 none.
     """
 
     label: str
@@ -288,6 +294,8 @@ class MeshComparison:
     distances: dict[str, NDArray[np.float64]] = field(repr=False)
     timings: dict[str, float] = field(default_factory=dict)
     regions: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
+    node_worst_point: NDArray[np.float64] | None = field(default=None, repr=False)
+    node_worst_side: NDArray[np.int8] | None = field(default=None, repr=False)
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready row: label, volume, relative error, triangles, valid, hausdorff."""
@@ -549,14 +557,23 @@ def _measure(
     }
     from scipy.spatial import cKDTree
 
+    # each sample of either surface goes to its nearest node; per node the farthest one
     node_dev = np.full(graph.num_nodes, np.nan)
+    node_pt = np.full((graph.num_nodes, 3), np.nan)
+    node_side = np.full(graph.num_nodes, -1, dtype=np.int8)
     used = np.flatnonzero(graph.degree > 0)
     tree = cKDTree(graph.nodes[used])
-    for p, d in ((p1, d1), (p2, d2)):
+    for side, (p, d) in enumerate(((p1, d1), (p2, d2))):
         _, idx = tree.query(p)
-        dev = np.full(graph.num_nodes, -np.inf)
-        np.maximum.at(dev, used[idx], d)
-        node_dev = np.fmax(node_dev, np.where(np.isfinite(dev), dev, np.nan))
+        nid = used[idx]
+        order = np.lexsort((d, nid))  # by node, then distance: the last of a node is its max
+        last = np.r_[nid[order][1:] != nid[order][:-1], True]
+        sel = order[last]
+        n_sel = nid[sel]
+        better = ~(node_dev[n_sel] >= d[sel])  # NaN (no sample yet) counts as worse
+        node_dev[n_sel[better]] = d[sel][better]
+        node_pt[n_sel[better]] = p[sel][better]
+        node_side[n_sel[better]] = side
     vref = reference.volume
     return MeshComparison(
         label=label,
@@ -569,6 +586,8 @@ def _measure(
         distances={"mesh_to_reference": d1, "reference_to_mesh": d2},
         timings=timings,
         regions=regions,
+        node_worst_point=node_pt,
+        node_worst_side=node_side,
     )
 
 

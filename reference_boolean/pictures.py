@@ -1,10 +1,14 @@
 """The worst places of an accuracy report, and a close-up picture of each.
 
 :func:`worst_places` ranks the hubs by the largest two-sided surface deviation
-sampled near them (:attr:`ValidationReport.node_deviation`), one per place: a
-hub next to an already ranked one (sharing a strut) is the same place and is
-skipped; hubs next to a failed hub of an incomplete reference are not ranked
-(there is no exact solid there to compare with).
+sampled near them (:attr:`ValidationReport.node_deviation`: samples of the whole
+surfaces, mesh to exact and exact to mesh, each given to its nearest node; hub
+zones and struts alike), one per place: a hub next to an already ranked one
+(sharing a strut) is the same place and is skipped; hubs next to a failed hub of
+an incomplete reference are not ranked (there is no exact solid there to compare
+with). Each place says where its worst sample lies: in the node's hub zone
+(where the fast mesh's convex hub and the exact ball differ by design) or along
+a strut, and on which surface.
 
 :func:`closeup` renders the compared mesh near one hub (the triangles whose
 centroid is within about half the longest incident strut), flat-shaded per
@@ -38,10 +42,14 @@ __all__ = [
     "clip_to_ball",
     "design_distance",
     "HIGHLIGHT",
+    "zone_ball",
 ]
 
 #: Ring colour of the worst hub in its close-up (absent from the diverging colour map).
 HIGHLIGHT = "#00c853"
+
+#: Marker colour of the worst sample in a close-up.
+WORST_POINT = "#ff6f00"
 
 #: Diverging colour map of the signed deviation (blue: material missing, red: extra).
 SIGNED_COLORMAP = "RdBu_r"
@@ -62,6 +70,14 @@ class WorstPlace:
         Largest two-sided surface deviation sampled near the node, mm.
     radius : float
         Largest strut radius at the node, mm.
+    point : (float, float, float) or None
+        Where the worst sample lies, mm (None if not recorded).
+    region : {"hub zone", "strut"} or None
+        Whether that sample lies in a hub zone (:mod:`reference_boolean.regions`) or
+        along a strut; None without hub zones.
+    side : {"mesh", "exact"} or None
+        The surface the sample lies on: ``"mesh"`` (a mesh point that far from the exact
+        surface) or ``"exact"`` (an exact surface point that far from the mesh).
     """
 
     rank: int
@@ -69,11 +85,62 @@ class WorstPlace:
     position: tuple[float, float, float]
     deviation: float
     radius: float
+    point: tuple[float, float, float] | None = None
+    region: str | None = None
+    side: str | None = None
+
+    @property
+    def where(self) -> str:
+        """``"hub zone, on the exact surface"`` and the like ("-" if unknown)."""
+        parts = []
+        if self.region is not None:
+            parts.append(self.region)
+        if self.side is not None:
+            parts.append("on the mesh" if self.side == "mesh" else "on the exact surface")
+        return ", ".join(parts) or "-"
 
     @property
     def percent_of_radius(self) -> float:
         """``deviation`` in % of ``radius``."""
         return 100.0 * self.deviation / self.radius if self.radius > 0 else float("nan")
+
+
+def zone_ball(
+    rep: ValidationReport, place: WorstPlace, *, n: int = 12
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """A UV sphere showing a worst place's hub zone on the overview (its radius from
+    :attr:`ValidationReport.hub_zone`, else 3 x the strut radius).
+
+    Returns
+    -------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+        Outward triangles.
+    """
+    zr = 0.0
+    if rep.hub_zone is not None:
+        zr = float(rep.hub_zone[place.node])
+    if not zr > 0.0:
+        zr = 3.0 * place.radius
+    th = np.linspace(0.0, np.pi, n + 1)[1:-1]
+    ph = np.linspace(0.0, 2.0 * np.pi, 2 * n, endpoint=False)
+    st, ct = np.sin(th)[:, None], np.cos(th)[:, None]
+    ring = np.stack([st * np.cos(ph), st * np.sin(ph), ct * np.ones_like(ph)], axis=-1)
+    ring = ring.reshape(-1, 3)
+    v = np.vstack([[0.0, 0.0, 1.0], ring, [0.0, 0.0, -1.0]])
+    m = 2 * n
+    faces = []
+    for j in range(m):  # caps
+        faces.append([0, 1 + j, 1 + (j + 1) % m])
+        last = 1 + (n - 2) * m
+        faces.append([len(v) - 1, last + (j + 1) % m, last + j])
+    for i in range(n - 2):
+        a, b = 1 + i * m, 1 + (i + 1) * m
+        for j in range(m):
+            j1 = (j + 1) % m
+            faces.append([a + j, b + j, b + j1])
+            faces.append([a + j, b + j1, a + j1])
+    return np.asarray(place.position) + zr * v, np.asarray(faces, dtype=np.int64)
 
 
 def _near_failed(rep: ValidationReport) -> NDArray[np.bool_]:
@@ -117,6 +184,9 @@ def worst_places(rep: ValidationReport, k: int) -> tuple[list[WorstPlace], int]:
         for a, b in g.edges:
             adj.setdefault(int(a), set()).add(int(b))
             adj.setdefault(int(b), set()).add(int(a))
+    comp = rep.comparisons.get(rep.label)
+    wpt = None if comp is None else comp.node_worst_point
+    wside = None if comp is None else comp.node_worst_side
     for i in order:
         if len(out) >= k:
             break
@@ -125,6 +195,16 @@ def worst_places(rep: ValidationReport, k: int) -> tuple[list[WorstPlace], int]:
             continue
         taken.add(i)
         taken.update(adj.get(i, ()))
+        point = region = side = None
+        if wpt is not None and bool(np.isfinite(wpt[i]).all()):
+            point = (float(wpt[i, 0]), float(wpt[i, 1]), float(wpt[i, 2]))
+            if rep.hub_zone is not None:
+                from reference_boolean.regions import in_hub_zone
+
+                inside = bool(in_hub_zone(wpt[i : i + 1], g, rep.hub_zone)[0])
+                region = "hub zone" if inside else "strut"
+        if wside is not None and wside[i] >= 0:
+            side = ("mesh", "exact")[int(wside[i])]
         out.append(
             WorstPlace(
                 rank=len(out) + 1,
@@ -132,6 +212,9 @@ def worst_places(rep: ValidationReport, k: int) -> tuple[list[WorstPlace], int]:
                 position=(float(g.nodes[i, 0]), float(g.nodes[i, 1]), float(g.nodes[i, 2])),
                 deviation=float(dev[i]),
                 radius=float(rmax[i]),
+                point=point,
+                region=region,
+                side=side,
             )
         )
     return out, unranked
@@ -355,7 +438,9 @@ def closeup(
         ),
         title=f"#{p.rank}: node {p.node}, {p.deviation:.3g} mm ({p.percent_of_radius:.0f} % r)",
         caption=f"at ({p.position[0]:.4g}, {p.position[1]:.4g}, {p.position[2]:.4g}); "
-        "ghost: exact solid",
-        markers=[Marker(p.position, f"#{p.rank}", color=HIGHLIGHT)],
+        + (f"worst sample ({p.where}) marked 'max'; " if p.point is not None else "")
+        + "ghost: exact solid",
+        markers=[Marker(p.position, f"#{p.rank}", color=HIGHLIGHT)]
+        + ([Marker(p.point, "max", color=WORST_POINT)] if p.point is not None else []),
     )
     return png

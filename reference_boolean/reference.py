@@ -52,6 +52,7 @@ from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
 from lattice_cad.core.formats import Kind, resolve
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh
+from reference_boolean.frame import frame_scale, scale_spec, unscale_result
 from reference_boolean.rotations import RotationCache
 
 __all__ = [
@@ -532,11 +533,16 @@ def _build_one(args: tuple[Any, float, float, bool]) -> Any:
     from lattice_cad.occ_impl.cluster import ClusterSpec, build_cluster
 
     spec, deflection, angular, keep = args
+    # built where its radius is ~1 (OCCT's absolute tolerances), then scaled back
+    s = frame_scale(spec)
+    spec = scale_spec(spec, 1.0 / s)
     if isinstance(spec, ClusterSpec):
-        return build_cluster(spec, deflection=deflection, angular=angular, keep_brep=keep)
-    if deflection <= 0.0:  # the solid only (hub_solids)
-        return _occ.build_hub_solid(spec)
-    return _occ.build_hub(spec, deflection=deflection, angular=angular, keep_brep=keep)
+        res = build_cluster(spec, deflection=deflection / s, angular=angular, keep_brep=keep)
+    elif deflection <= 0.0:  # the solid only (hub_solids)
+        res = _occ.build_hub_solid(spec)
+    else:
+        res = _occ.build_hub(spec, deflection=deflection / s, angular=angular, keep_brep=keep)
+    return unscale_result(res, s)
 
 
 def _kill(pool: ProcessPoolExecutor) -> None:

@@ -15,19 +15,19 @@ rule for both surfaces and depends on the design (the graph) only:
 ``h_n = HUB_ZONE_FACTOR * E_n`` with
 
     E_n = max(R_n, max_i sqrt(t_i^2 + r_i^2)),
-    t_i = max(0, max_{j != i} (r_j + r_i cos a_ij) / sin a_ij),
+    t_i = min(L_i, max(0, max_{j != i} (r_j + r_i cos a_ij) / sin a_ij)),
 
-where ``r_i`` is strut i's radius at the node and ``a_ij`` the angle between struts i and
-j. ``t_i`` is the distance along strut i beyond which its cylinder meets no other
-cylinder of the node (for equal radii ``r cot(a / 2)``: the smallest angle decides), so
-``E_n`` is the radius of the smallest ball about the node holding the ball, every
-intersection of the node's cylinders and the exposed ball between them: beyond it the
-exact solid is a set of separate cylinders. fast_stitch places its profiles at the same
-offsets computed for the *profile* radius (circumradius ``rho = f r``, ``f`` up to
-``1 / cos(pi / 4) = 1.41`` for circumscribed squares, ``1.25 * 1.1`` for the P = 4 volume
-profile with its hub scale), so its hull reaches ``f E_n``; ``HUB_ZONE_FACTOR`` = 1.5
-covers every profile at P >= 4 (checked on real lattices in tests/test_regions.py). A
-leaf (degree 1) has no hub zone: both designs end the strut flat there.
+where ``r_i`` is strut i's radius at the node, ``L_i`` its length and ``a_ij`` the angle
+between struts i and j. ``t_i`` is the distance along strut i beyond which its cylinder
+meets no other cylinder of the node (for equal radii ``r cot(a / 2)``: the smallest angle
+decides; a strut ends at its length), so ``E_n`` is the radius of the smallest ball about
+the node holding the ball, every intersection of the node's cylinders and the exposed ball
+between them: beyond it the exact solid is a set of separate cylinders. fast_stitch places
+its profiles at the same offsets computed for the *profile* radius (circumradius ``rho = f
+r``, ``f`` up to ``1 / cos(pi / 4) = 1.41`` for circumscribed squares, ``1.25 * 1.1`` for
+the P = 4 volume profile with its hub scale), so its hull reaches ``f E_n``;
+``HUB_ZONE_FACTOR`` = 1.5 covers every profile at P >= 4 (checked on real lattices in
+tests/test_regions.py). A leaf (degree 1) has no hub zone: both designs end the strut flat there.
 
 **Strut region**: every sampled surface point (on the mesh or on the reference) farther
 than ``h_n`` from every node ``n``; the **hub region** is the rest. The deviation of each
@@ -99,7 +99,9 @@ def hub_zones(
         t = np.where(s > 1e-12, t, np.where(c > 0, length[:, :, None], 0.0))
         eye = np.eye(d, dtype=bool)[None]
         t = np.where(eye, 0.0, t)
-        ti = np.maximum(0.0, t.max(axis=2))  # (k, d)
+        # strut i ends at its other node: nothing of it to clear beyond (nearly parallel
+        # struts, as clipped lattices have, gave zones of 1e7 r that swallowed the lattice)
+        ti = np.minimum(np.maximum(0.0, t.max(axis=2)), length)  # (k, d)
         ball = config.SPHERE_FACTOR * r.max(axis=1)
         ext = np.sqrt(ti * ti + r * r).max(axis=1)
         out[ns] = factor * np.maximum(ball, ext)

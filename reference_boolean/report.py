@@ -305,12 +305,15 @@ def _place_rows(screen: FirstScreen) -> list[list[str]]:
             "(" + ", ".join(f"{c:.4g}" for c in p.position) + ")",
             _fmt(p.deviation),
             f"{p.percent_of_radius:.0f} %",
+            p.where,
         ]
         for p in screen.places
     ]
 
 
-_PLACE_COLS = ["#", "node", "position (mm)", "deviation (mm)", "% of strut radius"]
+_PLACE_COLS = [
+    "#", "node", "position (mm)", "deviation (mm)", "% of strut radius", "worst sample",
+]  # fmt: skip
 
 
 def _unranked_note(screen: FirstScreen) -> str:
@@ -335,6 +338,7 @@ def to_text(rep: ValidationReport) -> str:
             lines.append(
                 f"    #{p.rank} node {p.node} at ({pos}): {_fmt(p.deviation)} mm "
                 f"({p.percent_of_radius:.0f} % of r)"
+                + (f", {p.where}" if p.where != "-" else "")
             )
     note = _unranked_note(screen)
     if note:
@@ -634,7 +638,10 @@ def lattice_render(
     )
     if places is None:
         places = worst_places(rep, WORST_MARKED)[0] if has else []
-    markers = [Marker(p.position, f"#{p.rank}") for p in places]
+    from reference_boolean.pictures import HIGHLIGHT
+
+    # the worst hubs highlighted: a ring in the close-ups' colour and their hub zone (below)
+    markers = [Marker(p.position, f"#{p.rank}", color=HIGHLIGHT) for p in places]
     markers += [Marker(tuple(map(float, g.nodes[int(i)])), "failed") for i in rep.reference.failed]
     colorbar = None
     if has:
@@ -651,8 +658,17 @@ def lattice_render(
         caption += "; worst places: " + ", ".join(
             f"#{p.rank} node {p.node} ({p.deviation:.3g} mm)" for p in places
         )
+    layers = [Layer(v, f, n, sc, color=(0.80, 0.62, 0.25), closed=True)]
+    if places:  # each worst hub's zone as a translucent highlight-green ball
+        from reference_boolean.pictures import zone_ball
+
+        green = tuple(int(HIGHLIGHT[i : i + 2], 16) / 255.0 for i in (1, 3, 5))
+        for p in places:
+            bv, bf = zone_ball(rep, p)
+            layers.append(Layer(bv, bf, color=green, style="ghost", closed=True))  # type: ignore[arg-type]
+        caption += "; green balls: the worst places' hub zones"
     png, _ = picture(
-        [Layer(v, f, n, sc, color=(0.80, 0.62, 0.25), closed=True)],
+        layers,
         size=size,
         colorbar=colorbar,
         title="local deviation from the exact reference" if has else "lattice",

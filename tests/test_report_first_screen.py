@@ -106,7 +106,7 @@ def test_first_screen_pictures_are_not_blank_and_mark_the_worst_hub(bracket_repo
     assert set(pics) == {"overview"} | {f"worst{p.rank}" for p in places}
     over = _pixels(pics["overview"])
     assert 0.08 < _object_fraction(over[40:-110]) < 0.95
-    assert _colour_pixels(over, "#d62728") > 50  # the numbered rings of the worst places
+    assert _colour_pixels(over, HIGHLIGHT) > 50  # the numbered rings of the worst places
     assert len(np.unique((over * 255).astype(np.uint8).reshape(-1, 3), axis=0)) > 40  # shaded
     for p in places:
         img = _pixels(pics[f"worst{p.rank}"])

@@ -669,3 +669,18 @@ def write_brep(shape: TopoDS_Shape, path: str | os.PathLike[str]) -> None:
     """Write ``shape`` as an OCCT ``.brep`` file (for gmsh)."""
     if not BRepTools.Write_s(shape, str(path)):
         raise OSError(f"OCCT could not write {path}")
+
+
+def scaled_brep(data: bytes, factor: float) -> bytes:
+    """Binary BREP ``data`` scaled by ``factor`` about the origin (empty bytes stay empty).
+
+    The hubs of the reference are built in a frame where their radius is about 1
+    (:mod:`reference_boolean.frame`); this brings a solid back to the lattice's units.
+    """
+    if not data or factor == 1.0:
+        return data
+    trsf = gp_Trsf()
+    trsf.SetScaleFactor(float(factor))
+    mk = BRepBuilderAPI_Transform(from_bytes(data), trsf, True)
+    check_done(mk, "scale")
+    return to_bytes(mk.Shape())
