@@ -1175,7 +1175,7 @@ class Lattice:
             and ``3mf_beam`` (beam-only) files of the lattice (without skin); ``printability``: the
             :meth:`printability` report (overhangs, thin struts, unsupported nodes; print
             it for a summary) and ``overhang_removal`` (what ``remove_overhangs`` removed,
-            or None).
+            or None); ``cut_budget``: :meth:`cut_shortfall`.
         """
         import fast_stitch
         from lattice_cad import io as export
@@ -1213,4 +1213,16 @@ class Lattice:
         )
         out["printability"] = self.printability()
         out["overhang_removal"] = self.overhang_removal
+        out["cut_budget"] = self.cut_shortfall()
         return out
+
+    def cut_shortfall(self) -> float | None:
+        """Chord error (% of the largest strut radius) of the tessellation the lattice is
+        cut by, when its triangle budget made it coarser than asked
+        (``conformal.trim.cut_shortfall``; a ``CutBudgetWarning`` said so), else None
+        (also when nothing has been cut yet)."""
+        if "_cutting_part" not in self.__dict__ or self.part is None:
+            return None
+        from conformal.trim import cut_shortfall
+
+        return cut_shortfall(self.part, self._cutting_part, float(self.graph.radii.max()))
