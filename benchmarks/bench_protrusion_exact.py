@@ -129,7 +129,7 @@ def main() -> None:
             skin = f"{cell / 6:.6g}"
             for setting in args.settings:
                 out = Path(tmp) / f"{src.stem}.{setting}.stl"
-                extra = [skin if a == "SKIN" else a for a in SETTINGS[setting]]
+                extra = [a.replace("SKIN", skin) for a in SETTINGS[setting]]
                 cmd = [sys.executable, "-m", "lattice_cad.cli", "fill", str(src), "-o", str(out),
                        "--cell-size", str(cell), "--radius", str(r), *extra]  # fmt: skip
                 c0, w0 = _children_cpu(), time.perf_counter()
