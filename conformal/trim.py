@@ -31,7 +31,14 @@ from numpy.typing import NDArray
 
 from lattice_cad.core import config
 
-__all__ = ["TrimReport", "TrimResult", "trim_to_part", "protrusion", "cutting_part"]
+__all__ = [
+    "TrimReport",
+    "TrimResult",
+    "trim_to_part",
+    "protrusion",
+    "cutting_part",
+    "cut_shortfall",
+]
 
 
 @dataclass(frozen=True)
@@ -134,11 +141,18 @@ def cutting_part(part: Any, radius: float) -> Any:
 
     A B-rep part (STEP, CadQuery, build123d) is tessellated again with a chord error of
     ``config.CUT_DEFLECTION_RTOL * radius`` (but not below ``CUT_DEFLECTION_FLOOR`` of its
-    diagonal, nor below what ``config.CUT_MAX_TRIANGLES`` allows), so that a lattice cut
-    by that mesh lies outside the *exact* surface by less than ``config.TRIM_RTOL *
-    radius`` (unless the budget binds: threads, gear teeth); a mesh part, or one already
-    tessellated that finely, is returned unchanged. When the finer tessellation fails (it
-    is not closed), the part is returned unchanged with a
+    diagonal), so that a lattice cut by that mesh lies outside the *exact* surface by less
+    than ``config.TRIM_RTOL * radius``; a mesh part, or one already tessellated that
+    finely, is returned unchanged.
+
+    The tessellation holds at most about ``config.CUT_MAX_TRIANGLES`` triangles. Where the
+    chord error asked for would need more (threads, gear teeth, many small fillets), the
+    chord error is chosen from measured triangle counts (starting from the pessimistic
+    guess that triangles grow as 1 / chord error, then refining while the count stays
+    well under the budget), and a :class:`~lattice_cad.core.errors.CutBudgetWarning`
+    names the part and the chord error reached in % of ``radius``
+    (:func:`cut_shortfall` gives it). When the finer tessellation fails (it is not
+    closed), the part is returned unchanged with a
     :class:`~lattice_cad.core.errors.LatticeWarning`.
 
     Parameters
@@ -153,17 +167,28 @@ def cutting_part(part: Any, radius: float) -> Any:
     """
     import warnings
 
-    from lattice_cad.core.errors import LatticeWarning, PartError
+    from lattice_cad.core.errors import CutBudgetWarning, LatticeWarning, PartError
 
     if getattr(part, "shape", None) is None or not radius > 0:
         return part
-    defl = max(
-        config.CUT_DEFLECTION_RTOL * float(radius),
-        CUT_DEFLECTION_FLOOR * part.diagonal,
-        part.deflection * len(part.faces) / config.CUT_MAX_TRIANGLES,  # the budget
-    )
+    want = max(config.CUT_DEFLECTION_RTOL * float(radius), CUT_DEFLECTION_FLOOR * part.diagonal)
+    budget = config.CUT_MAX_TRIANGLES
+    defl = max(want, part.deflection * len(part.faces) / budget)  # the pessimistic guess
     try:
-        return part.refined(defl, angular=config.CUT_ANGULAR_DEFLECTION)
+        cut = part.refined(defl, angular=config.CUT_ANGULAR_DEFLECTION)
+        # planar faces do not grow with a finer chord error: measure and refine further
+        # while the count stays under the budget (triangles assumed ~ 1 / chord)
+        for _ in range(4):
+            n = len(cut.faces)
+            if defl <= want * (1 + 1e-9) or n >= 0.9 * budget:
+                break
+            finer = max(want, defl * n / budget)
+            if finer > 0.95 * defl:
+                break
+            trial = part.refined(finer, angular=config.CUT_ANGULAR_DEFLECTION)
+            if len(trial.faces) > 1.5 * budget:
+                break
+            cut, defl = trial, finer
     except PartError as exc:
         warnings.warn(
             f"{part.name}: the lattice is cut by the part's default tessellation (chord error "
@@ -172,6 +197,42 @@ def cutting_part(part: Any, radius: float) -> Any:
             stacklevel=2,
         )
         return part
+    short = cut_shortfall(part, cut, radius)
+    if short is not None:
+        warnings.warn(
+            f"{part.name}: the lattice is cut by a tessellation with chord error "
+            f"{cut.deflection:.3g} mm = {short:.2f} % of the strut radius (asked "
+            f"{100 * config.CUT_DEFLECTION_RTOL:.2g} %): {len(cut.faces):,} triangles, the "
+            f"budget (config.CUT_MAX_TRIANGLES = {budget:,}) binds; the cut may stand out of "
+            f"the exact surface by about that much",
+            CutBudgetWarning,
+            stacklevel=2,
+        )
+    return cut
+
+
+def cut_shortfall(part: Any, cut: Any, radius: float) -> float | None:
+    """The chord error of ``cut`` in % of ``radius`` when the triangle budget made it coarser
+    than :func:`cutting_part` asks for, else None.
+
+    Parameters
+    ----------
+    part : conformal.Part
+        The part as loaded.
+    cut : conformal.Part
+        What :func:`cutting_part` returned for it.
+    radius : float
+
+    Returns
+    -------
+    float or None
+    """
+    if getattr(part, "shape", None) is None or not radius > 0:
+        return None
+    want = max(config.CUT_DEFLECTION_RTOL * float(radius), CUT_DEFLECTION_FLOOR * part.diagonal)
+    if cut.deflection <= want * (1 + 1e-9):
+        return None
+    return 100.0 * float(cut.deflection) / float(radius)
 
 
 def _tolerance(radius: float, extent: float) -> float:

@@ -351,6 +351,11 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             con.say(lat.keep_report.summary())
         if lat.trim_report is not None:
             con.say(lat.trim_report.summary())
+        if (short := lat.cut_shortfall()) is not None:
+            con.say(
+                f"cut by a tessellation with chord error {short:.2f} % of r (the triangle "
+                "budget binds; config.CUT_MAX_TRIANGLES)"
+            )
         if lat.escape_report is not None:
             con.say(lat.escape_report.summary())
     if out.suffix.lower() in suffixes(Kind.SOLIDS):

@@ -38,6 +38,7 @@ example ``conformal.PartError``), but they are defined here only.
     LatticeWarning               accepted, but deserves the user's attention
     ├── ExportWarning            a file may be too large for common slicers
     ├── BeamOnlyWarning          a beam-only 3MF that most slicers cannot open
+    ├── CutBudgetWarning         the cut tessellation is coarser than asked (triangle budget)
     └── CADStackWarning          the installed cadquery/build123d/OCP set is unsupported
 """
 
@@ -73,6 +74,7 @@ __all__ = [
     "LatticeWarning",
     "ExportWarning",
     "BeamOnlyWarning",
+    "CutBudgetWarning",
     "CADStackWarning",
 ]
 
@@ -204,6 +206,12 @@ class LatticeWarning(UserWarning):
 
 class ExportWarning(LatticeWarning):
     """An export succeeded but the file may be too large for common slicers."""
+
+
+class CutBudgetWarning(LatticeWarning):
+    """The tessellation a lattice is cut by is coarser than asked (its triangle budget,
+    ``config.CUT_MAX_TRIANGLES``, binds): the message names the part and the chord error
+    reached in % of the strut radius (``conformal.trim.cutting_part``)."""
 
 
 class BeamOnlyWarning(LatticeWarning):
