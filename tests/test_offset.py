@@ -14,7 +14,7 @@ import pytest
 from conformal import load_part
 from conformal import skin as S
 from conformal.part import Part
-from lattice_cad.core.errors import LatticeWarning, OCCTFailure
+from lattice_cad.core.errors import CutBudgetWarning, LatticeWarning, OCCTFailure
 from tests.conftest import DATA
 
 
@@ -38,7 +38,9 @@ def test_cycloidal_gear_skin_by_occt_offset():
     part = _part("kcl_cycloidal-gear.step")
     cell = float(part.size.max()) / 15  # the parts benchmark's setting
     t = float(f"{cell / 6:.6g}")
-    cut = cutting_part(part, cell / 12)
+    with warnings.catch_warnings():  # the gear's flanks take the whole triangle budget
+        warnings.simplefilter("ignore", CutBudgetWarning)  # (0.70 % r reached, 0.5 % asked)
+        cut = cutting_part(part, cell / 12)
     res = S.build_skin(manifold3d.Manifold(), cut, t, method="occt", check=False)
     rep = res.report
     tol = max(S.WALL_RTOL * t, S.WALL_ATOL)

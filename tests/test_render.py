@@ -277,6 +277,7 @@ def test_preview_of_a_real_mesh_file(tmp_path):
 def test_report_render_marks_the_worst_nodes():
     from types import SimpleNamespace
 
+    from reference_boolean.pictures import HIGHLIGHT
     from reference_boolean.report import lattice_render
 
     g = tile("bcc", np.argwhere(np.ones((2, 2, 1))), cell_size=5.0, radius=0.4)
@@ -288,8 +289,11 @@ def test_report_render_marks_the_worst_nodes():
         worst_nodes=lambda k: worst[:k],
         reference=SimpleNamespace(failed={}),
         label="test",
+        comparisons={},  # no surface comparison: places ranked by node deviation alone
+        hub_zone=None,  # zone balls of 3 r
     )
     img = _pixels(lattice_render(rep, size=(500, 400)))
-    red = (img[..., 0] > 0.7) & (img[..., 1] < 0.35) & (img[..., 2] < 0.35)
-    assert red.sum() > 50  # the numbered circles
+    rgb = np.array([int(HIGHLIGHT[i : i + 2], 16) for i in (1, 3, 5)]) / 255.0
+    ringed = np.abs(img - rgb).max(axis=-1) < 0.12
+    assert ringed.sum() > 50  # the numbered rings, in the highlight green
     _assert_framed(_object_mask(img[40:300]))
