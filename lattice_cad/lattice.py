@@ -627,7 +627,10 @@ class Lattice:
 
         return self._skinned()
 
-    def _skinned(self, *, shift: float = 0.0, mid_wall: bool = False, split: bool = True) -> Mesh:
+    def _skinned(
+        self, *, shift: float = 0.0, mid_wall: bool = False, split: bool = True,
+        coarse: bool = False,
+    ) -> Mesh:  # fmt: skip
         """The lattice (with its keep zones) inside its skin, not yet checked; ``shift``
         moves the lattice by that many trim tolerances (``config.TRIM_RTOL`` r) in a
         generic direction, and ``mid_wall`` builds the skin the older way (see
@@ -649,7 +652,7 @@ class Lattice:
         local = split and lattice is self._lattice_mesh and self.escape_holes is None
         result = _skin.build_skin(
             lattice,
-            self._cutting_part,
+            self.part if coarse else self._cutting_part,
             self.skin,
             check=False,
             mid_wall=mid_wall,
@@ -680,13 +683,27 @@ class Lattice:
                     # the booleans left surfaces a float32 step apart (a strut grazing the
                     # skin's inner wall): the same solid the older way (with the mid-wall
                     # surface), then with the lattice moved a quarter of the trim tolerance
-                    for shift, mid_wall in ((0.0, True), (0.25, False), (0.25, True)):
+                    # last: the part's own (load) tessellation instead of the finer cutting
+                    # one, whose near-coincident facets float32 may not hold (said in a warning)
+                    tries = [(0.0, True, False), (0.25, False, False), (0.25, True, False)]
+                    if self._cutting_part is not self.part:
+                        tries.append((0.0, False, True))
+                    for shift, mid_wall, coarse in tries:
                         try:
                             mesh = _checked_single_precision(
-                                self._skinned(shift=shift, mid_wall=mid_wall), "the lattice"
+                                self._skinned(shift=shift, mid_wall=mid_wall, coarse=coarse),
+                                "the lattice",
                             )
                         except ExportError:
                             continue
+                        if coarse:
+                            warnings.warn(
+                                "float32 (STL, 3MF) could not hold the skin built on the fine "
+                                "cutting tessellation; it was built on the part's own "
+                                "tessellation, which may stand further out of the exact surface",
+                                LatticeWarning,
+                                stacklevel=2,
+                            )
                         if self.escape_holes is not None:
                             self._verify_escape(mesh)
                         return mesh
