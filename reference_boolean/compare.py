@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -161,21 +162,58 @@ def _z_to(d: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.eye(3) + K + K @ K / (1.0 + c)
 
 
-def union_sample(reference: Reference, hubs: int, seed: int = 0) -> NDArray[np.int64]:
-    """(k,) int64: a seeded sample of ``hubs`` nodes whose reference hub was built on its
-    own (nodes fused into a cluster solid are left out: their hubs overlap, so the sum of
-    their separate unions is not the cluster's volume)."""
+def union_sample(
+    reference: Reference,
+    hubs: int,
+    seed: int = 0,
+    *,
+    max_stumps: int | None = config.UNION_MAX_STUMPS,
+) -> NDArray[np.int64]:
+    """(k,) int64: a seeded sample of at most ``hubs`` nodes whose reference hub was built
+    on its own (nodes fused into a cluster solid are left out: their hubs overlap, so the
+    sum of their separate unions is not the cluster's volume).
+
+    The sample also holds at most ``max_stumps`` half-struts in all (the seeded order is
+    cut where the running sum of the degrees would pass it; at least one hub): the cost
+    of the unions grows with the stumps, so a lattice of high-degree hubs (a tet lattice,
+    degree ~12) gets fewer hubs than a clipped voxel lattice with many leaves, and the
+    study's time stays bounded and does not depend on the machine. None: no such bound.
+    """
     single = np.isfinite(reference.hub_volume)
     for members in reference.clusters:
         single[np.asarray(members, dtype=np.int64)] = False
     ok = np.flatnonzero(single)
-    if len(ok) <= hubs:
+    degree = reference.graph.degree
+    if len(ok) <= hubs and (max_stumps is None or int(degree[ok].sum()) <= max_stumps):
         return ok
     rng = np.random.default_rng(seed)
-    return np.sort(rng.choice(ok, size=int(hubs), replace=False))
+    pick = rng.choice(ok, size=min(int(hubs), len(ok)), replace=False)
+    if max_stumps is not None:
+        keep = int(np.searchsorted(np.cumsum(degree[pick]), int(max_stumps), side="right"))
+        pick = pick[: max(keep, 1)]
+    return np.sort(pick)
 
 
 # ---------------------------------------------------------------- measures
+#: :func:`reference_validity` per reference (a reference's mesh does not change: it is a
+#: frozen dataclass; the check takes ~30 s on a 30K-strut tet reference and every
+#: ``to_dict`` / ``save`` asks for it).
+_REFERENCE_VALIDITY: weakref.WeakKeyDictionary[Reference, dict[str, bool]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def reference_validity(reference: Reference) -> dict[str, bool]:
+    """:func:`mesh_validity` of ``reference.mesh`` (``{"valid": False}`` when it is empty),
+    computed once per reference."""
+    got = _REFERENCE_VALIDITY.get(reference)
+    if got is None:
+        mesh = reference.mesh
+        got = mesh_validity(mesh) if len(mesh.faces) else {"valid": False}
+        _REFERENCE_VALIDITY[reference] = got
+    return dict(got)
+
+
 def mesh_validity(mesh: Mesh) -> dict[str, bool]:
     """Watertight / winding-consistent / outward (trimesh) and manifold (manifold3d)."""
     import manifold3d as m3
@@ -457,7 +495,7 @@ class ValidationReport:
             "volume_union_reference": vu,
             "hausdorff": hausdorff,
             "valid": {
-                "reference": mesh_validity(ref.mesh) if len(ref.mesh.faces) else {"valid": False},
+                "reference": reference_validity(ref),
                 "mesh": valid_mesh,
                 "union": {int(n): bool(v) for n, v in self.union_valid.items()},
             },

@@ -33,6 +33,7 @@ bound per hub.
 
 from __future__ import annotations
 
+import itertools
 import math
 import multiprocessing as mp
 import os
@@ -580,7 +581,7 @@ def _run(
         try:
             timed_out = _run_pool(
                 pool, specs, todo, results, (deflection, angular, keep), timeout,
-                progress, done_count,
+                progress, done_count, workers,
             )  # fmt: skip
         except BaseException:  # Ctrl-C (KeyboardInterrupt) or an error: no worker left behind
             _kill(pool)
@@ -597,6 +598,11 @@ def _run(
     return results
 
 
+#: Hubs submitted per worker process at a time (:func:`_run_pool`): enough to keep every
+#: worker busy while the results of the others come back.
+_IN_FLIGHT_PER_WORKER = 8
+
+
 def _run_pool(
     pool: ProcessPoolExecutor,
     specs: list[Any],
@@ -606,21 +612,35 @@ def _run_pool(
     timeout: float,
     progress: Any,
     done_count: int,
+    workers: int = 1,
 ) -> int | None:
-    """Submit ``todo`` to ``pool`` and collect into ``results``; the first hub over time."""
+    """Submit ``todo`` to ``pool`` (``workers`` processes; a few hubs per worker in flight
+    at a time) and collect into ``results``; the first hub over time."""
     from lattice_cad.occ_impl.truss import HubResult
 
     deflection, angular, keep = opts
-    futs: dict[Future[Any], int] = {
-        pool.submit(_build_one, (specs[i], deflection, angular, keep)): i for i in todo
-    }
+    # a bounded number of hubs in flight: with every hub submitted at once (5K+ futures on a
+    # tet lattice), each wait() and the running() scan walk all of them, and this process
+    # burnt ~100 CPU s next to the workers on the GE tet reference
+    queue = iter(todo)
+    futs: dict[Future[Any], int] = {}
+    pending: set[Future[Any]] = set()
+
+    def submit(n: int) -> None:
+        for i in itertools.islice(queue, n):
+            f = pool.submit(_build_one, (specs[i], deflection, angular, keep))
+            futs[f] = i
+            pending.add(f)
+
+    submit(_IN_FLIGHT_PER_WORKER * max(int(workers), 1))
     started: dict[Future[Any], float] = {}
-    pending = set(futs)
     timed_out: int | None = None
     while pending and timed_out is None:
-        done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+        done, _ = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
         for f in done:
-            i = futs[f]
+            pending.discard(f)
+            i = futs.pop(f)
+            started.pop(f, None)
             try:
                 results[i] = f.result()
             except Exception as exc:  # a worker died (e.g. an OCCT crash)
@@ -628,6 +648,7 @@ def _run_pool(
             done_count += 1
             if progress:
                 progress("build", done_count, len(specs))
+        submit(len(done))
         now = time.monotonic()
         for f in pending:
             if f.running():

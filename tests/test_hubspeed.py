@@ -118,3 +118,33 @@ def test_validate_has_the_full_union_study_switch():
     a = parser.parse_args(["validate", "g.json", "--report", "r", "--full-union-study"])
     assert a.full_union_study is True
     assert parser.parse_args(["validate", "g.json", "--report", "r"]).full_union_study is False
+
+
+def test_union_sample_is_bounded_by_stumps(bcc):
+    from reference_boolean.compare import union_sample
+
+    g, ref = bcc
+    deg = g.degree
+    free = union_sample(ref, 10_000, max_stumps=None)
+    assert len(free) == int(np.isfinite(ref.hub_volume).sum())
+    for cap in (1, 9, 25):
+        s = union_sample(ref, 10_000, seed=4, max_stumps=cap)
+        assert len(s) >= 1 and len(np.unique(s)) == len(s)
+        assert int(deg[s].sum()) <= cap or len(s) == 1
+        # the cap cuts the same seeded order: a larger cap keeps a superset
+        assert set(s) <= set(union_sample(ref, 10_000, seed=4, max_stumps=cap + 20))
+    # hubs still bound it, and the default cap (config) is applied by compare
+    assert len(union_sample(ref, 3, max_stumps=10**6)) == 3
+
+
+def test_run_keeps_a_few_hubs_in_flight_and_builds_them_all(bcc, monkeypatch):
+    import reference_boolean.reference as rb
+
+    g, ref = bcc
+    specs, _, _, _ = _hub_specs(g, True)
+    assert len(specs) > 2
+    monkeypatch.setattr(rb, "_IN_FLIGHT_PER_WORKER", 1)  # fewer in flight than hubs
+    seen: list[int] = []
+    out = _run(specs, 0.0, 0.25, False, 2, 300.0, lambda s, d, t: seen.append(d))
+    assert all(r is not None and r.status == "ok" and r.volume > 0 for r in out)
+    assert seen == list(range(1, len(specs) + 1))

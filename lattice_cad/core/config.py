@@ -206,6 +206,12 @@ CACHE_QUANTUM = 1e-9
 #: trusses, each a union of its sphere and half-struts; None: the whole lattice, as before).
 DEFAULT_UNION_HUBS = 200
 
+#: Largest number of half-struts (the sum of the sampled hubs' degrees) in that sample: the
+#: unions' cost grows with the stumps (GE tet 5 mm, degree ~12: 200 hubs took 114 s at
+#: 16-128 segments), so high-degree lattices get fewer hubs (reference_boolean.compare.
+#: union_sample). None: only DEFAULT_UNION_HUBS bounds the sample.
+UNION_MAX_STUMPS: int | None = 400
+
 #: Hubs equal up to a rotation or reflection (reference_boolean.rotations): rounding quantum
 #: of the invariant keys and largest stump mismatch of a verified match, both relative to
 #: the longest strut.
