@@ -788,8 +788,9 @@ def bench_volume_table(
         f"{os.cpu_count()}, load {os.getloadavg()[0]:.1f}); error = (V_mesh - V_exact) / "
         "V_exact; struts / hubs = symmetric surface deviation p95 / r along struts (outside "
         "the hub zones: same design in both) / at hubs (inside: convex hub against ball and "
-        f"cylinders), {samples:,} samples per direction plus all vertices; goals: default "
-        "error within 1 % and struts p95 < 0.10 at P = 6\n"
+        f"cylinders), {samples:,} area samples per direction (p95 over these; the "
+        "vertices add to the max only); goals: default error within 1 % and struts p95 < "
+        "0.10 at P = 6\n"
     )
     for name, build in _volume_lattices(quick, which):
         t = time.perf_counter()

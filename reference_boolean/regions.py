@@ -130,16 +130,20 @@ def in_hub_zone(
     return mask
 
 
-def _stats(d: NDArray[np.float64], total: int) -> dict[str, float]:
-    if not len(d):
+def _stats(d: NDArray[np.float64], area: NDArray[np.bool_], total: int) -> dict[str, float]:
+    """max over every point of the region; mean, p95 and the fraction over its area samples
+    (``area``), of ``total`` area samples on that side."""
+    da = d[area]
+    if not len(da):
         nan = float("nan")
-        return {"max": nan, "mean": nan, "p95": nan, "samples": 0, "fraction": 0.0}
+        top = float(d.max()) if len(d) else nan
+        return {"max": top, "mean": nan, "p95": nan, "samples": 0, "fraction": 0.0}
     return {
         "max": float(d.max()),
-        "mean": float(d.mean()),
-        "p95": float(np.percentile(d, 95)),
-        "samples": int(len(d)),
-        "fraction": float(len(d) / max(total, 1)),
+        "mean": float(da.mean()),
+        "p95": float(np.percentile(da, 95)),
+        "samples": int(len(da)),
+        "fraction": float(len(da) / max(total, 1)),
     }
 
 
@@ -148,6 +152,9 @@ def region_stats(
     d1: NDArray[np.float64],
     hub2: NDArray[np.bool_],
     d2: NDArray[np.float64],
+    *,
+    area1: NDArray[np.bool_] | None = None,
+    area2: NDArray[np.bool_] | None = None,
 ) -> dict[str, dict[str, Any]]:
     """Deviation statistics of the strut and hub regions.
 
@@ -157,6 +164,11 @@ def region_stats(
         Mesh samples in a hub zone, and their distances to the reference.
     hub2, d2 : (S2,) bool, (S2,) float64
         Reference samples in a hub zone, and their distances to the mesh.
+    area1, area2 : (S1,) bool, (S2,) bool, optional
+        Which samples are area-weighted random points (the others are mesh vertices,
+        :func:`reference_boolean.compare.surface_deviation`): the mean, the p95 and the
+        fraction are statistics of the *surface*, so they are taken over those only; the
+        max over every point. None: every sample is an area sample.
 
     Returns
     -------
@@ -167,9 +179,11 @@ def region_stats(
         count, NaN when a side has none).
     """
     out: dict[str, dict[str, Any]] = {}
+    a1 = np.ones(len(d1), dtype=bool) if area1 is None else np.asarray(area1, dtype=bool)
+    a2 = np.ones(len(d2), dtype=bool) if area2 is None else np.asarray(area2, dtype=bool)
     for name, sel1, sel2 in (("struts", ~hub1, ~hub2), ("hubs", hub1, hub2)):
-        a = _stats(d1[sel1], len(d1))
-        b = _stats(d2[sel2], len(d2))
+        a = _stats(d1[sel1], a1[sel1], int(a1.sum()))
+        b = _stats(d2[sel2], a2[sel2], int(a2.sum()))
         sym: dict[str, float] = {
             k: float(np.fmax(a[k], b[k])) if a["samples"] and b["samples"] else float("nan")
             for k in ("max", "mean", "p95")

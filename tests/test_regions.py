@@ -144,3 +144,28 @@ def test_fast_stitch_hubs_lie_inside_the_hub_zones():
             worst = max(worst, float(ratio.max()))
             assert ratio.max() <= 1.0, (P_, prof, float(ratio.max()))
     assert worst > 0.8  # the zone is not far larger than needed
+
+
+def test_surface_statistics_are_over_the_area_samples_and_the_max_over_all():
+    """surface_deviation returns area samples, then every vertex; the p95, mean and fraction
+    describe the surface (area-weighted), so vertices (dense at fillets and polygon corners,
+    where the deviation peaks) must not weigh in them; they still count for the max."""
+    from reference_boolean.compare import _stats
+
+    rng = np.random.default_rng(0)
+    n, nv = 10_000, 40_000
+    d = np.concatenate([rng.uniform(0.0, 1.0, n), np.full(nv, 5.0)])  # vertices: all at 5
+    area = np.arange(n + nv) < n
+    s = _stats(d, n)
+    assert s["p95"] == pytest.approx(0.95, abs=0.02) and s["mean"] == pytest.approx(0.5, abs=0.02)
+    assert s["max"] == 5.0 and s["samples"] == n
+    assert _stats(d)["p95"] == 5.0  # counting the vertices, the p95 would be theirs
+    hub = np.zeros(n + nv, dtype=bool)
+    hub[: n // 4] = True  # a quarter of the area samples in hub zones, no vertex
+    reg = region_stats(hub, d, hub, d, area1=area, area2=area)
+    st = reg["struts"]["symmetric"]
+    assert st["max"] == 5.0 and st["p95"] < 1.0
+    assert st["fraction"] == pytest.approx(0.75) and st["samples"] == n - n // 4
+    assert reg["hubs"]["symmetric"]["max"] <= 1.0  # no vertex in the hub zones
+    # without masks every point is an area sample (as before)
+    assert region_stats(hub, d, hub, d)["struts"]["symmetric"]["p95"] == 5.0
