@@ -24,7 +24,10 @@ without a boolean, face by face (:mod:`lattice_cad.occ_impl.hub_direct`, :data:`
 the same solid, checked the same way (BRepCheck, one solid, positive volume, intact
 midpoint circles), its volume in closed form; the retries above are its fallback, and
 ``HubResult.attempts`` says which path built each hub (``"direct: ok"`` or the boolean
-construction, after a ``"direct: ..."`` line where the direct path declined).
+construction, after a ``"direct: ..."`` line where the direct path declined). Hubs whose
+stumps differ (thinned or tapered struts) build the sphere and their largest group of equal
+cylinder stumps face by face and fuse the other stumps onto it in one general fuse
+(``"direct+fuse"``, :data:`DIRECT_FUSE`; volume from GProp).
 
 Midpoint circles (how both hubs of a strut get identical vertices)
 ------------------------------------------------------------------
