@@ -494,7 +494,7 @@ def _tessellate(
     base = 0
     on_meshed = None if clock is None else (lambda: clock.lap("mesh"))
     for face, pts, t in face_triangulations(
-        shape, deflection, angular, parallel=False, on_meshed=on_meshed
+        shape, deflection, angular, parallel=False, on_meshed=on_meshed, tiny=deflection
     ):
         nn = len(pts)
         # a planar face lying in a midpoint plane is a midpoint disc: dropped
