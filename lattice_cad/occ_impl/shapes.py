@@ -401,11 +401,10 @@ def face_triangulations(
     ``on_meshed``, if given, is called (without arguments) once BRepMesh is done, before
     the first face is read (for profiling). A face BRepMesh leaves without triangles whose
     bounding box is smaller than ``tiny`` (e.g. a speck of a hub's sphere, 1e-5 of its
-    radius across, where three stumps nearly meet on it) is yielded as a fan over its
-    outer wire's vertices: every point of the face is within ``tiny`` of it, and its
-    edges are then too short for BRepMesh to put nodes inside them, so the fan's corners
-    are the neighbours' edge nodes (the callers' checks - closed, manifold, circles -
-    still decide).
+    radius across, where three stumps nearly meet on it) is yielded as a fan through the
+    nodes BRepMesh put on its outer boundary's edges (read from the neighbouring faces'
+    triangulations, so the fan shares them): every point of the face is within ``tiny`` of
+    it (the callers' checks - closed, manifold, circles - still decide).
 
     Yields
     ------
