@@ -30,9 +30,7 @@ def _build(spec, direct: bool, monkeypatch, attempts=None):
     if attempts is not None:
         monkeypatch.setattr(truss, "ATTEMPTS", attempts)
     try:
-        return truss.build_hub(
-            spec, deflection=TOL, angular=config.DEFAULT_ANGULAR, keep_brep=True
-        )
+        return truss.build_hub(spec, deflection=TOL, angular=config.DEFAULT_ANGULAR, keep_brep=True)
     finally:
         monkeypatch.undo()
 
@@ -41,14 +39,14 @@ def _build(spec, direct: bool, monkeypatch, attempts=None):
 PLAIN = (("fuse", 0.0, True),)
 
 
-def _compare(spec, monkeypatch):
-    """Build ``spec`` both ways; assert the direct path was taken and agrees."""
+def _compare(spec, monkeypatch, plan="direct"):
+    """Build ``spec`` both ways; assert the direct path (``plan``) was taken and agrees."""
     from lattice_cad.occ_impl.shapes import check_valid, from_bytes, volume
 
     new = _build(spec, True, monkeypatch)
     old = _build(spec, False, monkeypatch)
     assert new.status == "ok" and old.status == "ok"
-    assert new.attempts == ["direct: ok"], new.attempts
+    assert new.attempts == [f"{plan}: ok"], new.attempts
     assert not old.attempts[-1].startswith("direct")
     if abs(new.volume / old.volume - 1.0) > 1e-6:
         # the chain's pairwise tree fuse lost 1e-5 of the volume on one seeded boundary hub
@@ -59,7 +57,8 @@ def _compare(spec, monkeypatch):
         assert new.volume == pytest.approx(plain.volume, rel=1e-6)
     else:
         assert new.volume == pytest.approx(old.volume, rel=1e-6)
-    # the direct solid itself: valid, and GProp agrees with the closed form
+    # the direct solid itself: valid, and GProp agrees with the closed form (direct+fuse:
+    # GProp of the fused solid is the volume; its face-by-face part is checked separately)
     solid = from_bytes(new.brep)
     check_valid(solid, "direct hub")
     assert volume(solid, eps=config.VOLUME_EPS) == pytest.approx(new.volume, rel=1e-7)
@@ -181,6 +180,57 @@ def test_fallbacks_are_taken_and_counted(monkeypatch):
     assert res.attempts[0].startswith("direct: OCCTFailure")
 
 
+def _box_bcc_spec(thin=0.8, taper=0.9):
+    """A Box-BCC node of radius 0.1 (14 stumps) with stump 3 thinned to ``thin`` x and the
+    stump 9 tapered to ``taper`` x at its midpoint, as a clipped lattice has them."""
+    bcc = np.array([[x, y, z] for x in (1, -1) for y in (1, -1) for z in (1, -1)], float)
+    dirs = np.vstack([bcc / np.sqrt(3.0), np.eye(3), -np.eye(3)])
+    radii = np.full((14, 2), 0.1)
+    radii[3] *= thin
+    radii[9, 1] *= taper
+    return _spec(dirs, radii, lengths=np.where(np.arange(14) < 8, 1.2, 0.9))
+
+
+def test_unequal_radii_direct_fuse(monkeypatch):
+    """Thinned and tapered stumps (no closed form where they meet the others: two stumps of
+    different radii always meet outside the sphere of 1.00001 x the largest radius): the
+    sphere and the equal cylinder stumps face by face, one fuse with the rest; the same
+    solid and volume as the boolean chain, and the face-by-face part's closed-form volume
+    agrees with its GProp."""
+    from lattice_cad.occ_impl.shapes import check_valid, volume
+
+    for spec in (_box_bcc_spec(), _box_bcc_spec(thin=1.0), _box_bcc_spec(taper=1.0)):
+        assert hub_direct.direct_applies(spec) == "stumps of different radii or tapered"
+        idx, why = hub_direct.base_group(spec)
+        assert why == "" and len(idx) == 14 - (spec.r_mid != spec.r_mid.max()).sum()
+        _compare(spec, monkeypatch, plan="direct+fuse")
+        sub = hub_direct.sub_spec(spec, idx)
+        r = float(sub.r_mid[0])
+        solid = hub_direct.build_direct(sub.radius, sub.vecs, r, sub.xdirs, tol=1e-7)
+        check_valid(solid, "sub-hub")
+        va = hub_direct.analytic_volume(sub.radius, sub.vecs, r, sub.xdirs)
+        assert volume(solid, eps=config.VOLUME_EPS) == pytest.approx(va, rel=1e-7)
+    # the direct+fuse path off: the booleans only
+    monkeypatch.setattr(truss, "DIRECT_FUSE", False)
+    assert truss._direct_plan(_box_bcc_spec())[0] == ""
+
+
+def test_two_stumps_of_different_radii_always_meet_outside_the_sphere():
+    """Why unequal stumps need the fuse: for every pair of radii and angles, points of both
+    solid cylinders at distance sqrt(r_j^2 + r_k^2) from the node (> R = 1.00001 r_max)."""
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        rj, rk = rng.uniform(0.2, 1.0, 2)
+        a = rng.uniform(0.1, np.pi - 0.1)
+        c, s = np.cos(a), np.sin(a)
+        # the parallelogram vertex y = rj, x = (rj c + sign(c) rk) / s (axis j along x)
+        x, y = (rj * c + np.sign(c) * rk) / s, rj
+        d_k = -x * s + y * c  # signed distance to axis k in the plane of the axes
+        t2 = min(rj * rj - y * y, rk * rk - d_k * d_k)
+        assert t2 >= -1e-12  # on the boundary of both strips: in both solid cylinders
+        assert x * x + y * y + max(t2, 0.0) >= rj * rj + rk * rk - 1e-12
+
+
 def _always_invalid(orig):
     from lattice_cad.core.errors import OCCTFailure
 
@@ -210,3 +260,24 @@ def test_real_part_tet_hubs(monkeypatch):
     rng = np.random.default_rng(11)
     for i in rng.choice(len(direct), 5, replace=False):
         _compare(direct[int(i)], monkeypatch)
+
+
+@pytest.mark.slow
+def test_real_part_direct_fuse_hubs(monkeypatch):
+    """Hubs with thinned or tapered stumps of a clipped Box-BCC lattice of a real part (the
+    GE bracket STEP): direct+fuse, the same as the boolean chain."""
+    from conformal.part import load_part
+    from conformal.voxel import voxel_lattice
+    from lattice_cad.core.errors import LatticeWarning
+    from reference_boolean.reference import _unit_specs
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)  # 5 solids united into one part
+        part = load_part(DATA / "step" / "dolfiny_ge_bracket_rotated_nonds.step")
+        g = voxel_lattice(part, "box-bcc", 11.0, 0.5, fill="clip")
+    specs = [s for s in _unit_specs(g, True).specs if isinstance(s, truss.HubSpec)]
+    fused = [s for s in specs if truss._direct_plan(s)[0] == "direct+fuse"]
+    assert len(fused) >= 10, (len(fused), len(specs))
+    rng = np.random.default_rng(12)
+    for i in rng.choice(len(fused), 4, replace=False):
+        _compare(fused[int(i)], monkeypatch, plan="direct+fuse")

@@ -283,7 +283,7 @@ def tessellate_open(
     base = 0
     on_meshed = None if clock is None else (lambda: clock.lap("mesh"))
     for face, pts, t in face_triangulations(
-        shape, deflection, angular, parallel=False, on_meshed=on_meshed
+        shape, deflection, angular, parallel=False, on_meshed=on_meshed, tiny=deflection
     ):
         if len(centres) and BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
             proj = pts @ axes.T - plane_off  # (nn, b)

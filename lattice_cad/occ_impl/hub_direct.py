@@ -43,6 +43,7 @@ one. The caller then falls back to the boolean chain.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -78,6 +79,7 @@ __all__ = [
     "envelope",
     "analytic_volume",
     "direct_applies",
+    "base_group",
     "build_direct",
 ]
 
@@ -277,6 +279,52 @@ def direct_applies(spec: object) -> str:
     if np.any(peak > hmin - _DISC_MARGIN * r):
         return "a stump reaches another stump's midpoint disc"
     return ""
+
+
+def base_group(spec: object) -> tuple[NDArray[np.int64], str]:
+    """The stumps of a hub :func:`direct_applies` declines that it can still build face by face.
+
+    Where the stumps differ (thinned or tapered struts, e.g. 157 of the 1,369 distinct hubs of
+    the GE bracket Box-BCC 5.5 mm clip lattice), two stumps of different radii always meet
+    outside the sphere (their solid intersection holds a point at distance
+    ``sqrt(r_j^2 + r_k^2) > R`` from the node, as ``R`` is 1.00001 x the largest radius), in
+    a quartic curve that has no closed form. The hub is then built in two steps (see
+    :func:`lattice_cad.occ_impl.truss.direct_hub_shape`): the sphere with the largest group
+    of cylinder stumps of one radius face by face (a sub-hub :func:`direct_applies` covers),
+    then one general fuse of that solid with the remaining stumps.
+
+    Returns
+    -------
+    idx : (m,) int64
+        The group (at least 2 stumps; ties go to the larger radius), empty if none.
+    why : str
+        Why there is none, or why the sub-hub is not covered (``""`` if it is).
+    """
+    r_node = np.asarray(spec.r_node, dtype=np.float64)  # type: ignore[attr-defined]
+    r_mid = np.asarray(spec.r_mid, dtype=np.float64)  # type: ignore[attr-defined]
+    cyl = np.abs(r_node - r_mid) <= 1e-12 * r_mid
+    best = np.zeros(0, dtype=np.int64)
+    for r in sorted(set(r_mid[cyl].tolist()), reverse=True):
+        idx = np.flatnonzero(cyl & (np.abs(r_mid - r) <= 1e-12 * r))
+        if len(idx) > len(best):
+            best = idx
+    if len(best) < 2:
+        return np.zeros(0, dtype=np.int64), "fewer than 2 cylinder stumps of one radius"
+    if len(best) == len(r_mid):
+        return np.zeros(0, dtype=np.int64), "every stump is in the group (direct_applies)"
+    why = direct_applies(sub_spec(spec, best))
+    return (best, "") if not why else (np.zeros(0, dtype=np.int64), f"base group: {why}")
+
+
+def sub_spec(spec: object, idx: NDArray[np.int64]) -> object:
+    """The :class:`~lattice_cad.occ_impl.truss.HubSpec` of the stumps ``idx`` (same sphere)."""
+    return dataclasses.replace(
+        spec,  # type: ignore[type-var]
+        **{
+            k: np.asarray(getattr(spec, k))[idx]
+            for k in ("vecs", "r_node", "r_mid", "xdirs", "ydirs")
+        },
+    )
 
 
 # --------------------------------------------------------------- construction

@@ -394,11 +394,17 @@ def face_triangulations(
     *,
     parallel: bool = True,
     on_meshed: Any = None,
+    tiny: float = 0.0,
 ) -> Iterator[tuple[TopoDS_Face, NDArray[np.float64], NDArray[np.int64]]]:
     """Triangulate ``shape`` with BRepMesh and yield each face's triangulation.
 
     ``on_meshed``, if given, is called (without arguments) once BRepMesh is done, before
-    the first face is read (for profiling).
+    the first face is read (for profiling). A face BRepMesh leaves without triangles whose
+    bounding box is smaller than ``tiny`` (e.g. a speck of a hub's sphere, 1e-5 of its
+    radius across, where three stumps nearly meet on it) is yielded as a fan through the
+    nodes BRepMesh put on its outer boundary's edges (read from the neighbouring faces'
+    triangulations, so the fan shares them): every point of the face is within ``tiny`` of
+    it (the callers' checks - closed, manifold, circles - still decide).
 
     Yields
     ------
@@ -421,13 +427,18 @@ def face_triangulations(
     if on_meshed is not None:
         on_meshed()
     exp = TopExp_Explorer(shape, TopAbs_FACE)
+    edge_faces: dict[str, Any] = {}
     while exp.More():
         face = TopoDS.Face_s(exp.Current())
         exp.Next()
         loc = TopLoc_Location()
         tri = BRep_Tool.Triangulation_s(face, loc)
         if tri is None or tri.NbTriangles() == 0:
-            raise OCCTFailure("BRepMesh left a face without triangulation")
+            fan = _speck_fan(shape, face, tiny, edge_faces) if tiny > 0.0 else None
+            if fan is None:
+                raise OCCTFailure("BRepMesh left a face without triangulation")
+            yield face, fan[0], fan[1]
+            continue
         nn = tri.NbNodes()
         node = tri.Node
         pts = np.array(
@@ -445,6 +456,82 @@ def face_triangulations(
         if face.Orientation() == TopAbs_REVERSED:
             t = t[:, ::-1]
         yield face, pts, t
+
+
+def _speck_fan(
+    shape: TopoDS_Shape, face: TopoDS_Face, tiny: float, edge_faces: dict[str, Any]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
+    """Fan triangles over the outer boundary of a face smaller than ``tiny``, through the
+    nodes BRepMesh put on its edges (read from each edge's neighbour face), oriented as the
+    face (outward); None if the face is larger, or an edge has no discretised neighbour."""
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.BRepTools import BRepTools_WireExplorer
+    from OCP.gp import gp_Pnt as _P
+    from OCP.gp import gp_Vec as _V
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp
+    from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
+
+    box = Bnd_Box()
+    BRepBndLib.Add_s(face, box)
+    if box.IsVoid() or box.SquareExtent() ** 0.5 >= tiny:
+        return None
+    if "map" not in edge_faces:
+        m = TopTools_IndexedDataMapOfShapeListOfShape()
+        TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, m)
+        edge_faces["map"] = m
+    emap = edge_faces["map"]
+    pts: list[NDArray[np.float64]] = []
+    wexp = BRepTools_WireExplorer(BRepTools.OuterWire_s(face), face)
+    while wexp.More():
+        edge = wexp.Current()
+        wexp.Next()
+        chain = None
+        for other in emap.FindFromKey(edge):
+            f2 = TopoDS.Face_s(other)
+            if f2.IsSame(face):
+                continue
+            loc = TopLoc_Location()
+            tri = BRep_Tool.Triangulation_s(f2, loc)
+            if tri is None:
+                continue
+            poly = BRep_Tool.PolygonOnTriangulation_s(edge, tri, loc)
+            if poly is None:
+                continue
+            idx = [poly.Node(i) for i in range(1, poly.NbNodes() + 1)]
+            q = np.array([(tri.Node(i).X(), tri.Node(i).Y(), tri.Node(i).Z()) for i in idx])
+            if not loc.IsIdentity():
+                tr = loc.Transformation()
+                rot = np.array([[tr.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+                q = q @ rot.T + np.array([tr.Value(r, 4) for r in (1, 2, 3)])
+            chain = q
+            break
+        if chain is None:
+            return None
+        if edge.Orientation() == TopAbs_REVERSED:
+            chain = chain[::-1]
+        pts.append(chain[:-1])
+    if not pts:
+        return None
+    v = np.vstack(pts)
+    if len(v) < 3:
+        return None
+    t = np.column_stack([np.zeros(len(v) - 2, np.int64), np.arange(1, len(v) - 1),
+                         np.arange(2, len(v))])  # fmt: skip
+    # orient by the surface normal at the middle of the face's parameter box
+    umin, umax, vmin, vmax = BRepTools.UVBounds_s(face)
+    p0, du, dv = _P(), _V(), _V()
+    BRepAdaptor_Surface(face).D1(0.5 * (umin + umax), 0.5 * (vmin + vmax), p0, du, dv)
+    n = np.array([du.Y() * dv.Z() - du.Z() * dv.Y(), du.Z() * dv.X() - du.X() * dv.Z(),
+                  du.X() * dv.Y() - du.Y() * dv.X()])  # fmt: skip
+    if face.Orientation() == TopAbs_REVERSED:
+        n = -n
+    area = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]).sum(axis=0)
+    if not np.linalg.norm(area) > 0.0:
+        return None
+    if float(area @ n) < 0.0:
+        t = t[:, ::-1]
+    return v, t
 
 
 def tessellate(

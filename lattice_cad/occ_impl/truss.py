@@ -24,7 +24,10 @@ without a boolean, face by face (:mod:`lattice_cad.occ_impl.hub_direct`, :data:`
 the same solid, checked the same way (BRepCheck, one solid, positive volume, intact
 midpoint circles), its volume in closed form; the retries above are its fallback, and
 ``HubResult.attempts`` says which path built each hub (``"direct: ok"`` or the boolean
-construction, after a ``"direct: ..."`` line where the direct path declined).
+construction, after a ``"direct: ..."`` line where the direct path declined). Hubs whose
+stumps differ (thinned or tapered struts) build the sphere and their largest group of equal
+cylinder stumps face by face and fuse the other stumps onto it in one general fuse
+(``"direct+fuse"``, :data:`DIRECT_FUSE`; volume from GProp).
 
 Midpoint circles (how both hubs of a strut get identical vertices)
 ------------------------------------------------------------------
@@ -92,7 +95,9 @@ __all__ = [
     "cap_heights",
     "sphere_is_covered",
     "direct_hub_shape",
+    "make_stump",
     "DIRECT",
+    "DIRECT_FUSE",
 ]
 
 
@@ -181,6 +186,7 @@ def _lap(clock: StageClock | None, name: str) -> None:
 # ------------------------------------------------------------ construction
 #: Radii of a stump closer than this (mm) make a cylinder, not a cone (see make_primitives).
 _SAME_RADIUS = 1e-6
+
 
 def _pnt(v: NDArray[np.float64]) -> gp_Pnt:
     return gp_Pnt(float(v[0]), float(v[1]), float(v[2]))
@@ -338,29 +344,36 @@ def make_primitives(spec: HubSpec, *, trim: bool = True) -> list[TopoDS_Shape]:
     :func:`stump_start` instead of the node. The sphere's poles are put inside stumps
     (see :func:`sphere_axis`).
     """
-    origin = gp_Pnt(0.0, 0.0, 0.0)
     covered = trim and sphere_is_covered(spec.radius, spec.vecs, spec.r_node, spec.r_mid)
     shapes = [] if covered else make_sphere(spec)
-    for j, v in enumerate(spec.vecs):
-        h = float(np.linalg.norm(v))
-        u = v / h
-        r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
-        h0 = stump_start(spec.radius, r0, r1, h) if trim and not covered else 0.0
-        ax = gp_Ax2(_pnt(u * h0) if h0 > 0.0 else origin, _dir(u), _dir(spec.xdirs[j]))
-        r_start = r0 + (r1 - r0) * (h0 / h)
-        # OCCT refuses a cone whose radii differ by less than Precision::Confusion (1e-7 mm;
-        # "cone with two identic radii", as thinned struts give): a cylinder of the
-        # midpoint radius then (so both hubs of the strut still share the midpoint circle)
-        if abs(r_start - r1) <= _SAME_RADIUS:
-            mk = BRepPrimAPI_MakeCylinder(ax, r1, h - h0)
-        else:
-            mk = BRepPrimAPI_MakeCone(ax, r_start, r1, h - h0)
-        mk.Build()
-        check_done(mk, f"stump {j}")
-        s = mk.Shape()
-        check_valid(s, f"stump {j}")
-        shapes.append(s)
+    for j in range(len(spec.vecs)):
+        shapes.append(make_stump(spec, j, trim=trim and not covered))
     return shapes
+
+
+def make_stump(spec: HubSpec, j: int, *, trim: bool) -> TopoDS_Shape:
+    """Stump ``j`` of the hub (cylinder or cone frustum), checked; with ``trim`` it starts at
+    :func:`stump_start` (the part below lies inside the sphere), else at the node."""
+    origin = gp_Pnt(0.0, 0.0, 0.0)
+    v = spec.vecs[j]
+    h = float(np.linalg.norm(v))
+    u = v / h
+    r0, r1 = float(spec.r_node[j]), float(spec.r_mid[j])
+    h0 = stump_start(spec.radius, r0, r1, h) if trim else 0.0
+    ax = gp_Ax2(_pnt(u * h0) if h0 > 0.0 else origin, _dir(u), _dir(spec.xdirs[j]))
+    r_start = r0 + (r1 - r0) * (h0 / h)
+    # OCCT refuses a cone whose radii differ by less than Precision::Confusion (1e-7 mm;
+    # "cone with two identic radii", as thinned struts give): a cylinder of the
+    # midpoint radius then (so both hubs of the strut still share the midpoint circle)
+    if abs(r_start - r1) <= _SAME_RADIUS:
+        mk = BRepPrimAPI_MakeCylinder(ax, r1, h - h0)
+    else:
+        mk = BRepPrimAPI_MakeCone(ax, r_start, r1, h - h0)
+    mk.Build()
+    check_done(mk, f"stump {j}")
+    s = mk.Shape()
+    check_valid(s, f"stump {j}")
+    return s
 
 
 def make_hub_shape(
@@ -481,7 +494,7 @@ def _tessellate(
     base = 0
     on_meshed = None if clock is None else (lambda: clock.lap("mesh"))
     for face, pts, t in face_triangulations(
-        shape, deflection, angular, parallel=False, on_meshed=on_meshed
+        shape, deflection, angular, parallel=False, on_meshed=on_meshed, tiny=deflection
     ):
         nn = len(pts)
         # a planar face lying in a midpoint plane is a midpoint disc: dropped
@@ -598,10 +611,21 @@ def circles_first(
 #: cylinder stumps around a covered sphere) face by face, without a boolean, before the
 #: retry chain below (issue 14: about 10x less CPU per hub, same solid).
 DIRECT = True
+#: Hubs with stumps of different radii or tapered: the sphere and the largest group of equal
+#: cylinder stumps face by face, then one fuse with the other stumps (issue 14; with
+#: :data:`DIRECT` only).
+DIRECT_FUSE = True
 
 
 def direct_hub_shape(spec: HubSpec, clock: StageClock | None = None) -> tuple[TopoDS_Shape, float]:
     """The hub solid built face by face (:mod:`hub_direct`), checked, and its exact volume.
+
+    Where :func:`hub_direct.direct_applies` covers the whole hub, the solid is built face by
+    face and its volume is in closed form. Otherwise (stumps of different radii or tapered;
+    :func:`_direct_plan` says ``"direct+fuse"``) the sphere and the largest group of
+    cylinder stumps of one radius (:func:`hub_direct.base_group`) are built face by face,
+    checked, and fused with the remaining stumps (trimmed: each starts where it is inside
+    the sphere) in one :func:`general_fuse`; its volume is GProp's.
 
     Raises
     ------
@@ -613,27 +637,56 @@ def direct_hub_shape(spec: HubSpec, clock: StageClock | None = None) -> tuple[To
     from lattice_cad.occ_impl import hub_direct
 
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
-    r = float(spec.r_mid[0])
+    plan, idx = _direct_plan(spec)
+    if not plan:
+        raise hub_direct.DirectNotApplicable("neither direct nor direct+fuse applies")
+    sub = hub_direct.sub_spec(spec, idx) if plan == "direct+fuse" else spec
+    assert isinstance(sub, HubSpec)
+    r = float(sub.r_mid[0])
     shape = hub_direct.build_direct(
-        spec.radius, spec.vecs, r, spec.xdirs, tol=config.GEOM_RTOL * scale
+        sub.radius, sub.vecs, r, sub.xdirs, tol=config.GEOM_RTOL * scale
     )
+    if plan == "direct+fuse":
+        check_valid(shape, "direct sub-hub")
+        rest = np.setdiff1d(np.arange(len(spec.vecs)), idx)
+        stumps = [make_stump(spec, int(j), trim=True) for j in rest]
+        _lap(clock, "primitives")
+        shape = general_fuse([shape, *stumps])
     _lap(clock, "fuse")
-    check_valid(shape, "direct hub")
+    check_valid(shape, f"{plan} hub")
     n_solids = count(shape, TopAbs_SOLID)
     _lap(clock, "check")
-    if n_solids != 1:  # pragma: no cover - one shell in one solid by construction
-        raise OCCTFailure(f"direct hub: {n_solids} solids instead of 1")
-    vol = hub_direct.analytic_volume(spec.radius, spec.vecs, r, spec.xdirs)
+    if n_solids != 1:
+        raise OCCTFailure(f"{plan} hub: {n_solids} solids instead of 1")
+    if plan == "direct":
+        vol = hub_direct.analytic_volume(spec.radius, spec.vecs, r, spec.xdirs)
+    else:
+        vol = volume(shape, eps=config.VOLUME_EPS)
     _lap(clock, "volume")
     if not (vol > 0.0 and math.isfinite(vol)):
-        raise OCCTFailure(f"direct hub volume {vol!r} is not positive")
+        raise OCCTFailure(f"{plan} hub volume {vol!r} is not positive")
     return shape, vol
 
 
-def _direct_applies(spec: HubSpec) -> bool:
-    from lattice_cad.occ_impl.hub_direct import direct_applies
+def _direct_plan(spec: HubSpec) -> tuple[str, NDArray[np.int64]]:
+    """``("direct", all stumps)``, ``("direct+fuse", base group)`` or ``("", [])`` (booleans)."""
+    from lattice_cad.occ_impl.hub_direct import base_group, direct_applies
 
-    return DIRECT and direct_applies(spec) == ""
+    none = np.zeros(0, dtype=np.int64)
+    if not DIRECT:
+        return "", none
+    why = direct_applies(spec)
+    if not why:
+        return "direct", np.arange(len(spec.vecs), dtype=np.int64)
+    if not DIRECT_FUSE or why != "stumps of different radii or tapered":
+        return "", none
+    idx, why = base_group(spec)
+    return ("direct+fuse", idx) if not why else ("", none)
+
+
+def _direct_applies(spec: HubSpec) -> str:
+    """The direct plan's name (``""``: the boolean chain only)."""
+    return _direct_plan(spec)[0]
 
 
 #: Retry plan: (construction, fuzzy value relative to the hub size, trimmed stumps).
@@ -665,14 +718,15 @@ def build_hub(
     clock = StageClock()
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
     attempts: list[str] = []
-    if _direct_applies(spec):
+    plan = _direct_applies(spec)
+    if plan:
         try:
             shape, vol = direct_hub_shape(spec, clock)
             v, f, circles = _tessellate(shape, spec, deflection, angular, clock)
         except Exception as exc:  # DirectNotApplicable, OCCTFailure or an OCCT exception
-            attempts.append(f"direct: {type(exc).__name__}: {exc}")
+            attempts.append(f"{plan}: {type(exc).__name__}: {exc}")
         else:
-            attempts.append("direct: ok")
+            attempts.append(f"{plan}: ok")
             brep = to_bytes(shape) if keep_brep else b""
             clock.lap("brep")
             return HubResult(
@@ -738,15 +792,16 @@ def build_hub_solid(spec: HubSpec) -> HubResult:
     t0 = time.perf_counter()
     scale = spec.radius + float(np.linalg.norm(spec.vecs, axis=1).max())
     attempts: list[str] = []
-    if _direct_applies(spec):
+    plan = _direct_applies(spec)
+    if plan:
         try:
             shape, vol = direct_hub_shape(spec)
             brep = to_bytes(shape)
         except Exception as exc:  # DirectNotApplicable, OCCTFailure or an OCCT exception
-            attempts.append(f"direct: {type(exc).__name__}: {exc}")
+            attempts.append(f"{plan}: {type(exc).__name__}: {exc}")
         else:
             return HubResult(
-                status="ok", attempts=["direct: ok"], volume=vol, brep=brep,
+                status="ok", attempts=[f"{plan}: ok"], volume=vol, brep=brep,
                 seconds=time.perf_counter() - t0,
             )  # fmt: skip
     for construction, fuzzy_rel, trim in ATTEMPTS:
