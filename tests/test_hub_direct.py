@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from lattice_cad.core import config
+from lattice_cad.core.errors import OCCTFailure
 from lattice_cad.occ_impl import hub_direct, truss
 from reference_boolean.reference import _hub_specs
 from tests.conftest import DATA, star_graph
@@ -281,3 +282,68 @@ def test_real_part_direct_fuse_hubs(monkeypatch):
     rng = np.random.default_rng(12)
     for i in rng.choice(len(fused), 4, replace=False):
         _compare(fused[int(i)], monkeypatch, plan="direct+fuse")
+
+
+# A GE bracket tet 5 mm hub (thinned stumps; scaled to its build frame as a worker builds it):
+# one general fuse of its primitives returns ONE VALID solid of volume 264.4 where the hub's is
+# 310.73 (direct+fuse and the tree fuse agree; Monte Carlo 311.0 +- 0.8). BRepCheck is silent:
+# the interior probes must catch it.
+GE_TET_HUB_FUSE_TOO_SMALL = dict(
+    radius=1.00001,
+    vecs=[
+        [-7.630622359810502, -10.33984273646871, 2.1888730759628174],
+        [-7.630622359810502, -4.781386511384142, 8.281384641466843],
+        [-7.630622359810502, 2.281558537020061, 8.306954832275878],
+        [0.00038666644735485534, 9.690137541184697, 1.9882111646572014],
+        [0.003438757805923842, -4.590313670300048, 15.949149546402182],
+        [0.0052553566654438555, -7.4015526888017575, -6.570841637761845],
+        [6.339377640189497, -4.129090129985272, -2.7941359337435756],
+        [7.609377640189507, -5.08472300105187, 6.2345306668511],
+        [7.609377640189507, 1.6798118115934955, 10.718435443772222],
+        [7.609377640189507, 3.663435714434911, 2.6960473070594304],
+    ],
+    r_node=[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.8805965955228641, 1.0],
+    r_mid=[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.83696248163441, 0.8805965955228641, 1.0],
+    xdirs=[
+        [-0.5952411406341783, 0.5610530164751821, 0.5752455972892112],
+        [-0.6781627728811154, -0.16004112108244195, -0.7172740710780445],
+        [-0.7462751722341276, -0.09972730255136891, -0.6581244809553514],
+        [-0.8971394651727034, 0.08882193438154556, -0.4327255989681639],
+        [-0.9032532530788444, 0.4123167090349417, 0.11886333435117986],
+        [-0.9451158360243149, 0.21654226887139386, -0.244674277945372],
+        [0.5292541848243271, 0.2677485128112812, 0.8051091489563911],
+        [-0.26913593566074306, 0.5589223090813606, 0.7843288216986396],
+        [-0.7286259288204635, 0.5296349574996778, 0.43427073081757567],
+        [-0.5041957614617244, 0.5695186703107685, 0.6491803434266058],
+    ],
+    ydirs=[
+        [0.5504893209542088, -0.23677828183316574, 0.8005607739375618],
+        [0.3886667002014276, -0.9064431162604303, -0.16522431158462564],
+        [-0.05849068806766375, -0.9750636049659691, 0.21407897066302323],
+        [-0.4417474148217537, -0.18030070790439845, 0.8788349539176683],
+        [-0.4291078161394481, -0.8680422533082404, -0.24973812003694285],
+        [-0.32673502192724335, -0.627586870968952, 0.7066674924132308],
+        [-0.3194347447889521, -0.8162053062112591, 0.4814253233204523],
+        [-0.6748174471544031, -0.6904831835911176, 0.26048874485069373],
+        [-0.3733363291571883, -0.8387004032048871, 0.396486593714586],
+        [0.09506605901750576, -0.7105516422625542, 0.6971935227043258],
+    ],
+)
+
+
+def test_a_valid_but_too_small_fuse_is_refused_and_the_chain_builds_the_hub():
+    from lattice_cad.occ_impl.truss import HubSpec, build_hub, interior_probes, make_hub_shape
+
+    spec = HubSpec(**{k: (np.asarray(v) if k != "radius" else v)
+                      for k, v in GE_TET_HUB_FUSE_TOO_SMALL.items()})  # fmt: skip
+    # every probe is inside some primitive (sphere or stump), in closed form
+    p = interior_probes(spec)
+    assert len(p) == 1 + 6 * len(spec.vecs)
+    with pytest.raises(OCCTFailure, match="misses the inside"):
+        make_hub_shape(spec, construction="fuse")
+    tree = make_hub_shape(spec, construction="tree")  # passes the probes
+    from lattice_cad.occ_impl.shapes import volume
+
+    assert volume(tree, eps=1e-9) == pytest.approx(310.73, abs=0.01)
+    got = build_hub(spec, deflection=0.05, angular=0.5, keep_brep=False)
+    assert got.status == "ok" and got.volume == pytest.approx(310.73, abs=0.01)
