@@ -6,6 +6,7 @@ Every builder result is checked (``IsDone()``, ``HasErrors()`` where the binding
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 from collections.abc import Iterator
@@ -195,8 +196,13 @@ OFFSET_JOINS = (GeomAbs_Arc, GeomAbs_Intersection)
 def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> TopoDS_Shape:
     """The solid offset by ``distance`` (negative: inward).
 
-    Tries arc joins, then intersection joins (:data:`OFFSET_JOINS`); a result that is not
-    one valid solid is healed (ShapeFix, a solid made of its shell) before it is refused.
+    Faces whose offset vanishes (:func:`vanishing_faces`: e.g. a chamfer or fillet on a
+    convex edge narrower than the offset reaches; OCCT's offset cannot drop a face and
+    returns an invalid shape or one that is off) are removed first
+    (``BRepAlgoAPI_Defeaturing``, their neighbours extended): the offset is the same
+    without them. Then arc joins, then intersection joins (:data:`OFFSET_JOINS`); a result
+    that is not one valid solid is healed (ShapeFix, a solid made of its shell) before it
+    is refused. When the defeatured shape gives no solid, the part as it is is tried.
     The caller checks that the result is the offset asked for (its wall thickness).
 
     Raises
@@ -206,12 +212,43 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         ``BRepOffset_Error`` code).
     """
     why: list[str] = []
-    shape, divided = solid, False
+    tried: list[int] = []
+    # faces that vanish (by 2 % of the depth), the part as it is, then also the faces
+    # whose offset barely reaches the depth (OCCT fails on the sliver they leave)
+    for rtol in (0.02, None, 1e-4):
+        if rtol is None:
+            got = _offset_ways(solid, distance, tol, why, "")
+        else:
+            try:
+                vanish = vanishing_faces(solid, distance, rtol=rtol)
+            except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
+                why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
+                continue
+            if not vanish or len(vanish) in tried:
+                continue
+            tried.append(len(vanish))
+            trimmed = _without_faces(solid, vanish)
+            if trimmed is None:
+                why.append(f"removing the {len(vanish)} face(s) whose offset vanishes failed")
+                continue
+            got = _offset_ways(trimmed, distance, tol, why, f", {len(vanish)} face(s) removed")
+        if got is not None:
+            return got
+    raise OCCTFailure("; ".join(why))
+
+
+def _offset_ways(
+    shape: TopoDS_Shape, distance: float, tol: float, why: list[str], note: str
+) -> TopoDS_Shape | None:
+    """:func:`offset_solid` of ``shape`` as it is: each join of :data:`OFFSET_JOINS`, and
+    again with C0 faces split into C1 patches when OCCT asks for it; the one valid solid,
+    or None (each failure appended to ``why``)."""
+    divided = False
     ways = list(OFFSET_JOINS)
     while ways:
         join = ways.pop(0)
         what = f"offset by {distance:g} ({'arc' if join == GeomAbs_Arc else 'intersection'} joins"
-        what += ", faces split to C1)" if divided else ")"
+        what += note + (", faces split to C1)" if divided else ")")
         err = ""
         try:
             mk = BRepOffsetAPI_MakeOffsetShape()
@@ -230,7 +267,153 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
             split = _split_to_c1(shape)
             if split is not None:
                 shape, divided, ways = split, True, list(OFFSET_JOINS)
-    raise OCCTFailure("; ".join(why))
+    return None
+
+
+def vanishing_faces(
+    solid: TopoDS_Shape, distance: float, *, grid: int = 8, rtol: float = 0.02
+) -> list[TopoDS_Face]:
+    """The faces of ``solid`` whose offset by ``distance`` vanishes from the true offset.
+
+    A face's offset (each point moved by ``distance`` along the face's outward normal)
+    belongs to the true offset surface only where it is ``|distance|`` from the boundary;
+    a face whose offset points are all nearer than that to some other face (by more than
+    ``rtol * |distance|``) has no part in it: e.g. a 45 degree chamfer of width ``w`` on a
+    convex edge vanishes from inward offsets deeper than ``w / (2 - sqrt 2)``, a convex
+    fillet from those deeper than its radius. Each face is sampled on a ``grid`` x
+    ``grid`` grid of its parameters (points inside the face) and at the centres of the
+    triangles of a coarse triangulation; from the sample whose offset lies deepest, a
+    pattern search in the parameters looks for a point whose offset is ``|distance|``
+    deep (a face that survives in a narrow strip only). Distances are exact
+    (``BRepExtrema_DistShapeShape`` to the solid's faces).
+    """
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.BRepGProp import BRepGProp_Face
+    from OCP.BRepTopAdaptor import BRepTopAdaptor_FClass2d
+
+    depth = abs(float(distance))
+    if depth == 0.0:
+        return []
+    shape = copied(solid)
+    faces = []
+    comp = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(comp)
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        faces.append(TopoDS.Face_s(exp.Current()))
+        builder.Add(comp, exp.Current())
+        exp.Next()
+    box = bounds(shape)
+    defl = max(0.25 * depth, 1e-3 * float(np.linalg.norm(box[1] - box[0])))
+    mesher = BRepMesh_IncrementalMesh(shape, defl, False, 0.5, False)
+    if not mesher.IsDone():
+        raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
+    dist = BRepExtrema_DistShapeShape()
+    dist.LoadS1(comp)
+    limit = depth * (1.0 - rtol)
+    out = []
+    for k, face in enumerate(faces):
+        prop = BRepGProp_Face(face)
+        inside = BRepTopAdaptor_FClass2d(face, 1e-9)
+
+        deep = functools.partial(_offset_depth, prop, inside, dist, distance)
+
+        u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
+        us = u0 + (np.arange(grid) + 0.5) * (u1 - u0) / grid
+        vs = v0 + (np.arange(grid) + 0.5) * (v1 - v0) / grid
+        samples = [(float(u), float(v), True) for u in us for v in vs]
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is not None and tri.HasUVNodes():
+            for i in range(1, min(tri.NbTriangles(), 64) + 1):
+                uv = [tri.UVNode(j) for j in tri.Triangle(i).Get()]
+                u = sum(p.X() for p in uv) / 3.0
+                v = sum(p.Y() for p in uv) / 3.0
+                samples.append((u, v, False))
+        best, at, seen = -1.0, (0.0, 0.0), 0
+        for u, v, check in samples:
+            d = deep(u, v, check)
+            if d < 0.0:
+                continue
+            seen += 1
+            if d > best:
+                best, at = d, (u, v)
+            if best >= limit:
+                break
+        if not seen or best >= limit:
+            continue
+        du, dv = 0.5 * (u1 - u0) / grid, 0.5 * (v1 - v0) / grid
+        u, v = at
+        for _ in range(40):  # pattern search for a point that survives
+            moved = False
+            for su, sv in ((du, 0.0), (-du, 0.0), (0.0, dv), (0.0, -dv)):
+                d = deep(u + su, v + sv, True)
+                if d > best:
+                    best, u, v, moved = d, u + su, v + sv, True
+                    break
+            if best >= limit:
+                break
+            if not moved:
+                du, dv = 0.5 * du, 0.5 * dv
+        if best < limit:
+            out.append(k)
+    original = []
+    exp = TopExp_Explorer(solid, TopAbs_FACE)
+    while exp.More():
+        original.append(TopoDS.Face_s(exp.Current()))
+        exp.Next()
+    return [original[k] for k in out]
+
+
+def _offset_depth(
+    prop: Any, inside: Any, dist: Any, distance: float, u: float, v: float, check: bool
+) -> float:
+    """How deep below the boundary (``dist``: a BRepExtrema_DistShapeShape loaded with the
+    solid's faces) the face's point (u, v) moved by ``distance`` along its outward normal
+    (``prop``: BRepGProp_Face) lies; -1 when (u, v) is not on the face (``inside``:
+    BRepTopAdaptor_FClass2d, when ``check``) or the normal is undefined, inf when unknown."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.gp import gp_Pnt, gp_Pnt2d
+    from OCP.TopAbs import TopAbs_IN
+
+    if check and inside.Perform(gp_Pnt2d(u, v)) != TopAbs_IN:
+        return -1.0
+    pnt, nrm = gp_Pnt(), gp_Vec()
+    prop.Normal(u, v, pnt, nrm)
+    if nrm.Magnitude() < 1e-12:
+        return -1.0
+    nrm.Normalize()
+    q = gp_Pnt(
+        pnt.X() + distance * nrm.X(), pnt.Y() + distance * nrm.Y(), pnt.Z() + distance * nrm.Z()
+    )
+    dist.LoadS2(BRepBuilderAPI_MakeVertex(q).Vertex())
+    if not dist.Perform() or dist.NbSolution() == 0:
+        return float("inf")  # unknown: the face is kept
+    return float(dist.Value())
+
+
+def _without_faces(solid: TopoDS_Shape, faces: list[TopoDS_Face]) -> TopoDS_Shape | None:
+    """``solid`` with ``faces`` removed and their neighbours extended to close the gap
+    (``BRepAlgoAPI_Defeaturing``), as one valid solid, or None."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Defeaturing
+
+    try:
+        with occt_errors("removing faces"):
+            op = BRepAlgoAPI_Defeaturing()
+            op.SetShape(solid)
+            op.SetRunParallel(False)
+            for face in faces:
+                op.AddFaceToRemove(face)
+            op.Build()
+            if not op.IsDone():
+                return None
+            got = solids(op.Shape())
+    except OCCTFailure:
+        return None
+    if len(got) != 1 or not is_valid(got[0]) or volume(got[0]) <= 0.0:
+        return None
+    return got[0]
 
 
 def _split_to_c1(shape: TopoDS_Shape) -> TopoDS_Shape | None:
