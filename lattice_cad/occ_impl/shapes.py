@@ -271,7 +271,12 @@ def _offset_ways(
 
 
 def vanishing_faces(
-    solid: TopoDS_Shape, distance: float, *, grid: int = 8, rtol: float = 0.02
+    solid: TopoDS_Shape,
+    distance: float,
+    *,
+    grid: int = 8,
+    rtol: float = 0.02,
+    max_evaluations: int = 20000,
 ) -> list[TopoDS_Face]:
     """The faces of ``solid`` whose offset by ``distance`` vanishes from the true offset.
 
@@ -285,9 +290,9 @@ def vanishing_faces(
     triangles of a coarse triangulation; from the sample whose offset lies deepest, a
     pattern search in the parameters looks for a point whose offset is ``|distance|``
     deep (a face that survives in a narrow strip only). Distances are exact
-    (``BRepExtrema_DistShapeShape`` to the solid's faces).
+    (``BRepExtrema_DistShapeShape`` to the faces whose bounding box is near enough to
+    matter). After ``max_evaluations`` distances the faces left count as kept.
     """
-    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
     from OCP.BRepGProp import BRepGProp_Face
     from OCP.BRepTopAdaptor import BRepTopAdaptor_FClass2d
 
@@ -296,28 +301,23 @@ def vanishing_faces(
         return []
     shape = copied(solid)
     faces = []
-    comp = TopoDS_Compound()
-    builder = BRep_Builder()
-    builder.MakeCompound(comp)
     exp = TopExp_Explorer(shape, TopAbs_FACE)
     while exp.More():
         faces.append(TopoDS.Face_s(exp.Current()))
-        builder.Add(comp, exp.Current())
         exp.Next()
     box = bounds(shape)
     defl = max(0.25 * depth, 1e-3 * float(np.linalg.norm(box[1] - box[0])))
     mesher = BRepMesh_IncrementalMesh(shape, defl, False, 0.5, False)
     if not mesher.IsDone():
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
-    dist = BRepExtrema_DistShapeShape()
-    dist.LoadS1(comp)
+    near = _NearFaces(faces)
     limit = depth * (1.0 - rtol)
     out = []
+    budget = [max_evaluations]
     for k, face in enumerate(faces):
         prop = BRepGProp_Face(face)
         inside = BRepTopAdaptor_FClass2d(face, 1e-9)
-
-        deep = functools.partial(_offset_depth, prop, inside, dist, distance)
+        deep = functools.partial(_offset_depth, prop, inside, near, distance, limit, budget)
 
         u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
         us = u0 + (np.arange(grid) + 0.5) * (u1 - u0) / grid
@@ -356,8 +356,10 @@ def vanishing_faces(
                 break
             if not moved:
                 du, dv = 0.5 * du, 0.5 * dv
-        if best < limit:
+        if best < limit and budget[0] > 0:
             out.append(k)
+        if budget[0] <= 0:
+            break
     original = []
     exp = TopExp_Explorer(solid, TopAbs_FACE)
     while exp.More():
@@ -366,17 +368,61 @@ def vanishing_faces(
     return [original[k] for k in out]
 
 
+class _NearFaces:
+    """Exact distances from points to a set of faces, measured only to the faces whose
+    bounding box lies within a given reach (BRepExtrema_DistShapeShape per face)."""
+
+    def __init__(self, faces: list[TopoDS_Face]) -> None:
+        from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+
+        self.boxes = np.array([bounds(f).ravel() for f in faces]).reshape(-1, 6)
+        self.tools = []
+        for face in faces:
+            tool = BRepExtrema_DistShapeShape()
+            tool.LoadS1(face)
+            self.tools.append(tool)
+
+    def distance(self, q: Any, reach: float) -> float:
+        """The distance from ``q`` (gp_Pnt) to the nearest face, or ``reach`` when no face
+        is nearer than that; inf when BRepExtrema finds no distance."""
+        from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+
+        p = np.array([q.X(), q.Y(), q.Z()])
+        gap = np.maximum(np.maximum(self.boxes[:, :3] - p, p - self.boxes[:, 3:]), 0.0)
+        box_d = np.sqrt((gap * gap).sum(axis=1))
+        best = reach
+        vertex = BRepBuilderAPI_MakeVertex(q).Vertex()
+        for i in np.argsort(box_d):
+            if box_d[i] >= best:
+                break
+            tool = self.tools[i]
+            tool.LoadS2(vertex)
+            if not tool.Perform() or tool.NbSolution() == 0:
+                return float("inf")
+            best = min(best, float(tool.Value()))
+        return best
+
+
 def _offset_depth(
-    prop: Any, inside: Any, dist: Any, distance: float, u: float, v: float, check: bool
+    prop: Any,
+    inside: Any,
+    near: _NearFaces,
+    distance: float,
+    limit: float,
+    budget: list[int],
+    u: float,
+    v: float,
+    check: bool,
 ) -> float:
-    """How deep below the boundary (``dist``: a BRepExtrema_DistShapeShape loaded with the
-    solid's faces) the face's point (u, v) moved by ``distance`` along its outward normal
-    (``prop``: BRepGProp_Face) lies; -1 when (u, v) is not on the face (``inside``:
-    BRepTopAdaptor_FClass2d, when ``check``) or the normal is undefined, inf when unknown."""
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    """How deep below the faces ``near`` the face's point (u, v) moved by ``distance``
+    along its outward normal (``prop``: BRepGProp_Face) lies, up to ``limit``; -1 when
+    (u, v) is not on the face (``inside``: BRepTopAdaptor_FClass2d, when ``check``) or the
+    normal is undefined, inf when unknown or when ``budget[0]`` evaluations are spent."""
     from OCP.gp import gp_Pnt, gp_Pnt2d
     from OCP.TopAbs import TopAbs_IN
 
+    if budget[0] <= 0:
+        return float("inf")
     if check and inside.Perform(gp_Pnt2d(u, v)) != TopAbs_IN:
         return -1.0
     pnt, nrm = gp_Pnt(), gp_Vec()
@@ -384,18 +430,17 @@ def _offset_depth(
     if nrm.Magnitude() < 1e-12:
         return -1.0
     nrm.Normalize()
+    budget[0] -= 1
     q = gp_Pnt(
         pnt.X() + distance * nrm.X(), pnt.Y() + distance * nrm.Y(), pnt.Z() + distance * nrm.Z()
     )
-    dist.LoadS2(BRepBuilderAPI_MakeVertex(q).Vertex())
-    if not dist.Perform() or dist.NbSolution() == 0:
-        return float("inf")  # unknown: the face is kept
-    return float(dist.Value())
+    return near.distance(q, limit)
 
 
 def _without_faces(solid: TopoDS_Shape, faces: list[TopoDS_Face]) -> TopoDS_Shape | None:
     """``solid`` with ``faces`` removed and their neighbours extended to close the gap
-    (``BRepAlgoAPI_Defeaturing``), as one valid solid, or None."""
+    (``BRepAlgoAPI_Defeaturing``), as one valid solid not smaller than ``solid``, or
+    None."""
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Defeaturing
 
     try:
@@ -411,7 +456,12 @@ def _without_faces(solid: TopoDS_Shape, faces: list[TopoDS_Face]) -> TopoDS_Shap
             got = solids(op.Shape())
     except OCCTFailure:
         return None
-    if len(got) != 1 or not is_valid(got[0]) or volume(got[0]) <= 0.0:
+    if len(got) != 1 or not is_valid(got[0]):
+        return None
+    # faces whose offset vanishes lie on convex features (chamfers, fillets): removing
+    # them adds material (the offset is then unchanged); a removal that takes material
+    # away changed the part
+    if volume(got[0]) < volume(solid) * (1.0 - 1e-9):
         return None
     return got[0]
 
