@@ -193,6 +193,11 @@ def _as_one_solid(out: TopoDS_Shape, what: str) -> TopoDS_Shape:
 OFFSET_JOINS = (GeomAbs_Arc, GeomAbs_Intersection)
 
 
+#: :func:`offset_solid` removes the faces whose offset vanishes only when they are at most
+#: this fraction of the solid's faces (small features: chamfers, fillets).
+MAX_REMOVED_FRACTION = 0.1
+
+
 def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> TopoDS_Shape:
     """The solid offset by ``distance`` (negative: inward).
 
@@ -225,6 +230,11 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
                 why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
                 continue
             if not vanish or len(vanish) in tried:
+                continue
+            if len(vanish) > MAX_REMOVED_FRACTION * count(solid, TopAbs_FACE):
+                # not small features: a defeaturing of that many faces can run for
+                # minutes (NIST CTC-02: 69 faces) and changes the part
+                why.append(f"{len(vanish)} faces' offsets vanish: too many to remove")
                 continue
             tried.append(len(vanish))
             trimmed = _without_faces(solid, vanish)
