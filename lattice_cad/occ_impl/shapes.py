@@ -220,15 +220,15 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
     tried: list[int] = []
     # faces that vanish (by 2 % of the depth), the part as it is, then also the faces
     # whose offset barely reaches the depth (OCCT fails on the sliver they leave)
-    for rtol in (0.02, None, 1e-4):
-        if rtol is None:
+    try:
+        sets = _vanishing(solid, distance, 8, (0.02, 1e-4), 20000)
+    except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
+        why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
+        sets = [[], []]
+    for vanish in (sets[0], None, sets[1]):
+        if vanish is None:
             got = _offset_ways(solid, distance, tol, why, "")
         else:
-            try:
-                vanish = vanishing_faces(solid, distance, rtol=rtol)
-            except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
-                why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
-                continue
             if not vanish or len(vanish) in tried:
                 continue
             if len(vanish) > MAX_REMOVED_FRACTION * count(solid, TopAbs_FACE):
@@ -303,12 +303,23 @@ def vanishing_faces(
     (``BRepExtrema_DistShapeShape`` to the faces whose bounding box is near enough to
     matter). After ``max_evaluations`` distances the faces left count as kept.
     """
+    return _vanishing(solid, distance, grid, (rtol,), max_evaluations)[0]
+
+
+def _vanishing(
+    solid: TopoDS_Shape,
+    distance: float,
+    grid: int,
+    rtols: tuple[float, ...],
+    max_evaluations: int,
+) -> list[list[TopoDS_Face]]:
+    """:func:`vanishing_faces` for each of ``rtols`` (one search, to the strictest)."""
     from OCP.BRepGProp import BRepGProp_Face
     from OCP.BRepTopAdaptor import BRepTopAdaptor_FClass2d
 
     depth = abs(float(distance))
     if depth == 0.0:
-        return []
+        return [[] for _ in rtols]
     shape = copied(solid)
     faces = []
     exp = TopExp_Explorer(shape, TopAbs_FACE)
@@ -321,8 +332,8 @@ def vanishing_faces(
     if not mesher.IsDone():
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
     near = _NearFaces(faces)
-    limit = depth * (1.0 - rtol)
-    out = []
+    limit = depth * (1.0 - min(rtols))
+    out: list[tuple[int, float]] = []
     budget = [max_evaluations]
     for k, face in enumerate(faces):
         prop = BRepGProp_Face(face)
@@ -367,7 +378,7 @@ def vanishing_faces(
             if not moved:
                 du, dv = 0.5 * du, 0.5 * dv
         if best < limit and budget[0] > 0:
-            out.append(k)
+            out.append((k, best))
         if budget[0] <= 0:
             break
     original = []
@@ -375,7 +386,7 @@ def vanishing_faces(
     while exp.More():
         original.append(TopoDS.Face_s(exp.Current()))
         exp.Next()
-    return [original[k] for k in out]
+    return [[original[k] for k, best in out if best < depth * (1.0 - r)] for r in rtols]
 
 
 class _NearFaces:
