@@ -194,7 +194,7 @@ OFFSET_JOINS = (GeomAbs_Arc, GeomAbs_Intersection)
 
 
 #: :func:`offset_solid` removes the faces whose offset vanishes only when they are at most
-#: this fraction of the solid's faces (small features: chamfers, fillets).
+#: 8 or this fraction of the solid's faces (small features: chamfers, fillets).
 MAX_REMOVED_FRACTION = 0.1
 
 
@@ -231,7 +231,7 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         else:
             if not vanish or len(vanish) in tried:
                 continue
-            if len(vanish) > MAX_REMOVED_FRACTION * count(solid, TopAbs_FACE):
+            if len(vanish) > max(8, MAX_REMOVED_FRACTION * count(solid, TopAbs_FACE)):
                 # not small features: a defeaturing of that many faces can run for
                 # minutes (NIST CTC-02: 69 faces) and changes the part
                 why.append(f"{len(vanish)} faces' offsets vanish: too many to remove")
