@@ -201,13 +201,13 @@ MAX_REMOVED_FRACTION = 0.1
 def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> TopoDS_Shape:
     """The solid offset by ``distance`` (negative: inward).
 
-    Faces whose offset vanishes (:func:`vanishing_faces`: e.g. a chamfer or fillet on a
-    convex edge narrower than the offset reaches; OCCT's offset cannot drop a face and
-    returns an invalid shape or one that is off) are removed first
-    (``BRepAlgoAPI_Defeaturing``, their neighbours extended): the offset is the same
-    without them. Then arc joins, then intersection joins (:data:`OFFSET_JOINS`); a result
-    that is not one valid solid is healed (ShapeFix, a solid made of its shell) before it
-    is refused. When the defeatured shape gives no solid, the part as it is is tried.
+    Arc joins first; when OCCT's offset is done but not one valid solid, the faces whose offset
+    vanishes (:func:`vanishing_faces`: e.g. a chamfer or fillet on a convex edge narrower
+    than the offset reaches; OCCT's offset cannot drop a face) are removed
+    (``BRepAlgoAPI_Defeaturing``, their neighbours extended: the offset is the same
+    without them) and the defeatured solid is offset. Then, the part as it is: arc joins,
+    then intersection joins (:data:`OFFSET_JOINS`); a result that is not one valid solid
+    is healed (ShapeFix, a solid made of its shell) before it is refused.
     The caller checks that the result is the offset asked for (its wall thickness).
 
     Raises
@@ -217,18 +217,33 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         ``BRepOffset_Error`` code).
     """
     why: list[str] = []
-    tried: list[int] = []
-    # faces that vanish (by 2 % of the depth), the part as it is, then also the faces
-    # whose offset barely reaches the depth (OCCT fails on the sliver they leave)
+    # the part as it is, arc joins: done and valid is the common case
+    invalid = False
     try:
-        sets = _vanishing(solid, distance, 8, (0.02, 1e-4), 20000)
-    except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
-        why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
-        sets = [[], []]
-    for vanish in (sets[0], None, sets[1]):
-        if vanish is None:
-            got = _offset_ways(solid, distance, tol, why, "")
-        else:
+        mk = BRepOffsetAPI_MakeOffsetShape()
+        with occt_errors("offset"):
+            mk.PerformByJoin(
+                solid, float(distance), tol, BRepOffset_Skin, False, False, GeomAbs_Arc
+            )
+            if mk.IsDone():
+                out = mk.Shape()
+                found = solids(out) if out is not None and not out.IsNull() else []
+                if len(found) == 1 and is_valid(found[0]):
+                    return found[0]
+                invalid = True  # no solid, several, or an invalid one
+    except OCCTFailure:
+        pass
+    if invalid:
+        # done but not one valid solid: the symptom of faces whose offset vanishes (OCCT cannot drop
+        # them); remove those that vanish (by 2 % of the depth), then also those whose
+        # offset barely reaches the depth (OCCT fails on the sliver they leave)
+        tried: list[int] = []
+        try:
+            sets = _vanishing(solid, distance, 8, (0.02, 1e-4), 20000)
+        except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
+            why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
+            sets = [[], []]
+        for vanish in sets:
             if not vanish or len(vanish) in tried:
                 continue
             if len(vanish) > max(8, MAX_REMOVED_FRACTION * count(solid, TopAbs_FACE)):
@@ -242,8 +257,11 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
                 why.append(f"removing the {len(vanish)} face(s) whose offset vanishes failed")
                 continue
             got = _offset_ways(trimmed, distance, tol, why, f", {len(vanish)} face(s) removed")
-        if got is not None:
-            return got
+            if got is not None:
+                return got
+    got = _offset_ways(solid, distance, tol, why, "")
+    if got is not None:
+        return got
     raise OCCTFailure("; ".join(why))
 
 
@@ -301,7 +319,9 @@ def vanishing_faces(
     pattern search in the parameters looks for a point whose offset is ``|distance|``
     deep (a face that survives in a narrow strip only). Distances are exact
     (``BRepExtrema_DistShapeShape`` to the faces whose bounding box is near enough to
-    matter). After ``max_evaluations`` distances the faces left count as kept.
+    matter). After ``max_evaluations`` distances the faces left count as kept. Only
+    analytic faces (planes, cylinders, cones, spheres, tori: chamfers and fillets) are
+    tested; free-form faces count as kept.
     """
     return _vanishing(solid, distance, grid, (rtol,), max_evaluations)[0]
 
@@ -314,8 +334,18 @@ def _vanishing(
     max_evaluations: int,
 ) -> list[list[TopoDS_Face]]:
     """:func:`vanishing_faces` for each of ``rtols`` (one search, to the strictest)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
     from OCP.BRepGProp import BRepGProp_Face
     from OCP.BRepTopAdaptor import BRepTopAdaptor_FClass2d
+    from OCP.GeomAbs import (
+        GeomAbs_Cone,
+        GeomAbs_Cylinder,
+        GeomAbs_Plane,
+        GeomAbs_Sphere,
+        GeomAbs_Torus,
+    )
+
+    _ANALYTIC = (GeomAbs_Plane, GeomAbs_Cylinder, GeomAbs_Cone, GeomAbs_Sphere, GeomAbs_Torus)
 
     depth = abs(float(distance))
     if depth == 0.0:
@@ -336,6 +366,8 @@ def _vanishing(
     out: list[tuple[int, float]] = []
     budget = [max_evaluations]
     for k, face in enumerate(faces):
+        if BRepAdaptor_Surface(face).GetType() not in _ANALYTIC:
+            continue  # chamfers and fillets are analytic; free-form faces are kept
         prop = BRepGProp_Face(face)
         inside = BRepTopAdaptor_FClass2d(face, 1e-9)
         deep = functools.partial(_offset_depth, prop, inside, near, distance, limit, budget)
