@@ -6,6 +6,7 @@ Every builder result is checked (``IsDone()``, ``HasErrors()`` where the binding
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 from collections.abc import Iterator
@@ -192,11 +193,21 @@ def _as_one_solid(out: TopoDS_Shape, what: str) -> TopoDS_Shape:
 OFFSET_JOINS = (GeomAbs_Arc, GeomAbs_Intersection)
 
 
+#: :func:`offset_solid` removes the faces whose offset vanishes only when they are at most
+#: 8 or this fraction of the solid's faces (small features: chamfers, fillets).
+MAX_REMOVED_FRACTION = 0.1
+
+
 def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> TopoDS_Shape:
     """The solid offset by ``distance`` (negative: inward).
 
-    Tries arc joins, then intersection joins (:data:`OFFSET_JOINS`); a result that is not
-    one valid solid is healed (ShapeFix, a solid made of its shell) before it is refused.
+    Arc joins first; when OCCT's offset is done but not one valid solid, the faces whose offset
+    vanishes (:func:`vanishing_faces`: e.g. a chamfer or fillet on a convex edge narrower
+    than the offset reaches; OCCT's offset cannot drop a face) are removed
+    (``BRepAlgoAPI_Defeaturing``, their neighbours extended: the offset is the same
+    without them) and the defeatured solid is offset. Then, the part as it is: arc joins,
+    then intersection joins (:data:`OFFSET_JOINS`); a result that is not one valid solid
+    is healed (ShapeFix, a solid made of its shell) before it is refused.
     The caller checks that the result is the offset asked for (its wall thickness).
 
     Raises
@@ -206,12 +217,66 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         ``BRepOffset_Error`` code).
     """
     why: list[str] = []
-    shape, divided = solid, False
+    # the part as it is, arc joins: done and valid is the common case
+    invalid = False
+    try:
+        mk = BRepOffsetAPI_MakeOffsetShape()
+        with occt_errors("offset"):
+            mk.PerformByJoin(
+                solid, float(distance), tol, BRepOffset_Skin, False, False, GeomAbs_Arc
+            )
+            if mk.IsDone():
+                out = mk.Shape()
+                found = solids(out) if out is not None and not out.IsNull() else []
+                if len(found) == 1 and is_valid(found[0]):
+                    return found[0]
+                invalid = True  # no solid, several, or an invalid one
+    except OCCTFailure:
+        pass
+    if invalid:
+        # done but not one valid solid: the symptom of faces whose offset vanishes (OCCT cannot drop
+        # them); remove those that vanish (by 2 % of the depth), then also those whose
+        # offset barely reaches the depth (OCCT fails on the sliver they leave)
+        tried: list[int] = []
+        try:
+            sets = _vanishing(solid, distance, 8, (0.02, 1e-4), 20000)
+        except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
+            why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
+            sets = [[], []]
+        for vanish in sets:
+            if not vanish or len(vanish) in tried:
+                continue
+            if len(vanish) > max(8, MAX_REMOVED_FRACTION * count(solid, TopAbs_FACE)):
+                # not small features: a defeaturing of that many faces can run for
+                # minutes (NIST CTC-02: 69 faces) and changes the part
+                why.append(f"{len(vanish)} faces' offsets vanish: too many to remove")
+                continue
+            tried.append(len(vanish))
+            trimmed = _without_faces(solid, vanish)
+            if trimmed is None:
+                why.append(f"removing the {len(vanish)} face(s) whose offset vanishes failed")
+                continue
+            got = _offset_ways(trimmed, distance, tol, why, f", {len(vanish)} face(s) removed")
+            if got is not None:
+                return got
+    got = _offset_ways(solid, distance, tol, why, "")
+    if got is not None:
+        return got
+    raise OCCTFailure("; ".join(why))
+
+
+def _offset_ways(
+    shape: TopoDS_Shape, distance: float, tol: float, why: list[str], note: str
+) -> TopoDS_Shape | None:
+    """:func:`offset_solid` of ``shape`` as it is: each join of :data:`OFFSET_JOINS`, and
+    again with C0 faces split into C1 patches when OCCT asks for it; the one valid solid,
+    or None (each failure appended to ``why``)."""
+    divided = False
     ways = list(OFFSET_JOINS)
     while ways:
         join = ways.pop(0)
         what = f"offset by {distance:g} ({'arc' if join == GeomAbs_Arc else 'intersection'} joins"
-        what += ", faces split to C1)" if divided else ")"
+        what += note + (", faces split to C1)" if divided else ")")
         err = ""
         try:
             mk = BRepOffsetAPI_MakeOffsetShape()
@@ -230,7 +295,228 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
             split = _split_to_c1(shape)
             if split is not None:
                 shape, divided, ways = split, True, list(OFFSET_JOINS)
-    raise OCCTFailure("; ".join(why))
+    return None
+
+
+def vanishing_faces(
+    solid: TopoDS_Shape,
+    distance: float,
+    *,
+    grid: int = 8,
+    rtol: float = 0.02,
+    max_evaluations: int = 20000,
+) -> list[TopoDS_Face]:
+    """The faces of ``solid`` whose offset by ``distance`` vanishes from the true offset.
+
+    A face's offset (each point moved by ``distance`` along the face's outward normal)
+    belongs to the true offset surface only where it is ``|distance|`` from the boundary;
+    a face whose offset points are all nearer than that to some other face (by more than
+    ``rtol * |distance|``) has no part in it: e.g. a 45 degree chamfer of width ``w`` on a
+    convex edge vanishes from inward offsets deeper than ``w / (2 - sqrt 2)``, a convex
+    fillet from those deeper than its radius. Each face is sampled on a ``grid`` x
+    ``grid`` grid of its parameters (points inside the face) and at the centres of the
+    triangles of a coarse triangulation; from the sample whose offset lies deepest, a
+    pattern search in the parameters looks for a point whose offset is ``|distance|``
+    deep (a face that survives in a narrow strip only). Distances are exact
+    (``BRepExtrema_DistShapeShape`` to the faces whose bounding box is near enough to
+    matter). After ``max_evaluations`` distances the faces left count as kept. Only
+    analytic faces (planes, cylinders, cones, spheres, tori: chamfers and fillets) are
+    tested; free-form faces count as kept.
+    """
+    return _vanishing(solid, distance, grid, (rtol,), max_evaluations)[0]
+
+
+def _vanishing(
+    solid: TopoDS_Shape,
+    distance: float,
+    grid: int,
+    rtols: tuple[float, ...],
+    max_evaluations: int,
+) -> list[list[TopoDS_Face]]:
+    """:func:`vanishing_faces` for each of ``rtols`` (one search, to the strictest)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.BRepGProp import BRepGProp_Face
+    from OCP.BRepTopAdaptor import BRepTopAdaptor_FClass2d
+    from OCP.GeomAbs import (
+        GeomAbs_Cone,
+        GeomAbs_Cylinder,
+        GeomAbs_Plane,
+        GeomAbs_Sphere,
+        GeomAbs_Torus,
+    )
+
+    _ANALYTIC = (GeomAbs_Plane, GeomAbs_Cylinder, GeomAbs_Cone, GeomAbs_Sphere, GeomAbs_Torus)
+
+    depth = abs(float(distance))
+    if depth == 0.0:
+        return [[] for _ in rtols]
+    shape = copied(solid)
+    faces = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        faces.append(TopoDS.Face_s(exp.Current()))
+        exp.Next()
+    box = bounds(shape)
+    defl = max(0.25 * depth, 1e-3 * float(np.linalg.norm(box[1] - box[0])))
+    mesher = BRepMesh_IncrementalMesh(shape, defl, False, 0.5, False)
+    if not mesher.IsDone():
+        raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
+    near = _NearFaces(faces)
+    limit = depth * (1.0 - min(rtols))
+    out: list[tuple[int, float]] = []
+    budget = [max_evaluations]
+    for k, face in enumerate(faces):
+        if BRepAdaptor_Surface(face).GetType() not in _ANALYTIC:
+            continue  # chamfers and fillets are analytic; free-form faces are kept
+        prop = BRepGProp_Face(face)
+        inside = BRepTopAdaptor_FClass2d(face, 1e-9)
+        deep = functools.partial(_offset_depth, prop, inside, near, distance, limit, budget)
+
+        u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
+        us = u0 + (np.arange(grid) + 0.5) * (u1 - u0) / grid
+        vs = v0 + (np.arange(grid) + 0.5) * (v1 - v0) / grid
+        samples = [(float(u), float(v), True) for u in us for v in vs]
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is not None and tri.HasUVNodes():
+            for i in range(1, min(tri.NbTriangles(), 64) + 1):
+                uv = [tri.UVNode(j) for j in tri.Triangle(i).Get()]
+                u = sum(p.X() for p in uv) / 3.0
+                v = sum(p.Y() for p in uv) / 3.0
+                samples.append((u, v, False))
+        best, at, seen = -1.0, (0.0, 0.0), 0
+        for u, v, check in samples:
+            d = deep(u, v, check)
+            if d < 0.0:
+                continue
+            seen += 1
+            if d > best:
+                best, at = d, (u, v)
+            if best >= limit:
+                break
+        if not seen or best >= limit:
+            continue
+        du, dv = 0.5 * (u1 - u0) / grid, 0.5 * (v1 - v0) / grid
+        u, v = at
+        for _ in range(40):  # pattern search for a point that survives
+            moved = False
+            for su, sv in ((du, 0.0), (-du, 0.0), (0.0, dv), (0.0, -dv)):
+                d = deep(u + su, v + sv, True)
+                if d > best:
+                    best, u, v, moved = d, u + su, v + sv, True
+                    break
+            if best >= limit:
+                break
+            if not moved:
+                du, dv = 0.5 * du, 0.5 * dv
+        if best < limit and budget[0] > 0:
+            out.append((k, best))
+        if budget[0] <= 0:
+            break
+    original = []
+    exp = TopExp_Explorer(solid, TopAbs_FACE)
+    while exp.More():
+        original.append(TopoDS.Face_s(exp.Current()))
+        exp.Next()
+    return [[original[k] for k, best in out if best < depth * (1.0 - r)] for r in rtols]
+
+
+class _NearFaces:
+    """Exact distances from points to a set of faces, measured only to the faces whose
+    bounding box lies within a given reach (BRepExtrema_DistShapeShape per face)."""
+
+    def __init__(self, faces: list[TopoDS_Face]) -> None:
+        from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+
+        self.boxes = np.array([bounds(f).ravel() for f in faces]).reshape(-1, 6)
+        self.tools = []
+        for face in faces:
+            tool = BRepExtrema_DistShapeShape()
+            tool.LoadS1(face)
+            self.tools.append(tool)
+
+    def distance(self, q: Any, reach: float) -> float:
+        """The distance from ``q`` (gp_Pnt) to the nearest face, or ``reach`` when no face
+        is nearer than that; inf when BRepExtrema finds no distance."""
+        from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+
+        p = np.array([q.X(), q.Y(), q.Z()])
+        gap = np.maximum(np.maximum(self.boxes[:, :3] - p, p - self.boxes[:, 3:]), 0.0)
+        box_d = np.sqrt((gap * gap).sum(axis=1))
+        best = reach
+        vertex = BRepBuilderAPI_MakeVertex(q).Vertex()
+        for i in np.argsort(box_d):
+            if box_d[i] >= best:
+                break
+            tool = self.tools[i]
+            tool.LoadS2(vertex)
+            if not tool.Perform() or tool.NbSolution() == 0:
+                return float("inf")
+            best = min(best, float(tool.Value()))
+        return best
+
+
+def _offset_depth(
+    prop: Any,
+    inside: Any,
+    near: _NearFaces,
+    distance: float,
+    limit: float,
+    budget: list[int],
+    u: float,
+    v: float,
+    check: bool,
+) -> float:
+    """How deep below the faces ``near`` the face's point (u, v) moved by ``distance``
+    along its outward normal (``prop``: BRepGProp_Face) lies, up to ``limit``; -1 when
+    (u, v) is not on the face (``inside``: BRepTopAdaptor_FClass2d, when ``check``) or the
+    normal is undefined, inf when unknown or when ``budget[0]`` evaluations are spent."""
+    from OCP.gp import gp_Pnt, gp_Pnt2d
+    from OCP.TopAbs import TopAbs_IN
+
+    if budget[0] <= 0:
+        return float("inf")
+    if check and inside.Perform(gp_Pnt2d(u, v)) != TopAbs_IN:
+        return -1.0
+    pnt, nrm = gp_Pnt(), gp_Vec()
+    prop.Normal(u, v, pnt, nrm)
+    if nrm.Magnitude() < 1e-12:
+        return -1.0
+    nrm.Normalize()
+    budget[0] -= 1
+    q = gp_Pnt(
+        pnt.X() + distance * nrm.X(), pnt.Y() + distance * nrm.Y(), pnt.Z() + distance * nrm.Z()
+    )
+    return near.distance(q, limit)
+
+
+def _without_faces(solid: TopoDS_Shape, faces: list[TopoDS_Face]) -> TopoDS_Shape | None:
+    """``solid`` with ``faces`` removed and their neighbours extended to close the gap
+    (``BRepAlgoAPI_Defeaturing``), as one valid solid not smaller than ``solid``, or
+    None."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Defeaturing
+
+    try:
+        with occt_errors("removing faces"):
+            op = BRepAlgoAPI_Defeaturing()
+            op.SetShape(solid)
+            op.SetRunParallel(False)
+            for face in faces:
+                op.AddFaceToRemove(face)
+            op.Build()
+            if not op.IsDone():
+                return None
+            got = solids(op.Shape())
+    except OCCTFailure:
+        return None
+    if len(got) != 1 or not is_valid(got[0]):
+        return None
+    # faces whose offset vanishes lie on convex features (chamfers, fillets): removing
+    # them adds material (the offset is then unchanged); a removal that takes material
+    # away changed the part
+    if volume(got[0]) < volume(solid) * (1.0 - 1e-9):
+        return None
+    return got[0]
 
 
 def _split_to_c1(shape: TopoDS_Shape) -> TopoDS_Shape | None:
