@@ -61,8 +61,6 @@ def untangle(surface: Any, name: str = "the inner surface") -> tuple[Any, int]:
     for _ in range(UNTANGLE_ROUNDS):
         before, mesh = mesh, _collapse_folds(mesh, report)
         report = recheck(before, report, mesh)  # self-intersections near the collapses
-        if report.valid:
+        if report.valid:  # (a round can pinch an edge that the next one collapses)
             return _manifold(mesh.vertices, mesh.faces, name), len(f) - len(mesh.faces)
-        if not (report.watertight and report.manifold and report.oriented):
-            break
     return surface, 0
