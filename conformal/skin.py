@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from conformal.skin_untangle import untangle
 from lattice_cad.core import config
 from lattice_cad.core.errors import LatticeWarning, OCCTFailure, SkinError
 from lattice_cad.core.mesh import mesh_arrays, weld
@@ -115,6 +116,8 @@ class SkinReport:
     #: near the wall only (``deep``, ``near``, ``wall``, ``caps``; see
     #: :mod:`conformal.skin_split`); empty when they ran on the whole lattice.
     split: dict[str, int] = field(default_factory=dict)
+    #: Triangles collapsed to remove folds of the inner wall (``conformal.skin_untangle``).
+    untangled: int = 0
 
     def summary(self) -> str:
         """One line for logs and the CLI."""
@@ -840,6 +843,11 @@ def build_skin(
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)
+    # folds of the inner wall (manifold3d's simplify) would pass into the result, which
+    # float32 then cannot hold: collapsed here (conformal.skin_untangle)
+    inner, untangled = untangle(inner)
+    if mid_wall:
+        surfaces = (outer, inner, untangle(surfaces[2])[0])
     t1 = time.perf_counter()
     split = None
     if graph is not None and not mid_wall and not check:
@@ -884,6 +892,7 @@ def build_skin(
         bodies=bodies,
         islands_removed=islands,
         split=dict(split.counts) if split is not None else {},
+        untangled=untangled,
         seconds={
             "surfaces": t1 - t0,
             "booleans": t2 - t1,

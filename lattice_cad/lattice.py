@@ -323,6 +323,9 @@ class Lattice:
         self.skin = skin
         #: How the skin was made and its measured wall (set when the mesh is built).
         self.skin_report: Any = None
+        #: The retry that gave a skinned mesh float32 can hold ("mid-wall", "shifted",
+        #: "shifted mid-wall", "coarse"), None when the first attempt did.
+        self.skin_retry: str | None = None
         #: Enclosed voids too small to drain that the escape holes' step filled.
         self.escape_voids_filled = 0
         #: What the lattice builder did (``conformal.BuildReport``; set by :meth:`fill`).
@@ -696,6 +699,11 @@ class Lattice:
                             )
                         except ExportError:
                             continue
+                        self.skin_retry = (
+                            "coarse"
+                            if coarse
+                            else ("shifted " if shift else "") + ("mid-wall" if mid_wall else "")
+                        ).strip()
                         if coarse:
                             warnings.warn(
                                 "float32 (STL, 3MF) could not hold the skin built on the fine "

@@ -1,0 +1,66 @@
+"""Folds of a skin's inner wall removed before the booleans (issue 11 item 1).
+
+manifold3d's ``simplify`` of the voxel method's inner wall (marching tetrahedra, valid as
+they come) can fold it: on the Ventilator (octet, skin 0.889 mm) 66 face pairs of the
+simplified wall intersect each other, in float64 already, and the booleans carry them
+into the skinned solid. No rounding to float32, shift of the lattice or mid-wall surface
+removes them, so the float32 check failed four times before a retry on the part's own
+tessellation happened to give an unfolded wall (~7 min). A fold is a few faces: collapsing
+the smaller face of each intersecting pair (as the final check does with the booleans'
+needles) removes it, the surface stays closed, and the wall moves by at most the length
+of the collapsed edges (a fraction of the simplification's tolerance there).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["untangle"]
+
+#: Passes of collapses (each followed by a local check) before the surface is left as it is.
+UNTANGLE_ROUNDS = 8
+
+
+def _collapse_folds(mesh: Any, report: Any) -> Any:
+    """The zero-area faces and the smaller face of each intersecting pair collapsed."""
+    from lattice_cad import io
+    from lattice_cad.core.mesh import Mesh
+
+    v, f = mesh.vertices, mesh.faces
+    pairs = np.asarray(report.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)
+    t = v[f[pairs]]  # (P, 2, 3, 3)
+    e1, e2 = t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]
+    area = np.linalg.norm(np.cross(e1, e2), axis=-1)
+    smaller = np.where(area[:, 0] <= area[:, 1], pairs[:, 0], pairs[:, 1])
+    which = np.union1d(np.asarray(report.zero_area_faces, dtype=np.int64), smaller)
+    v2, f2 = io.collapse_faces(v, f, which)
+    return Mesh(vertices=v2, faces=f2)
+
+
+def untangle(surface: Any, name: str = "the inner surface") -> tuple[Any, int]:
+    """``surface`` (a ``manifold3d.Manifold``) without self-intersections or zero-area faces.
+
+    Returns the surface and the number of triangles the collapses removed (0: returned as
+    it came, also when it is not a closed oriented 2-manifold or the collapses do not make
+    it valid: the caller's final check then decides).
+    """
+    import fast_stitch
+    from conformal.skin import _manifold, to_arrays
+    from fast_stitch.recheck import recheck
+    from lattice_cad.core.mesh import Mesh
+
+    if surface.is_empty():
+        return surface, 0
+    v, f = to_arrays(surface)
+    mesh = Mesh(vertices=v, faces=f)
+    report = fast_stitch.check(mesh)
+    if report.valid or not (report.watertight and report.manifold and report.oriented):
+        return surface, 0
+    for _ in range(UNTANGLE_ROUNDS):
+        before, mesh = mesh, _collapse_folds(mesh, report)
+        report = recheck(before, report, mesh)  # self-intersections near the collapses
+        if report.valid:  # (a round can pinch an edge that the next one collapses)
+            return _manifold(mesh.vertices, mesh.faces, name), len(f) - len(mesh.faces)
+    return surface, 0
