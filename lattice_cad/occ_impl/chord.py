@@ -180,6 +180,19 @@ def face_deviations(shape: TopoDS_Shape, screen: float = 0.0) -> NDArray[np.floa
     return np.asarray(out, dtype=np.float64)
 
 
+def _over(face: TopoDS_Face, deviation: float, limit: float) -> bool:
+    """True when ``deviation`` exceeds ``limit`` by more than the face's B-rep tolerance
+    (nodes on its edges lie off the surface by up to the edges' tolerance)."""
+    if deviation <= limit:
+        return False
+    return deviation > limit + float(ShapeAnalysis_ShapeTolerance().Tolerance(face, 1))
+
+
+def _has_triangulation(face: TopoDS_Face) -> bool:
+    tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
+    return tri is not None and tri.NbTriangles() > 0
+
+
 def _bspline(face: TopoDS_Face) -> Geom_BSplineSurface | None:
     surf = BRep_Tool.Surface_s(face)
     if isinstance(surf, Geom_RectangularTrimmedSurface):
@@ -244,7 +257,12 @@ def mesh_checked(
     parallel: bool = True,
 ) -> tuple[TopoDS_Shape, ChordReport]:
     """Mesh ``shape`` with BRepMesh, check every face against its exact surface, and refine
-    the B-spline faces whose triangles deviate by more than ``factor * deflection``.
+    the B-spline faces whose triangles deviate by more than ``factor * deflection`` (plus
+    the face's B-rep tolerance, by which its edge nodes may lie off the surface).
+
+    Faces of other types over the limit are reported (``unresolved``), not refined. If
+    BRepMesh fails on the refined copy, the plain mesh of ``shape`` is kept and the faces
+    are reported as unresolved.
 
     ``shape`` is meshed in place. When a face needs refining, a deep copy of ``shape``
     gets the extra knots (the geometry is unchanged; the caller's shape keeps its own
@@ -269,14 +287,11 @@ def mesh_checked(
         got = _triangle_deviation(face, limit)
         if got is not None and len(got[0]):
             dev[i] = got[0].max()
-            if dev[i] > limit:
-                # nodes on edges lie off the surface by up to the edges' tolerance
-                tol = float(ShapeAnalysis_ShapeTolerance().Tolerance(face, 1))
-                if dev[i] > limit + tol:
-                    bad[i] = (got[1], got[2], got[0])
-                else:
-                    report.within_tolerance.append(i)
-    meshed = shape
+            if _over(face, dev[i], limit):
+                bad[i] = (got[1], got[2], got[0])
+            elif dev[i] > limit:
+                report.within_tolerance.append(i)
+    meshed, dev0, bad0 = shape, dev.copy(), dict(bad)
     for _ in range(rounds):
         todo = {i: b for i, b in bad.items() if i not in report.unresolved}
         if not todo:
@@ -299,18 +314,25 @@ def mesh_checked(
                     report.refined.append(i)
             else:
                 report.unresolved.append(i)
-        if not inserted:  # nothing changed: the copy keeps no triangulation, mesh it
-            _mesh(meshed, deflection, angular, parallel)
+        if not inserted:
+            if not report.refined:  # a fresh copy without triangulation: keep the plain mesh
+                meshed = shape
             break
         BRepTools.Clean_s(meshed)
         _mesh(meshed, deflection, angular, parallel)
         report.rounds += 1
         faces = _faces(meshed)
+        if not all(_has_triangulation(f) for f in faces):
+            # BRepMesh failed on the refined copy: keep the plain mesh, say which faces
+            meshed, dev, bad = shape, dev0, {}
+            report.unresolved = sorted(bad0)
+            report.refined = []
+            break
         bad = {}
         for i in todo:
             got = _triangle_deviation(faces[i], limit)
             dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
-            if got is not None and dev[i] > limit:
+            if got is not None and _over(faces[i], dev[i], limit):
                 bad[i] = (got[1], got[2], got[0])
     report.unresolved = sorted(set(report.unresolved) | set(bad))
     if len(dev):
