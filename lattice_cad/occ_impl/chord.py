@@ -180,12 +180,15 @@ def face_deviations(shape: TopoDS_Shape, screen: float = 0.0) -> NDArray[np.floa
     return np.asarray(out, dtype=np.float64)
 
 
+def _tolerance(face: TopoDS_Face) -> float:
+    """The largest tolerance of the face and its edges and vertices (mm)."""
+    return float(ShapeAnalysis_ShapeTolerance().Tolerance(face, 1))
+
+
 def _over(face: TopoDS_Face, deviation: float, limit: float) -> bool:
     """True when ``deviation`` exceeds ``limit`` by more than the face's B-rep tolerance
     (nodes on its edges lie off the surface by up to the edges' tolerance)."""
-    if deviation <= limit:
-        return False
-    return deviation > limit + float(ShapeAnalysis_ShapeTolerance().Tolerance(face, 1))
+    return deviation > limit and deviation > limit + _tolerance(face)
 
 
 def _has_triangulation(face: TopoDS_Face) -> bool:
@@ -284,7 +287,8 @@ def mesh_checked(
     dev = np.zeros(len(faces))
     bad: dict[int, tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]] = {}
     for i, face in enumerate(faces):
-        got = _triangle_deviation(face, limit)
+        # points within the face's tolerance of the limit are not measured more exactly
+        got = _triangle_deviation(face, limit + _tolerance(face))
         if got is not None and len(got[0]):
             dev[i] = got[0].max()
             if _over(face, dev[i], limit):
@@ -330,7 +334,7 @@ def mesh_checked(
             break
         bad = {}
         for i in todo:
-            got = _triangle_deviation(faces[i], limit)
+            got = _triangle_deviation(faces[i], limit + _tolerance(faces[i]))
             dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
             if got is not None and _over(faces[i], dev[i], limit):
                 bad[i] = (got[1], got[2], got[0])
