@@ -88,6 +88,12 @@ class Part:
         self.deflection = float(deflection)
         #: The part this one is a finer tessellation of (:meth:`refined`; same B-rep), or None.
         self.unrefined: Part | None = None
+        #: For :meth:`refined` parts: the largest deviation (mm) of a triangle centroid or
+        #: edge midpoint from the exact surface, measured after refining the faces BRepMesh
+        #: meshed too coarsely; and how many faces still exceed ``CHORD_CONTROL *
+        #: deflection``. None / 0 when not measured.
+        self.chord_error: float | None = None
+        self.chord_unresolved = 0
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -174,7 +180,9 @@ class Part:
             shape = solids[0] if len(solids) == 1 else _occ.compound(solids)
             with warnings.catch_warnings():  # the union was announced when it was loaded
                 warnings.simplefilter("ignore", LatticeWarning)
-                cache[key] = _from_shape(shape, self.name, float(deflection), float(angular))
+                cache[key] = _from_shape(
+                    shape, self.name, float(deflection), float(angular), checked=True
+                )
             cache[key].unrefined = self
         return cache[key]
 
@@ -430,7 +438,9 @@ def _unit_scale(units: str | float | None) -> float:
     return scale
 
 
-def _from_shape(shape: Any, name: str, deflection: float | None, angular: float) -> Part:
+def _from_shape(
+    shape: Any, name: str, deflection: float | None, angular: float, *, checked: bool = False
+) -> Part:
     from lattice_cad.occ_impl import shapes as _occ
 
     solids = _occ.solids(shape)
@@ -452,8 +462,12 @@ def _from_shape(shape: Any, name: str, deflection: float | None, angular: float)
     if not defl > 0:
         raise ValueError(f"deflection must be > 0, got {deflection!r}")
     pieces = []
+    chord_error, unresolved = 0.0, 0
     for k, solid in enumerate(solids):
-        v, f = _closed_tessellation(solid, k, name, defl, angular, diag)
+        v, f, report = _closed_tessellation(solid, k, name, defl, angular, diag, checked)
+        if report is not None:
+            chord_error = max(chord_error, report.max_deviation)
+            unresolved += len(report.unresolved)
         t = v[f]
         if np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() < 0:
             f = f[:, ::-1]  # a solid with reversed orientation
@@ -470,7 +484,11 @@ def _from_shape(shape: Any, name: str, deflection: float | None, angular: float)
             LatticeWarning,
             stacklevel=3,
         )
-    return Part(v, f, name=name, shape=solids, deflection=defl)
+    part = Part(v, f, name=name, shape=solids, deflection=defl)
+    if checked:
+        part.chord_error = chord_error
+        part.chord_unresolved = unresolved
+    return part
 
 
 def _mesh_volume(t: NDArray[np.float64]) -> float:
@@ -478,9 +496,13 @@ def _mesh_volume(t: NDArray[np.float64]) -> float:
 
 
 def _closed_tessellation(
-    solid: Any, k: int, name: str, defl: float, angular: float, diag: float
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    solid: Any, k: int, name: str, defl: float, angular: float, diag: float, checked: bool
+) -> tuple[NDArray[np.float64], NDArray[np.int64], Any]:
     """A closed, 2-manifold triangulation of one B-rep solid, healing it if needed.
+
+    With ``checked``, every face is checked against its exact surface and the faces that
+    BRepMesh meshed coarser than ``defl`` are refined (``occ_impl.chord``); the
+    ``ChordReport`` is returned third (None without ``checked``).
 
     The whole solid is meshed at once (faces share their edge nodes); copies of edge nodes
     that differ by up to the B-rep's own tolerance are merged; if the mesh is still open,
@@ -492,7 +514,13 @@ def _closed_tessellation(
     problem, faces_at = "", np.zeros(0, dtype=np.int64)
     for healed in (False, True):
         shape = _occ.heal(solid) if healed else solid
-        v, f, owner = _occ.tessellate(shape, defl, angular, face_ids=True)
+        report = None
+        if checked:
+            v, f, owner, report = _occ.tessellate(
+                shape, defl, angular, face_ids=True, control=config.CHORD_CONTROL
+            )
+        else:
+            v, f, owner = _occ.tessellate(shape, defl, angular, face_ids=True)
         if len(f) == 0:
             raise PartError(f"{name}: solid {k} has no faces to triangulate")
         limit = max(1e-6 * diag, min(_occ.max_tolerance(shape), 1e-4 * diag))
@@ -503,7 +531,7 @@ def _closed_tessellation(
                 vv, ff, kept = _occ.merge_close(v, f, tol)
             problem = _closed_problem(ff)
             if not problem:
-                return vv, ff
+                return vv, ff, report
         faces_at = np.unique(owner[kept][_open_triangles(ff)])
     listed = ", ".join(str(int(i)) for i in faces_at[:10]) + (" ..." if len(faces_at) > 10 else "")
     raise PartError(

@@ -329,6 +329,12 @@ CUT_ANGULAR_DEFLECTION = 0.3
 #: gear teeth: 340k-410k triangles and minutes of BRepMesh at 0.5 % r) stay affordable;
 #: there the cut may stand out of the exact surface by somewhat more than TRIM_RTOL.
 CUT_MAX_TRIANGLES = 300_000
+#: A refined tessellation (``conformal.Part.refined``, so the cutting one) is checked face by
+#: face against the exact surface (``occ_impl.chord``): B-spline faces whose triangles
+#: deviate by more than this factor times the chord error asked get knots inserted where
+#: they deviate and are meshed again (BRepMesh places no interior node along the straight
+#: direction of a twisted ruled face: 25x the chord error on trimesh_featuretype.STEP).
+CHORD_CONTROL = 1.5
 
 #: Before several solids of a part are united, their tessellations are rounded to a common
 #: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):

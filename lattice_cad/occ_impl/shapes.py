@@ -66,6 +66,7 @@ __all__ = [
     "copied",
     "is_compound",
     "face_triangulations",
+    "stored_triangulations",
     "tessellate",
     "merge_close",
     "heal",
@@ -712,6 +713,20 @@ def face_triangulations(
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
     if on_meshed is not None:
         on_meshed()
+    yield from stored_triangulations(shape)
+
+
+def stored_triangulations(
+    shape: TopoDS_Shape,
+) -> Iterator[tuple[TopoDS_Face, NDArray[np.float64], NDArray[np.int64]]]:
+    """Each face's triangulation as :func:`face_triangulations` yields it, from a shape
+    already meshed.
+
+    Raises
+    ------
+    OCCTFailure
+        A face has no triangulation.
+    """
     exp = TopExp_Explorer(shape, TopAbs_FACE)
     edge_faces: dict[str, Any] = {}
     while exp.More():
@@ -826,11 +841,17 @@ def tessellate(
     angular: float = 0.25,
     *,
     face_ids: bool = False,
+    control: float = 0.0,
 ) -> Any:
     """Triangulate the whole of ``shape`` at once, faces sharing their edge nodes.
 
     Triangulations stored in the shape (STEP AP242 files can carry their own) are dropped
     first, so every face is meshed by the same BRepMesh run.
+
+    With ``control`` > 0, every face's triangulation is checked against its exact surface,
+    and B-spline faces deviating by more than ``control * deflection`` are refined
+    (:func:`lattice_cad.occ_impl.chord.mesh_checked`: BRepMesh does not always honour the
+    chord error); a :class:`~lattice_cad.occ_impl.chord.ChordReport` is then returned last.
 
     Returns
     -------
@@ -841,25 +862,36 @@ def tessellate(
     face_of : (F,) int64
         Only with ``face_ids``: the index of the B-rep face (in TopExp order) of each
         triangle.
+    report : ChordReport
+        Only with ``control``.
     """
     BRepTools.Clean_s(shape)
     verts: list[NDArray[np.float64]] = []
     tris: list[NDArray[np.int64]] = []
     owner: list[NDArray[np.int64]] = []
     base = 0
-    for i, (_face, v, t) in enumerate(face_triangulations(shape, deflection, angular)):
+    if control > 0:
+        from lattice_cad.occ_impl.chord import mesh_checked
+
+        meshed, report = mesh_checked(shape, deflection, angular, factor=control)
+        faces = stored_triangulations(meshed)
+    else:
+        faces = face_triangulations(shape, deflection, angular)
+    for i, (_face, v, t) in enumerate(faces):
         verts.append(v)
         tris.append(t + base)
         owner.append(np.full(len(t), i, dtype=np.int64))
         base += len(v)
     if not verts:
-        empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
-        return (*empty, np.zeros(0, dtype=np.int64)) if face_ids else empty
-    v = np.vstack(verts)
-    f = np.vstack(tris)
-    uniq, inverse = np.unique(v, axis=0, return_inverse=True)
-    f = inverse.reshape(-1)[f]
-    return (uniq, f, np.concatenate(owner)) if face_ids else (uniq, f)
+        out: tuple[Any, ...] = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+        ids = np.zeros(0, dtype=np.int64)
+    else:
+        f = np.vstack(tris)
+        uniq, inverse = np.unique(np.vstack(verts), axis=0, return_inverse=True)
+        out, ids = (uniq, inverse.reshape(-1)[f]), np.concatenate(owner)
+    if face_ids:
+        out = (*out, ids)
+    return (*out, report) if control > 0 else out
 
 
 def merge_close(

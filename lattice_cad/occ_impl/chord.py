@@ -1,0 +1,345 @@
+"""Check a BRepMesh triangulation against the exact surfaces, and refine faces it misses.
+
+BRepMesh does not always honour the chord error it is asked for: on a twisted ruled
+B-spline face (degree 3 x 1, e.g. face 78 of ``trimesh_featuretype.STEP``) it places no
+interior node in the linear direction, since every isoline there is straight, and its
+triangles span the whole face diagonally, up to 25 times the chord error away from the
+surface (neither ``DeflectionInterior``, ``MinSize`` nor
+``EnableControlSurfaceDeflectionAllSurfaces`` changes that).
+
+:func:`face_deviations` measures, face by face, the distance between the surface point
+``S(u, v)`` at the parameters of each triangle's centroid and edge midpoints and the
+corresponding point of the flat triangle (an upper bound on the distance of that point
+to the surface: exact surface evaluations, no projection). :func:`refine_bad_faces`
+inserts knots (the same surface, exactly) into the B-spline faces whose deviation exceeds
+the chord error asked, where their bad triangles lie, and meshes the shape again, so
+BRepMesh's own grid gets finer there; the shape stays one mesh with shared edge nodes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from OCP.BRep import BRep_Tool
+from OCP.BRepAdaptor import BRepAdaptor_Surface
+from OCP.BRepMesh import BRepMesh_IncrementalMesh
+from OCP.BRepTools import BRepTools
+from OCP.Extrema import Extrema_ExtPS, Extrema_GenLocateExtPS
+from OCP.Geom import Geom_BSplineSurface, Geom_RectangularTrimmedSurface
+from OCP.GeomAbs import GeomAbs_Plane
+from OCP.gp import gp_Pnt
+from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
+from OCP.TopAbs import TopAbs_FACE
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopLoc import TopLoc_Location
+from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
+
+from lattice_cad.core.errors import OCCTFailure
+
+__all__ = ["ChordReport", "face_deviations", "mesh_checked"]
+
+
+@dataclass
+class ChordReport:
+    """What :func:`mesh_checked` measured and did.
+
+    Attributes
+    ----------
+    deflection : float
+        The chord error asked (mm).
+    max_deviation : float
+        The largest deviation found (mm) of a triangle centroid or edge midpoint from the
+        exact surface, after refinement (an upper bound: ``|S(uv) - p|``).
+    worst_face : int
+        TopExp index of the face with ``max_deviation`` (-1 if none).
+    refined : list of int
+        Faces refined by knot insertion.
+    unresolved : list of int
+        Faces still over ``factor * deflection`` after refinement (not B-spline, or the
+        rounds ran out).
+    within_tolerance : list of int
+        Faces over ``factor * deflection`` by no more than their B-rep tolerance (their
+        edge nodes lie off the surface by up to it: not a chord error; left as they are).
+    rounds : int
+        BRepMesh runs after the first.
+    """
+
+    deflection: float
+    max_deviation: float = 0.0
+    worst_face: int = -1
+    refined: list[int] = field(default_factory=list)
+    unresolved: list[int] = field(default_factory=list)
+    within_tolerance: list[int] = field(default_factory=list)
+    rounds: int = 0
+
+
+def _faces(shape: TopoDS_Shape) -> list[TopoDS_Face]:
+    out = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        out.append(TopoDS.Face_s(exp.Current()))
+        exp.Next()
+    return out
+
+
+def _uv_triangulation(
+    face: TopoDS_Face,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None:
+    """(nodes in global coordinates, uv nodes, 0-based triangles), or None without uv."""
+    loc = TopLoc_Location()
+    tri = BRep_Tool.Triangulation_s(face, loc)
+    if tri is None or tri.NbTriangles() == 0 or not tri.HasUVNodes():
+        return None
+    nn = tri.NbNodes()
+    node, uvn = tri.Node, tri.UVNode
+    pts = np.array(
+        [(p.X(), p.Y(), p.Z()) for p in (node(i) for i in range(1, nn + 1))], dtype=np.float64
+    ).reshape(nn, 3)
+    uv = np.array(
+        [(p.X(), p.Y()) for p in (uvn(i) for i in range(1, nn + 1))], dtype=np.float64
+    ).reshape(nn, 2)
+    if not loc.IsIdentity():
+        m = loc.Transformation()
+        rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+        pts = pts @ rot.T + np.array([m.Value(r, 4) for r in (1, 2, 3)])
+    tri_at = tri.Triangle
+    t = np.array([tri_at(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64)
+    return pts, uv, t.reshape(-1, 3) - 1
+
+
+def _triangle_deviation(
+    face: TopoDS_Face, limit: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None:
+    """Per triangle, the deviation from the exact surface over its centroid and edge midpoints.
+
+    First screened by ``|S(uv) - p|`` (the surface point at the mean parameters against
+    the point of the flat triangle: an upper bound, but also counting the tangential shift
+    of a non-uniform parametrisation); points over ``limit`` are then measured by their
+    distance to the surface near ``S(uv)`` (``Extrema_GenLocateExtPS``, distance criterion,
+    started at ``uv``: a local minimum, so still an upper bound on the distance).
+
+    Returns (deviation (T,), uv nodes, triangles), or None for a plane or a face without
+    uv nodes.
+    """
+    surf = BRepAdaptor_Surface(face)
+    if surf.GetType() == GeomAbs_Plane:
+        return None
+    got = _uv_triangulation(face)
+    if got is None:
+        return None
+    pts, uv, t = got
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+    p3 = np.concatenate([pts[t].mean(axis=1), pts[uniq].mean(axis=1)])
+    q = np.concatenate([uv[t].mean(axis=1), uv[uniq].mean(axis=1)])
+    value = surf.Value
+    s = np.array(
+        [(p.X(), p.Y(), p.Z()) for p in (value(u, v) for u, v in q.tolist())], dtype=np.float64
+    ).reshape(-1, 3)
+    d = np.linalg.norm(s - p3, axis=1)
+    over = np.flatnonzero(d > limit)
+    if len(over):
+        loc = Extrema_GenLocateExtPS(surf, 1e-9, 1e-9)
+        for k in over.tolist():
+            p = gp_Pnt(*p3[k])
+            loc.Perform(p, float(q[k, 0]), float(q[k, 1]), True)
+            if loc.IsDone():
+                d[k] = min(d[k], float(np.sqrt(loc.SquareDistance())))
+            if d[k] > limit:  # the local search stopped at the domain's boundary: global
+                ext = Extrema_ExtPS(p, surf, 1e-9, 1e-9)
+                if ext.IsDone() and ext.NbExt() > 0:
+                    sq = min(ext.SquareDistance(i) for i in range(1, ext.NbExt() + 1))
+                    d[k] = min(d[k], float(np.sqrt(sq)))
+    nt = len(t)
+    dev = np.maximum(d[:nt], d[nt:][inv.reshape(-1)].reshape(3, nt).max(axis=0))
+    return dev, uv, t
+
+
+def face_deviations(shape: TopoDS_Shape, screen: float = 0.0) -> NDArray[np.float64]:
+    """(n_faces,) the largest deviation (mm) of each face's stored triangulation from its
+    exact surface (0 for planes and faces without uv nodes), in TopExp order.
+
+    Measured at each triangle's centroid and edge midpoints: ``|S(u, v) - p|``, the
+    surface point at the mean parameters against the point of the flat triangle, and
+    where that exceeds ``screen`` (mm), the distance to the surface near ``S(u, v)``.
+    Both are upper bounds on the distance to the surface.
+
+    Raises
+    ------
+    OCCTFailure
+        A face has no triangulation.
+    """
+    out = []
+    for face in _faces(shape):
+        if BRep_Tool.Triangulation_s(face, TopLoc_Location()) is None:
+            raise OCCTFailure("face_deviations: a face has no triangulation")
+        got = _triangle_deviation(face, screen)
+        out.append(0.0 if got is None or len(got[0]) == 0 else float(got[0].max()))
+    return np.asarray(out, dtype=np.float64)
+
+
+def _tolerance(face: TopoDS_Face) -> float:
+    """The largest tolerance of the face and its edges and vertices (mm)."""
+    return float(ShapeAnalysis_ShapeTolerance().Tolerance(face, 1))
+
+
+def _over(face: TopoDS_Face, deviation: float, limit: float) -> bool:
+    """True when ``deviation`` exceeds ``limit`` by more than the face's B-rep tolerance
+    (nodes on its edges lie off the surface by up to the edges' tolerance)."""
+    return deviation > limit and deviation > limit + _tolerance(face)
+
+
+def _has_triangulation(face: TopoDS_Face) -> bool:
+    tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
+    return tri is not None and tri.NbTriangles() > 0
+
+
+def _bspline(face: TopoDS_Face) -> Geom_BSplineSurface | None:
+    surf = BRep_Tool.Surface_s(face)
+    if isinstance(surf, Geom_RectangularTrimmedSurface):
+        surf = surf.BasisSurface()
+    return surf if isinstance(surf, Geom_BSplineSurface) else None
+
+
+def _new_knots(
+    lo: NDArray[np.float64], hi: NDArray[np.float64], existing: NDArray[np.float64]
+) -> list[float]:
+    """Knots at the middle of the bad triangles' parameter spans ``[lo, hi]``, skipping
+    those within a quarter span of a knot already there or chosen."""
+    span = hi - lo
+    mid = 0.5 * (lo + hi)
+    order = np.argsort(-span)  # the widest first
+    taken = np.sort(existing).tolist()
+    chosen: list[float] = []
+    for i in order:
+        if span[i] <= 0:
+            continue
+        m = float(mid[i])
+        j = int(np.searchsorted(taken, m))
+        near = [taken[k] for k in (j - 1, j) if 0 <= k < len(taken)]
+        if any(abs(k - m) < 0.25 * span[i] for k in near):
+            continue
+        taken.insert(j, m)
+        chosen.append(m)
+    return chosen
+
+
+def _insert_knots(bs: Geom_BSplineSurface, uv: NDArray[np.float64], t: NDArray[np.int64]) -> int:
+    """Insert u and v knots (multiplicity 1) at the middle of the triangles ``t``; how many."""
+    box_lo, box_hi = uv[t].min(axis=1), uv[t].max(axis=1)
+    u0, u1, v0, v1 = bs.Bounds()
+    n = 0
+    for axis, (a, b), nknots, knot, insert in (
+        (0, (u0, u1), bs.NbUKnots, bs.UKnot, bs.InsertUKnot),
+        (1, (v0, v1), bs.NbVKnots, bs.VKnot, bs.InsertVKnot),
+    ):
+        existing = np.array([knot(i) for i in range(1, nknots() + 1)], dtype=np.float64)
+        tol = 1e-9 * max(b - a, 1e-300)
+        for k in _new_knots(box_lo[:, axis], box_hi[:, axis], existing):
+            if a + tol < k < b - tol:
+                insert(k, 1, tol, False)
+                n += 1
+    return n
+
+
+def _mesh(shape: TopoDS_Shape, deflection: float, angular: float, parallel: bool) -> None:
+    mesher = BRepMesh_IncrementalMesh(shape, float(deflection), False, float(angular), parallel)
+    if not mesher.IsDone():
+        raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
+
+
+def mesh_checked(
+    shape: TopoDS_Shape,
+    deflection: float,
+    angular: float,
+    *,
+    factor: float = 1.5,
+    rounds: int = 8,
+    parallel: bool = True,
+) -> tuple[TopoDS_Shape, ChordReport]:
+    """Mesh ``shape`` with BRepMesh, check every face against its exact surface, and refine
+    the B-spline faces whose triangles deviate by more than ``factor * deflection`` (plus
+    the face's B-rep tolerance, by which its edge nodes may lie off the surface).
+
+    Faces of other types over the limit are reported (``unresolved``), not refined. If
+    BRepMesh fails on the refined copy, the plain mesh of ``shape`` is kept and the faces
+    are reported as unresolved.
+
+    ``shape`` is meshed in place. When a face needs refining, a deep copy of ``shape``
+    gets the extra knots (the geometry is unchanged; the caller's shape keeps its own
+    surfaces) and is meshed again as a whole, so faces still share their edge nodes.
+
+    Returns
+    -------
+    meshed : TopoDS_Shape
+        ``shape`` or the refined copy, carrying the triangulation to read (same faces in
+        the same TopExp order).
+    report : ChordReport
+    """
+    from lattice_cad.occ_impl.shapes import copied
+
+    _mesh(shape, deflection, angular, parallel)
+    report = ChordReport(float(deflection))
+    limit = factor * float(deflection)
+    faces = _faces(shape)
+    dev = np.zeros(len(faces))
+    bad: dict[int, tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]] = {}
+    for i, face in enumerate(faces):
+        # points within the face's tolerance of the limit are not measured more exactly
+        got = _triangle_deviation(face, limit + _tolerance(face))
+        if got is not None and len(got[0]):
+            dev[i] = got[0].max()
+            if _over(face, dev[i], limit):
+                bad[i] = (got[1], got[2], got[0])
+            elif dev[i] > limit:
+                report.within_tolerance.append(i)
+    meshed, dev0, bad0 = shape, dev.copy(), dict(bad)
+    for _ in range(rounds):
+        todo = {i: b for i, b in bad.items() if i not in report.unresolved}
+        if not todo:
+            break
+        faces = _faces(meshed)
+        report.unresolved += [i for i in todo if _bspline(faces[i]) is None]
+        todo = {i: b for i, b in todo.items() if i not in report.unresolved}
+        if not todo:
+            break
+        if meshed is shape:  # the caller's surfaces stay as they are
+            meshed = copied(shape)
+            faces = _faces(meshed)
+        inserted = 0
+        for i, (uv, t, d) in todo.items():
+            bs = _bspline(faces[i])
+            added = 0 if bs is None else _insert_knots(bs, uv, t[d > limit])
+            if added:
+                inserted += added
+                if i not in report.refined:
+                    report.refined.append(i)
+            else:
+                report.unresolved.append(i)
+        if not inserted:
+            if not report.refined:  # a fresh copy without triangulation: keep the plain mesh
+                meshed = shape
+            break
+        BRepTools.Clean_s(meshed)
+        _mesh(meshed, deflection, angular, parallel)
+        report.rounds += 1
+        faces = _faces(meshed)
+        if not all(_has_triangulation(f) for f in faces):
+            # BRepMesh failed on the refined copy: keep the plain mesh, say which faces
+            meshed, dev, bad = shape, dev0, {}
+            report.unresolved = sorted(bad0)
+            report.refined = []
+            break
+        bad = {}
+        for i in todo:
+            got = _triangle_deviation(faces[i], limit + _tolerance(faces[i]))
+            dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
+            if got is not None and _over(faces[i], dev[i], limit):
+                bad[i] = (got[1], got[2], got[0])
+    report.unresolved = sorted(set(report.unresolved) | set(bad))
+    if len(dev):
+        report.worst_face = int(np.argmax(dev))
+        report.max_deviation = float(dev.max())
+    return meshed, report
