@@ -713,14 +713,14 @@ def face_triangulations(
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
     if on_meshed is not None:
         on_meshed()
-    yield from stored_triangulations(shape)
+    yield from stored_triangulations(shape, tiny=tiny)
 
 
 def stored_triangulations(
-    shape: TopoDS_Shape,
+    shape: TopoDS_Shape, *, tiny: float = 0.0
 ) -> Iterator[tuple[TopoDS_Face, NDArray[np.float64], NDArray[np.int64]]]:
     """Each face's triangulation as :func:`face_triangulations` yields it, from a shape
-    already meshed.
+    already meshed (``tiny``: as there).
 
     Raises
     ------
