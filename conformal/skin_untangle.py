@@ -15,8 +15,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
 __all__ = ["untangle"]
 
 #: Passes of collapses (each followed by a local check) before the surface is left as it is.
@@ -28,15 +26,10 @@ def _collapse_folds(mesh: Any, report: Any) -> Any:
     from lattice_cad import io
     from lattice_cad.core.mesh import Mesh
 
-    v, f = mesh.vertices, mesh.faces
-    pairs = np.asarray(report.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)
-    t = v[f[pairs]]  # (P, 2, 3, 3)
-    e1, e2 = t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]
-    area = np.linalg.norm(np.cross(e1, e2), axis=-1)
-    smaller = np.where(area[:, 0] <= area[:, 1], pairs[:, 0], pairs[:, 1])
-    which = np.union1d(np.asarray(report.zero_area_faces, dtype=np.int64), smaller)
-    v2, f2 = io.collapse_faces(v, f, which)
-    return Mesh(vertices=v2, faces=f2)
+    v, f = io.collapse_folds(
+        mesh.vertices, mesh.faces, report.self_intersection_pairs, report.zero_area_faces
+    )
+    return Mesh(vertices=v, faces=f)
 
 
 def untangle(surface: Any, name: str = "the inner surface") -> tuple[Any, int]:

@@ -118,15 +118,10 @@ def _collapse_folds(mesh: Mesh, report: Any) -> Mesh:
     from lattice_cad import io
     from lattice_cad.core.mesh import Mesh
 
-    v, f = mesh.vertices, mesh.faces
-    pairs = np.asarray(report.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)
-    t = v[f[pairs]]  # (P, 2, 3, 3): only the faces of the pairs
-    e1, e2 = t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]
-    area = np.linalg.norm(np.cross(e1, e2), axis=-1)
-    smaller = np.where(area[:, 0] <= area[:, 1], pairs[:, 0], pairs[:, 1])
-    which = np.union1d(np.asarray(report.zero_area_faces, dtype=np.int64), smaller)
-    v2, f2 = io.collapse_faces(v, f, which)
-    return Mesh(vertices=v2, faces=f2)
+    v, f = io.collapse_folds(
+        mesh.vertices, mesh.faces, report.self_intersection_pairs, report.zero_area_faces
+    )
+    return Mesh(vertices=v, faces=f)
 
 
 def _self_supporting_rotation(

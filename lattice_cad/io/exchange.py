@@ -183,6 +183,28 @@ def collapse_faces(
     return v[used], new_id[f]
 
 
+def collapse_folds(
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    pairs: NDArray[np.int64],
+    zero_area: NDArray[np.int64],
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Collapse (:func:`collapse_faces`) the zero-area faces and the smaller face of each
+    self-intersecting pair: removes the needles booleans leave and the folds a
+    simplification makes (a fold is a few faces), keeping the surface closed.
+
+    vertices : (V, 3) float64, faces : (F, 3) int64, pairs : (P, 2) int64 face indices
+    (e.g. ``fast_stitch.check(...).self_intersection_pairs``), zero_area : (Z,) int64.
+    """
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    t = v[f[pairs]]  # (P, 2, 3, 3): only the faces of the pairs
+    e1, e2 = t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]
+    area = np.linalg.norm(np.cross(e1, e2), axis=-1)
+    smaller = np.where(area[:, 0] <= area[:, 1], pairs[:, 0], pairs[:, 1])
+    which = np.union1d(np.asarray(zero_area, dtype=np.int64), smaller)
+    return collapse_faces(v, f, which)
+
+
 def _closed_manifold(f: NDArray[np.int64]) -> bool:
     """Every edge used exactly twice, once in each direction."""
     from lattice_cad.io._rounding_kernels import closed_oriented
