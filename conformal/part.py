@@ -144,11 +144,16 @@ class Part:
         faces = self.faces if np.linalg.det(m[:3, :3]) > 0 else self.faces[:, ::-1]
         return Part(v, faces, name=self.name, deflection=self.deflection)
 
-    def refined(self, deflection: float, *, angular: float = 0.3) -> Part:
+    def refined(self, deflection: float, *, angular: float = 0.3, checked: bool = True) -> Part:
         """The same B-rep tessellated with a chord error of at most ``deflection`` (mm).
 
         A part without a B-rep (a mesh), or one already tessellated that finely, is
-        returned as it is. Results are cached per ``(deflection, angular)``.
+        returned as it is. Results are cached per ``(deflection, angular, checked)``.
+        With ``checked`` (the default), every face is checked against its exact surface
+        and B-spline faces BRepMesh meshed too coarsely are refined
+        (``lattice_cad.occ_impl.chord``); without, BRepMesh's triangulation is taken as it
+        is (e.g. to count triangles). Asked right after an unchecked call with the same
+        ``deflection`` and ``angular``, the checked one does not mesh the B-rep again.
 
         Parameters
         ----------
@@ -172,17 +177,22 @@ class Part:
         if self.shape is None or deflection >= self.deflection:
             return self
         cache = self.__dict__.setdefault("_refined", {})
-        key = (float(deflection), float(angular))
+        key = (float(deflection), float(angular), bool(checked))
         if key not in cache:
             from lattice_cad.occ_impl import shapes as _occ
 
             solids = list(self.shape)
             shape = solids[0] if len(solids) == 1 else _occ.compound(solids)
+            # the solids are meshed in place; the last (deflection, angular) is kept so that
+            # a checked call right after an unchecked one reuses BRepMesh's work
+            reuse = self.__dict__.get("_meshed_at") == key[:2]
+            self.__dict__["_meshed_at"] = None  # in case meshing fails half-way
             with warnings.catch_warnings():  # the union was announced when it was loaded
                 warnings.simplefilter("ignore", LatticeWarning)
                 cache[key] = _from_shape(
-                    shape, self.name, float(deflection), float(angular), checked=True
+                    shape, self.name, key[0], key[1], checked=checked, reuse=reuse
                 )
+            self.__dict__["_meshed_at"] = key[:2]
             cache[key].unrefined = self
         return cache[key]
 
@@ -439,7 +449,13 @@ def _unit_scale(units: str | float | None) -> float:
 
 
 def _from_shape(
-    shape: Any, name: str, deflection: float | None, angular: float, *, checked: bool = False
+    shape: Any,
+    name: str,
+    deflection: float | None,
+    angular: float,
+    *,
+    checked: bool = False,
+    reuse: bool = False,
 ) -> Part:
     from lattice_cad.occ_impl import shapes as _occ
 
@@ -464,7 +480,7 @@ def _from_shape(
     pieces = []
     chord_error, unresolved = 0.0, 0
     for k, solid in enumerate(solids):
-        v, f, report = _closed_tessellation(solid, k, name, defl, angular, diag, checked)
+        v, f, report = _closed_tessellation(solid, k, name, defl, angular, diag, checked, reuse)
         if report is not None:
             chord_error = max(chord_error, report.max_deviation)
             unresolved += len(report.unresolved)
@@ -485,7 +501,7 @@ def _from_shape(
             stacklevel=3,
         )
     part = Part(v, f, name=name, shape=solids, deflection=defl)
-    if checked:
+    if checked and config.CHORD_CONTROL > 0:
         part.chord_error = chord_error
         part.chord_unresolved = unresolved
     return part
@@ -496,13 +512,22 @@ def _mesh_volume(t: NDArray[np.float64]) -> float:
 
 
 def _closed_tessellation(
-    solid: Any, k: int, name: str, defl: float, angular: float, diag: float, checked: bool
+    solid: Any,
+    k: int,
+    name: str,
+    defl: float,
+    angular: float,
+    diag: float,
+    checked: bool,
+    reuse: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], Any]:
     """A closed, 2-manifold triangulation of one B-rep solid, healing it if needed.
 
     With ``checked``, every face is checked against its exact surface and the faces that
     BRepMesh meshed coarser than ``defl`` are refined (``occ_impl.chord``); the
-    ``ChordReport`` is returned third (None without ``checked``).
+    ``ChordReport`` is returned third (None without ``checked``). With ``reuse``, the
+    triangulation ``solid`` carries was made with the same ``defl`` and ``angular`` and is
+    kept (not meshed again).
 
     The whole solid is meshed at once (faces share their edge nodes); copies of edge nodes
     that differ by up to the B-rep's own tolerance are merged; if the mesh is still open,
@@ -515,12 +540,19 @@ def _closed_tessellation(
     for healed in (False, True):
         shape = _occ.heal(solid) if healed else solid
         report = None
-        if checked:
+        if checked and config.CHORD_CONTROL > 0:
             v, f, owner, report = _occ.tessellate(
-                shape, defl, angular, face_ids=True, control=config.CHORD_CONTROL
+                shape,
+                defl,
+                angular,
+                face_ids=True,
+                control=config.CHORD_CONTROL,
+                clean=not (reuse and not healed),
             )
         else:
-            v, f, owner = _occ.tessellate(shape, defl, angular, face_ids=True)
+            v, f, owner = _occ.tessellate(
+                shape, defl, angular, face_ids=True, clean=not (reuse and not healed)
+            )
         if len(f) == 0:
             raise PartError(f"{name}: solid {k} has no faces to triangulate")
         limit = max(1e-6 * diag, min(_occ.max_tolerance(shape), 1e-4 * diag))

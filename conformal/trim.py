@@ -174,8 +174,11 @@ def cutting_part(part: Any, radius: float) -> Any:
     want = max(config.CUT_DEFLECTION_RTOL * float(radius), CUT_DEFLECTION_FLOOR * part.diagonal)
     budget = config.CUT_MAX_TRIANGLES
     defl = max(want, part.deflection * len(part.faces) / budget)  # the pessimistic guess
+    angular = config.CUT_ANGULAR_DEFLECTION
     try:
-        cut = part.refined(defl, angular=config.CUT_ANGULAR_DEFLECTION)
+        # the trials only count triangles: BRepMesh's own, without the chord check, which
+        # the chosen one gets at the end (reusing its meshing when it was the last trial)
+        cut = part.refined(defl, angular=angular, checked=False)
         # planar faces do not grow with a finer chord error: measure and refine further
         # while the count stays under the budget (triangles assumed ~ 1 / chord)
         for _ in range(4):
@@ -185,10 +188,11 @@ def cutting_part(part: Any, radius: float) -> Any:
             finer = max(want, defl * n / budget)
             if finer > 0.95 * defl:
                 break
-            trial = part.refined(finer, angular=config.CUT_ANGULAR_DEFLECTION)
+            trial = part.refined(finer, angular=angular, checked=False)
             if len(trial.faces) > 1.5 * budget:
                 break
             cut, defl = trial, finer
+        cut = part.refined(defl, angular=angular)
     except PartError as exc:
         warnings.warn(
             f"{part.name}: the lattice is cut by the part's default tessellation (chord error "

@@ -100,3 +100,43 @@ def test_featuretype_clip_within_one_percent_of_r_of_the_exact_brep(part):
     exact = signed_distance(lat.part.shape, v[pick])
     assert d.max() <= 0.01 * R, d.max() / R
     assert exact.max() <= 0.01 * R, exact.max() / R
+
+
+def test_checked_tessellation_after_an_unchecked_one_reuses_it_and_is_the_same(monkeypatch):
+    """cutting_part counts triangles on unchecked trials and checks only the chosen one;
+    the check then reuses that trial's BRepMesh run (the M6 screw's cut meshed 4 times
+    and checked twice, 75 CPU s; now 2 meshings and 1 check). The reused result must be
+    the one a fresh part gives."""
+    from conformal import load_part
+    from lattice_cad.occ_impl import chord
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fresh = load_part(FEATURETYPE).refined(0.005 * R)
+        p = load_part(FEATURETYPE)
+        plain = p.refined(0.005 * R, checked=False)
+        cleaned = []
+        real_clean = chord.BRepTools.Clean_s
+        monkeypatch.setattr(
+            chord.BRepTools, "Clean_s", lambda s: (cleaned.append(s), real_clean(s))[1]
+        )
+        again = p.refined(0.005 * R)
+    assert plain.chord_error is None and again.chord_error is not None
+    # the unchecked run's triangulation was kept, not meshed again (only the refined
+    # copy of the check is cleaned)
+    assert cleaned and not any(s.IsSame(p.shape[0]) for s in cleaned)
+    np.testing.assert_array_equal(again.vertices, fresh.vertices)
+    np.testing.assert_array_equal(again.faces, fresh.faces)
+    assert again.chord_error == fresh.chord_error
+    assert len(again.faces) != len(plain.faces)  # face 78 was refined
+
+
+def test_chord_control_off_gives_brepmesh_as_it_is(monkeypatch):
+    from conformal import load_part
+    from lattice_cad.core import config
+
+    monkeypatch.setattr(config, "CHORD_CONTROL", 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cut = load_part(FEATURETYPE).refined(0.005 * R)
+    assert cut.chord_error is None and len(cut.faces) > 0

@@ -94,12 +94,8 @@ def _uv_triangulation(
         return None
     nn = tri.NbNodes()
     node, uvn = tri.Node, tri.UVNode
-    pts = np.array(
-        [(p.X(), p.Y(), p.Z()) for p in (node(i) for i in range(1, nn + 1))], dtype=np.float64
-    ).reshape(nn, 3)
-    uv = np.array(
-        [(p.X(), p.Y()) for p in (uvn(i) for i in range(1, nn + 1))], dtype=np.float64
-    ).reshape(nn, 2)
+    pts = np.array([node(i).Coord() for i in range(1, nn + 1)], dtype=np.float64).reshape(nn, 3)
+    uv = np.array([uvn(i).Coord() for i in range(1, nn + 1)], dtype=np.float64).reshape(nn, 2)
     if not loc.IsIdentity():
         m = loc.Transformation()
         rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
@@ -135,9 +131,7 @@ def _triangle_deviation(
     p3 = np.concatenate([pts[t].mean(axis=1), pts[uniq].mean(axis=1)])
     q = np.concatenate([uv[t].mean(axis=1), uv[uniq].mean(axis=1)])
     value = surf.Value
-    s = np.array(
-        [(p.X(), p.Y(), p.Z()) for p in (value(u, v) for u, v in q.tolist())], dtype=np.float64
-    ).reshape(-1, 3)
+    s = np.array([value(u, v).Coord() for u, v in q.tolist()], dtype=np.float64).reshape(-1, 3)
     d = np.linalg.norm(s - p3, axis=1)
     over = np.flatnonzero(d > limit)
     if len(over):
@@ -258,6 +252,7 @@ def mesh_checked(
     factor: float = 1.5,
     rounds: int = 8,
     parallel: bool = True,
+    clean: bool = True,
 ) -> tuple[TopoDS_Shape, ChordReport]:
     """Mesh ``shape`` with BRepMesh, check every face against its exact surface, and refine
     the B-spline faces whose triangles deviate by more than ``factor * deflection`` (plus
@@ -267,7 +262,9 @@ def mesh_checked(
     BRepMesh fails on the refined copy, the plain mesh of ``shape`` is kept and the faces
     are reported as unresolved.
 
-    ``shape`` is meshed in place. When a face needs refining, a deep copy of ``shape``
+    ``shape`` is meshed in place: its stored triangulation is dropped first, unless
+    ``clean`` is False (the caller knows it was made with the same ``deflection`` and
+    ``angular``: BRepMesh then keeps it). When a face needs refining, a deep copy of ``shape``
     gets the extra knots (the geometry is unchanged; the caller's shape keeps its own
     surfaces) and is meshed again as a whole, so faces still share their edge nodes.
 
@@ -280,6 +277,8 @@ def mesh_checked(
     """
     from lattice_cad.occ_impl.shapes import copied
 
+    if clean:
+        BRepTools.Clean_s(shape)
     _mesh(shape, deflection, angular, parallel)
     report = ChordReport(float(deflection))
     limit = factor * float(deflection)

@@ -842,11 +842,14 @@ def tessellate(
     *,
     face_ids: bool = False,
     control: float = 0.0,
+    clean: bool = True,
 ) -> Any:
     """Triangulate the whole of ``shape`` at once, faces sharing their edge nodes.
 
     Triangulations stored in the shape (STEP AP242 files can carry their own) are dropped
-    first, so every face is meshed by the same BRepMesh run.
+    first, so every face is meshed by the same BRepMesh run; with ``clean`` False, the
+    caller knows the stored one was made by this function with the same ``deflection``
+    and ``angular``, and BRepMesh keeps it (no second meshing).
 
     With ``control`` > 0, every face's triangulation is checked against its exact surface,
     and B-spline faces deviating by more than ``control * deflection`` are refined
@@ -865,7 +868,6 @@ def tessellate(
     report : ChordReport
         Only with ``control``.
     """
-    BRepTools.Clean_s(shape)
     verts: list[NDArray[np.float64]] = []
     tris: list[NDArray[np.int64]] = []
     owner: list[NDArray[np.int64]] = []
@@ -873,9 +875,11 @@ def tessellate(
     if control > 0:
         from lattice_cad.occ_impl.chord import mesh_checked
 
-        meshed, report = mesh_checked(shape, deflection, angular, factor=control)
+        meshed, report = mesh_checked(shape, deflection, angular, factor=control, clean=clean)
         faces = stored_triangulations(meshed)
     else:
+        if clean:
+            BRepTools.Clean_s(shape)
         faces = face_triangulations(shape, deflection, angular)
     for i, (_face, v, t) in enumerate(faces):
         verts.append(v)
