@@ -73,7 +73,14 @@ from numpy.typing import NDArray
 from fast_stitch import _hub_kernels
 from lattice_cad.core import config
 
-__all__ = ["Profile", "PROFILES", "area_factor", "profile_factor", "hub_scales"]
+__all__ = [
+    "Profile",
+    "PROFILES",
+    "area_factor",
+    "profile_factor",
+    "hub_scales",
+    "band_rings",
+]
 
 Profile = Literal["volume", "area", "inscribed", "circumscribed"]
 PROFILES: tuple[str, ...] = ("volume", "area", "inscribed", "circumscribed")
@@ -98,6 +105,84 @@ def profile_factor(P: int, profile: str) -> float:
     if profile == "circumscribed":
         return 1.0 / math.cos(math.pi / P)
     raise ValueError(f"profile must be one of {', '.join(map(repr, PROFILES))}, got {profile!r}")
+
+
+def band_gaps(
+    prad: NDArray[np.float64], end_offset: NDArray[np.float64], length: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(M, 2) smallest band length ``g`` of every strut end (:func:`band_rings`).
+
+    ``config.HUB_BAND_GAP`` times the end's profile radius, at most a quarter of the body
+    between the unscaled profiles and 2 % of the strut (so that the two band rings of a
+    strut never meet: ``s_a d_a + s_b d_b <= 0.95 L`` by the growth bound)."""
+    body = length - end_offset.sum(axis=1)
+    cap = np.minimum(0.25 * body, 0.02 * length)[:, None]
+    return np.minimum(float(config.HUB_BAND_GAP) * prad, cap)
+
+
+def _band_terms(
+    s: NDArray[np.float64],
+    d: NDArray[np.float64],
+    rho: NDArray[np.float64],
+    rho_far: NDArray[np.float64],
+    body: NDArray[np.float64],
+    gap0: NDArray[np.float64],
+    poly: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Band ring of strut ends scaled by ``s`` (:func:`band_rings`), and the volume change.
+
+    Returns the band ring's offset ``x`` and radius ``b`` (on the unscaled strut: the line
+    from ``(d, rho)`` to the far profile ``(d + body, rho_far)``), ``delta(s)`` = volume of
+    the band (frustum from ``(s d, s rho)`` to ``(x, b)``) minus that of the unscaled strut
+    between ``d`` and ``x`` (the rest of the strut is unchanged), and ``d delta / d s``."""
+    a1 = np.maximum(1.0 - s, 0.0) * d
+    gap = np.sqrt(a1 * a1 + gap0 * gap0)
+    x = s * d + gap
+    dx = d - a1 * d / gap
+    k = (rho_far - rho) / body
+    b = rho + k * (x - d)
+    db = k * dx
+    a = s * rho
+    qa = a * a + a * b + b * b
+    band = gap * qa
+    dband = (dx - d) * qa + gap * (2.0 * a * rho + rho * b + a * db + 2.0 * b * db)
+    hs = x - d
+    qs = rho * rho + rho * b + b * b
+    sec = hs * qs
+    dsec = dx * qs + hs * (rho * db + 2.0 * b * db)
+    c = poly / 3.0
+    return x, b, c * (band - sec), c * (dband - dsec)
+
+
+def band_rings(
+    scale: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    prad: NDArray[np.float64],
+    end_offset: NDArray[np.float64],
+    length: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(M, 2) offset and radius of every strut end's band ring (``profile="volume"``).
+
+    The hub at node n is its unscaled hub scaled by ``s_n`` (profiles at ``s d`` of radius
+    ``s rho``); the strut between the two band rings is the unscaled prism (frustum when
+    tapered), so the strut region keeps the design's radius, and a short band (frustum)
+    joins each band ring to its hub ring: the hub correction stays inside the hub zone.
+    The band ring sits at ``x = s d + sqrt(((1 - s) d)^2 + g^2)`` (``g``:
+    :func:`band_gaps`): at the unscaled offset ``d`` (the band then lies on the cone from
+    the node through the unscaled profile, inside the unscaled hub) up to ``g^2 / (2 (1 -
+    s) d)``, and ``g`` beyond the hub ring where ``s >= 1`` (leaves: a split of the prism)."""
+    poly = 1.0  # areas are not needed here
+    body = length - end_offset.sum(axis=1)
+    s = scale[edges]
+    x = np.empty_like(end_offset)
+    b = np.empty_like(end_offset)
+    gap0 = band_gaps(prad, end_offset, length)
+    for side in range(2):
+        x[:, side], b[:, side], _, _ = _band_terms(
+            s[:, side], end_offset[:, side], prad[:, side], prad[:, 1 - side], body,
+            gap0[:, side], poly,
+        )  # fmt: skip
+    return x, b
 
 
 def hub_scales(
@@ -173,21 +258,21 @@ def hub_scales(
     v_hull[hubs] = vh[pos]
     v_exact[hubs] = vx[pos]
 
-    # per strut end at a hub: its polygon area, the far end's, offset and body length
+    # per strut end at a hub: its profile radius, the far end's, the body between the
+    # unscaled profiles and the band's smallest length (band_rings)
     poly = 0.5 * P * math.sin(2.0 * math.pi / P)
-    area = poly * prad * prad  # (M, 2)
     body = length - end_offset.sum(axis=1)
+    gap0 = band_gaps(prad, end_offset, length)
     node_end = edges.ravel()  # (2M,) node of end (e, side)
     e_idx = np.repeat(np.arange(len(edges)), 2)
     s_idx = np.tile(np.arange(2), len(edges))
     at_hub = degree[node_end] >= 2
     node_end, e_idx, s_idx = node_end[at_hub], e_idx[at_hub], s_idx[at_hub]
-    a_i = area[e_idx, s_idx]
-    a_o = area[e_idx, 1 - s_idx]
-    g_io = np.sqrt(a_i * a_o)
+    r_i = prad[e_idx, s_idx]
+    r_o = prad[e_idx, 1 - s_idx]
     d_i = end_offset[e_idx, s_idx]
-    l_i = body[e_idx]
-    f1 = l_i / 3.0 * (a_i + a_o + g_io)
+    b_i = body[e_idx]
+    g_i = gap0[e_idx, s_idx]
     s = np.ones(n_nodes)
     lo_s = float(config.MIN_HUB_SCALE)
     # growth (hubs lighter than the exact solid: struts all on one side of a boundary
@@ -205,11 +290,7 @@ def hub_scales(
     # (a shard of the graph gives the same bits; see lattice_cad.distributed)
     active = degree >= 2
     for _ in range(20):
-        se = s[node_end]
-        li = l_i + (1.0 - se) * d_i
-        quad = a_i * se * se + a_o + se * g_io
-        g_end = li / 3.0 * quad - f1
-        dg_end = -d_i / 3.0 * quad + li / 3.0 * (2.0 * a_i * se + g_io)
+        _, _, g_end, dg_end = _band_terms(s[node_end], d_i, r_i, r_o, b_i, g_i, poly)
         g = s**3 * v_hull - v_exact + np.bincount(node_end, g_end, minlength=n_nodes)
         dg = 3.0 * s * s * v_hull + np.bincount(node_end, dg_end, minlength=n_nodes)
         step = np.zeros(n_nodes)
