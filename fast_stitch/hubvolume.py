@@ -127,31 +127,42 @@ def _band_terms(
     rho_far: NDArray[np.float64],
     body: NDArray[np.float64],
     gap0: NDArray[np.float64],
+    gap_far: NDArray[np.float64],
     poly: float,
+    grow: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Band ring of strut ends scaled by ``s`` (:func:`band_rings`), and the volume change.
 
-    Returns the band ring's offset ``x`` and radius ``b`` (on the unscaled strut: the line
-    from ``(d, rho)`` to the far profile ``(d + body, rho_far)``), ``delta(s)`` = volume of
-    the band (frustum from ``(s d, s rho)`` to ``(x, b)``) minus that of the unscaled strut
-    between ``d`` and ``x`` (the rest of the strut is unchanged), and ``d delta / d s``."""
+    ``r(t)`` is the unscaled strut's radius at distance ``t`` from the end's node (the line
+    from ``(d, rho)`` to ``(d + body, rho_far)``). Returns the band ring's offset ``x`` and
+    radius ``b = max(s, 1) r(x)``; ``delta(s)``: the volume of the band (frustum from
+    ``(s d, s rho)`` to ``(x, b)``) and of the strut from there to the far end's band ring
+    with its end unscaled (``T = d + body - gap_far``, radius ``r(T)``), minus the unscaled
+    strut's between ``d`` and ``T``; and ``d delta / d s`` (one-sided at ``s = 1``: from
+    above where ``grow``, else from below)."""
+    up = s > 1.0 if grow is None else (s > 1.0) | ((s == 1.0) & grow)
+    sig = np.maximum(s, 1.0)
     a1 = np.maximum(1.0 - s, 0.0) * d
     gap = np.sqrt(a1 * a1 + gap0 * gap0)
     x = s * d + gap
     dx = d - a1 * d / gap
     k = (rho_far - rho) / body
-    b = rho + k * (x - d)
-    db = k * dx
+    rx = rho + k * (x - d)
+    b = sig * rx
+    db = np.where(up, rx, 0.0) + sig * k * dx
     a = s * rho
+    t_far = body - gap_far  # T - d
+    r_t = rho + k * t_far
     qa = a * a + a * b + b * b
     band = gap * qa
     dband = (dx - d) * qa + gap * (2.0 * a * rho + rho * b + a * db + 2.0 * b * db)
-    hs = x - d
-    qs = rho * rho + rho * b + b * b
-    sec = hs * qs
-    dsec = dx * qs + hs * (rho * db + 2.0 * b * db)
+    h_mid = t_far - (x - d)
+    qm = b * b + b * r_t + r_t * r_t
+    mid = h_mid * qm
+    dmid = -dx * qm + h_mid * (2.0 * b * db + db * r_t)
+    full = t_far * (rho * rho + rho * r_t + r_t * r_t)
     c = poly / 3.0
-    return x, b, c * (band - sec), c * (dband - dsec)
+    return x, b, c * (band + mid - full), c * (dband + dmid)
 
 
 def band_rings(
@@ -180,7 +191,7 @@ def band_rings(
     for side in range(2):
         x[:, side], b[:, side], _, _ = _band_terms(
             s[:, side], end_offset[:, side], prad[:, side], prad[:, 1 - side], body,
-            gap0[:, side], poly,
+            gap0[:, side], gap0[:, 1 - side], poly,
         )  # fmt: skip
     return x, b
 
@@ -273,6 +284,7 @@ def hub_scales(
     d_i = end_offset[e_idx, s_idx]
     b_i = body[e_idx]
     g_i = gap0[e_idx, s_idx]
+    g_o = gap0[e_idx, 1 - s_idx]
     s = np.ones(n_nodes)
     lo_s = float(config.MIN_HUB_SCALE)
     # growth (hubs lighter than the exact solid: struts all on one side of a boundary
@@ -290,8 +302,12 @@ def hub_scales(
     # (a shard of the graph gives the same bits; see lattice_cad.distributed)
     active = degree >= 2
     for _ in range(20):
-        _, _, g_end, dg_end = _band_terms(s[node_end], d_i, r_i, r_o, b_i, g_i, poly)
+        # at s = 1 the derivative is taken on the side the node moves to (band_rings:
+        # the strut's band ring grows with s > 1 only)
+        _, _, g_end, _ = _band_terms(s[node_end], d_i, r_i, r_o, b_i, g_i, g_o, poly)
         g = s**3 * v_hull - v_exact + np.bincount(node_end, g_end, minlength=n_nodes)
+        grow = (g < 0.0)[node_end]
+        _, _, _, dg_end = _band_terms(s[node_end], d_i, r_i, r_o, b_i, g_i, g_o, poly, grow)
         dg = 3.0 * s * s * v_hull + np.bincount(node_end, dg_end, minlength=n_nodes)
         step = np.zeros(n_nodes)
         ok = dg > 0.0
