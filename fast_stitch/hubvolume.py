@@ -31,15 +31,26 @@ leaves), which is what :func:`reference_boolean.build_reference` builds. Two ste
    The correction scales every profile at node n (radius and offset) by one factor
    ``s_n <= 1``. Offsets are homogeneous of degree 1 in the radii, so the scaled hub is
    the hub of the scaled radii, exactly ``s_n`` times the original about the node
-   (same triangles, volume ``s_n^3 V_hull``), and every strut becomes a frustum between
-   similar, parallel polygons (planar faces, volume ``l / 3 (A_0 + A_1 + sqrt(A_0 A_1))``).
-   The exact solid does not change, so ``s_n`` solves, per node (each strut end counted
-   with its far end unscaled; the cross terms are ``O(eps_0 eps_1)``, ~1e-4 of a strut):
+   (same triangles, volume ``s_n^3 V_hull``). The strut keeps its unscaled profile: each
+   strut end gets a second ring, the *band ring* (:func:`band_rings`), at
+   ``x = s d + sqrt(((1 - s) d)^2 + g^2)`` (``g``: :func:`band_gaps`, about 0.05 rho), that
+   is at the unscaled offset ``d`` (up to ``g^2 / (2 (1 - s) d)``) where ``s < 1``, of the
+   unscaled strut's radius there; a short *band* (frustum) joins the hub ring to it, and
+   the strut between its two band rings is the unscaled prism (frustum when tapered). So
+   the correction stays inside the hub zone and the strut region keeps the design's
+   radius (before, the strut ran between the two scaled hub rings: a frustum along its
+   whole length, 0.95-1.18 r on tet lattices). Where a hub grows (``s > 1``) the band ring
+   is ``s`` times wider too, so that the strut carries the missing volume (as before: the
+   strut is a frustum towards that end). The exact solid does not change, so ``s_n``
+   solves, per node (each strut end counted with its far end unscaled; the cross terms
+   are ``O(eps_0 eps_1)``, ~1e-4 of a strut):
 
-       s^3 V_hull - vol(H_n) + sum_i [F_i(s) - F_i(1)] = 0,
-       F_i(s) = (l_i + (1 - s) d_i) / 3 * (A_i s^2 + A_o + s sqrt(A_i A_o)),
+       s^3 V_hull - vol(H_n) + sum_i delta_i(s) = 0,
 
-   by Newton's method from ``s = 1``, clamped to ``[config.MIN_HUB_SCALE,
+   ``delta_i(s)``: the band and the strut to the far band ring minus the unscaled strut
+   there (closed-form frustum volumes, :func:`_band_terms`; for a cylinder and ``s < 1``
+   about ``A_i d_i (1 - s^3) / 3``, the cone shell between the scaled and unscaled
+   profile), by Newton's method from ``s = 1``, clamped to ``[config.MIN_HUB_SCALE,
    config.MAX_HUB_SCALE]``. Where ``s_n <= 1`` (hubs fuller than the exact solid: every
    node with struts around it) the scaled mesh lies inside the unscaled one (hubs shrink
    about their node, frusta stay within their hub's cone and the prism), so the

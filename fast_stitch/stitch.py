@@ -15,7 +15,10 @@ Algorithm (per node of degree d >= 2, in parallel over distinct hub shapes):
    strut with ``2P`` triangles; degree-1 nodes get a flat cap of ``P - 2``;
 5. ``profile="volume"`` (default): the profiles have the circle's area, and each hub
    is scaled about its node so that its volume is the exact solid's there
-   (:mod:`fast_stitch.hubvolume`): the mesh has the exact solid's volume.
+   (:mod:`fast_stitch.hubvolume`): the mesh has the exact solid's volume. The struts
+   keep the unscaled profile between two *band rings* (``2 M P`` more vertices, after the
+   hub rings), each joined to its scaled hub ring by a band of ``2 P`` triangles (after
+   the hub and cap triangles): the correction stays at the hubs.
 
 Profiles use one frame per strut (no twist) with a seeded pseudo-random
 phase derived from the strut's direction, so hubs that are translates of
@@ -212,8 +215,11 @@ def stitch(
     Returns
     -------
     Mesh
-        ``vertices`` (2 M P, 3) float64 and ``faces`` (F, 3) int64, with F as
-        given by :func:`estimate`. Watertight, 2-manifold, outward oriented,
+        ``vertices`` (2 M P, 3) float64 (4 M P with ``profile="volume"``: the band
+        rings follow the hub rings) and ``faces`` (F, 3) int64, with F as given by
+        :func:`estimate`: the struts' ``2 P`` triangles each (rows ``2 P e``), the hubs'
+        and caps' (from ``2 M P``, node by node), then with ``profile="volume"`` the
+        bands' ``4 P`` per strut. Watertight, 2-manifold, outward oriented,
         without zero-area triangles.
 
     Raises

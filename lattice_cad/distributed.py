@@ -372,7 +372,7 @@ def _owned_records(
     mask = np.concatenate([np.repeat(owned_strut, 2 * P), np.repeat(owned_node, counts)])
     if len(mesh.faces) > len(mask):  # profile="volume": the bands of each strut follow
         mask = np.concatenate([mask, np.repeat(owned_strut, 4 * P)])
-    assert len(mask) == len(mesh.faces)
+    assert len(mask) == len(mesh.faces) and len(mesh.faces) - 2 * m * P >= counts.sum()
     rows = np.flatnonzero(mask)
 
     def gen() -> Iterator[NDArray[Any]]:
