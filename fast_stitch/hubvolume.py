@@ -48,7 +48,7 @@ leaves), which is what :func:`reference_boolean.build_reference` builds. Two ste
        s^3 V_hull - vol(H_n) + sum_i delta_i(s) = 0,
 
    ``delta_i(s)``: the band and the strut to the far band ring minus the unscaled strut
-   there (closed-form frustum volumes, :func:`_band_terms`; for a cylinder and ``s < 1``
+   there (closed-form frustum volumes, ``_hub_kernels._band_end``; for a cylinder and ``s < 1``
    about ``A_i d_i (1 - s^3) / 3``, the cone shell between the scaled and unscaled
    profile), by Newton's method from ``s = 1``, clamped to ``[config.MIN_HUB_SCALE,
    config.MAX_HUB_SCALE]``. Where ``s_n <= 1`` (hubs fuller than the exact solid: every
@@ -131,51 +131,6 @@ def band_gaps(
     return np.minimum(float(config.HUB_BAND_GAP) * prad, cap)
 
 
-def _band_terms(
-    s: NDArray[np.float64],
-    d: NDArray[np.float64],
-    rho: NDArray[np.float64],
-    rho_far: NDArray[np.float64],
-    body: NDArray[np.float64],
-    gap0: NDArray[np.float64],
-    gap_far: NDArray[np.float64],
-    poly: float,
-    grow: NDArray[np.bool_] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Band ring of strut ends scaled by ``s`` (:func:`band_rings`), and the volume change.
-
-    ``r(t)`` is the unscaled strut's radius at distance ``t`` from the end's node (the line
-    from ``(d, rho)`` to ``(d + body, rho_far)``). Returns the band ring's offset ``x`` and
-    radius ``b = max(s, 1) r(x)``; ``delta(s)``: the volume of the band (frustum from
-    ``(s d, s rho)`` to ``(x, b)``) and of the strut from there to the far end's band ring
-    with its end unscaled (``T = d + body - gap_far``, radius ``r(T)``), minus the unscaled
-    strut's between ``d`` and ``T``; and ``d delta / d s`` (one-sided at ``s = 1``: from
-    above where ``grow``, else from below)."""
-    up = s > 1.0 if grow is None else (s > 1.0) | ((s == 1.0) & grow)
-    sig = np.maximum(s, 1.0)
-    a1 = np.maximum(1.0 - s, 0.0) * d
-    gap = np.sqrt(a1 * a1 + gap0 * gap0)
-    x = s * d + gap
-    dx = d - a1 * d / gap
-    k = (rho_far - rho) / body
-    rx = rho + k * (x - d)
-    b = sig * rx
-    db = np.where(up, rx, 0.0) + sig * k * dx
-    a = s * rho
-    t_far = body - gap_far  # T - d
-    r_t = rho + k * t_far
-    qa = a * a + a * b + b * b
-    band = gap * qa
-    dband = (dx - d) * qa + gap * (2.0 * a * rho + rho * b + a * db + 2.0 * b * db)
-    h_mid = t_far - (x - d)
-    qm = b * b + b * r_t + r_t * r_t
-    mid = h_mid * qm
-    dmid = -dx * qm + h_mid * (2.0 * b * db + db * r_t)
-    full = t_far * (rho * rho + rho * r_t + r_t * r_t)
-    c = poly / 3.0
-    return x, b, c * (band + mid - full), c * (dband + dmid)
-
-
 def band_rings(
     scale: NDArray[np.float64],
     edges: NDArray[np.int64],
@@ -192,18 +147,13 @@ def band_rings(
     The band ring sits at ``x = s d + sqrt(((1 - s) d)^2 + g^2)`` (``g``:
     :func:`band_gaps`): at the unscaled offset ``d`` (the band then lies on the cone from
     the node through the unscaled profile, inside the unscaled hub) up to ``g^2 / (2 (1 -
-    s) d)``, and ``g`` beyond the hub ring where ``s >= 1`` (leaves: a split of the prism)."""
-    poly = 1.0  # areas are not needed here
-    body = length - end_offset.sum(axis=1)
-    s = scale[edges]
+    s) d)``, and ``g`` beyond the hub ring where ``s >= 1`` (leaves: a split of the prism).
+    Its radius is the unscaled strut's there, times ``s`` where the hub grows (``s > 1``:
+    the strut carries the volume the hub lacks)."""
     x = np.empty_like(end_offset)
     b = np.empty_like(end_offset)
     gap0 = band_gaps(prad, end_offset, length)
-    for side in range(2):
-        x[:, side], b[:, side], _, _ = _band_terms(
-            s[:, side], end_offset[:, side], prad[:, side], prad[:, 1 - side], body,
-            gap0[:, side], gap0[:, 1 - side], poly,
-        )  # fmt: skip
+    _hub_kernels.band_rings(edges, scale, prad, end_offset, length, gap0, x, b)
     return x, b
 
 
@@ -280,24 +230,6 @@ def hub_scales(
     v_hull[hubs] = vh[pos]
     v_exact[hubs] = vx[pos]
 
-    # per strut end at a hub: its profile radius, the far end's, the body between the
-    # unscaled profiles and the band's smallest length (band_rings)
-    poly = 0.5 * P * math.sin(2.0 * math.pi / P)
-    body = length - end_offset.sum(axis=1)
-    gap0 = band_gaps(prad, end_offset, length)
-    node_end = edges.ravel()  # (2M,) node of end (e, side)
-    e_idx = np.repeat(np.arange(len(edges)), 2)
-    s_idx = np.tile(np.arange(2), len(edges))
-    at_hub = degree[node_end] >= 2
-    node_end, e_idx, s_idx = node_end[at_hub], e_idx[at_hub], s_idx[at_hub]
-    r_i = prad[e_idx, s_idx]
-    r_o = prad[e_idx, 1 - s_idx]
-    d_i = end_offset[e_idx, s_idx]
-    b_i = body[e_idx]
-    g_i = gap0[e_idx, s_idx]
-    g_o = gap0[e_idx, 1 - s_idx]
-    s = np.ones(n_nodes)
-    lo_s = float(config.MIN_HUB_SCALE)
     # growth (hubs lighter than the exact solid: struts all on one side of a boundary
     # node) is bounded so that every strut keeps its open cylinder whatever both ends do
     need = end_offset.sum(axis=1)
@@ -308,26 +240,14 @@ def hub_scales(
     np.minimum.at(hi_s, edges[:, 0], room)
     np.minimum.at(hi_s, edges[:, 1], room)
     hi_s = np.maximum(hi_s, 1.0)
-    # every node iterates on its own until its step is below 1e-13 (then it is frozen):
-    # a node's scale depends on its own struts only, not on how long other nodes take
-    # (a shard of the graph gives the same bits; see lattice_cad.distributed)
-    active = degree >= 2
-    for _ in range(20):
-        # at s = 1 the derivative is taken on the side the node moves to (band_rings:
-        # the strut's band ring grows with s > 1 only)
-        _, _, g_end, _ = _band_terms(s[node_end], d_i, r_i, r_o, b_i, g_i, g_o, poly)
-        g = s**3 * v_hull - v_exact + np.bincount(node_end, g_end, minlength=n_nodes)
-        grow = (g < 0.0)[node_end]
-        _, _, _, dg_end = _band_terms(s[node_end], d_i, r_i, r_o, b_i, g_i, g_o, poly, grow)
-        dg = 3.0 * s * s * v_hull + np.bincount(node_end, dg_end, minlength=n_nodes)
-        step = np.zeros(n_nodes)
-        ok = dg > 0.0
-        step[ok] = g[ok] / dg[ok]
-        new = np.clip(s - step, lo_s, hi_s)
-        new[~active] = s[~active]
-        moved = np.abs(new - s) > 1e-13
-        s = new
-        active &= moved
-        if not active.any():
-            break
+    # every node iterates on its own until its step is below 1e-13: a node's scale depends
+    # on its own struts only (a shard of the graph gives the same bits; see
+    # lattice_cad.distributed)
+    poly = 0.5 * P * math.sin(2.0 * math.pi / P)
+    gap0 = band_gaps(prad, end_offset, length)
+    s = np.empty(n_nodes)
+    _hub_kernels.band_scales(
+        offsets, inc_edge, inc_side, prad, end_offset, length, gap0, v_hull, v_exact,
+        float(config.MIN_HUB_SCALE), hi_s, poly, s,
+    )  # fmt: skip
     return s, v_hull, v_exact

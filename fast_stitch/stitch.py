@@ -406,7 +406,8 @@ def _stitch(
         face_start[1:] += 2 * m * P
     bbase = 2 * m * P + int(counts.sum())  # first band row (profile="volume")
     faces = np.empty((bbase + (4 * m * P if correct_hubs else 0), 3), dtype=np.int64)
-    _kernels.cylinder_faces(sign, P, faces)
+    if not correct_hubs:  # else band_faces writes the strut rows below
+        _kernels.cylinder_faces(sign, P, faces)
     _kernels.node_faces(
         offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, faces
     )
