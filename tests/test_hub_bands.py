@@ -133,7 +133,8 @@ def test_random_graphs_are_valid_by_independent_checks(seed):
 def test_ge_tet_window_volume_and_prisms():
     """The seed's GE bracket tet 5 mm / r 0.25 lattice, a window of 40 hubs: the default
     mesh is within 0.1 % of the exact volume, its struts are prisms of the design radius
-    between the band rings although the hubs are scaled by 0.85-0.97."""
+    between the band rings although the hubs are scaled by 0.85-0.97 (widened only towards
+    hubs that grow)."""
     from conformal.part import load_part
     from conformal.tet import tet_lattice
     from lattice_cad.core.errors import LatticeWarning
@@ -166,7 +167,11 @@ def test_ge_tet_window_volume_and_prisms():
     rel = band - a[:, None, None, :]
     along = np.einsum("mspc,mc->msp", rel, u)
     dist = np.linalg.norm(rel - along[..., None] * u[:, None, None, :], axis=3)
-    np.testing.assert_allclose(dist, area_factor(P) * 0.25, rtol=1e-7)
+    # the design's radius (circle's-area hexagon), times s_n at the window's border nodes
+    # that grow (s_n > 1: struts cut by the window leave them one-sided)
+    grow = np.maximum(report["scale"], 1.0)[g.edges][:, :, None]
+    assert (grow == 1.0).mean() > 0.5
+    np.testing.assert_allclose(dist, area_factor(P) * 0.25 * grow, rtol=1e-7)
     assert_valid(mesh)
     ref = build_reference(g, keep_solids=False)
     assert abs(mesh.volume / ref.volume - 1.0) < 1e-3
