@@ -38,7 +38,9 @@ def main() -> None:
         m = stitch(g, P, _report=rep)
         s0 = rep["scale0"][g.degree >= 2]
         M = g.num_edges
-        V = np.asarray(m.vertices)[: 2 * M * P].reshape(M, 2, P, 3)
+        # the strut between the hub zones: its band rings (profile="volume", after the hub
+        # rings) where the mesh has them, else its hub rings
+        V = np.asarray(m.vertices)[-2 * M * P :].reshape(M, 2, P, 3)
         a = g.nodes[g.edges[:, 1]] - g.nodes[g.edges[:, 0]]
         a /= np.linalg.norm(a, axis=1)[:, None]
         rel = V - g.nodes[g.edges[:, 0]][:, None, None, :]

@@ -194,27 +194,40 @@ def _find_rows(
 
 
 def _layout(graph: Any, v: NDArray[np.float64], f: NDArray[np.int64]) -> tuple[int, Any] | None:
-    """``P`` and the node face starts (N,) and counts (N,) if ``(v, f)`` is the stitcher's
-    mesh of ``graph`` (its layout checked), else None."""
+    """``P``, the node face starts (N,) and counts (N,), and the first band row (-1: none) if
+    ``(v, f)`` is the stitcher's mesh of ``graph`` (its layout checked), else None.
+
+    With ``profile="volume"`` the stitcher puts a band ring per strut end after the
+    ``2 M P`` hub-ring vertices and a band (``2 P`` triangles) from each hub ring to its band
+    ring after the hub faces; the tube (rows ``2 P e``) then joins the two band rings."""
     from fast_stitch.stitch import _face_counts
 
     m = graph.num_edges
-    if m == 0 or len(v) % (2 * m):
+    if m == 0 or len(v) >= 1 << 21:
         return None
-    P = len(v) // (2 * m)
-    counts = _face_counts(graph.degree, P)
-    if P < 3 or len(f) != 2 * m * P + int(counts.sum()) or len(v) >= 1 << 21:
-        return None
-    # the tubes: rows 2 P e + 2 k, +1 join the rings (2 e) P + k and (2 e + 1) P + k
-    tubes = f[: 2 * m * P].reshape(m, P, 2, 3)
-    base = (2 * np.arange(m) * P)[:, None]
-    k = np.arange(P)[None, :]
-    if not (
-        np.array_equal(tubes[:, :, 0, 0], base + k) and np.array_equal(tubes[:, :, 1, 0], base + k)
-    ):
-        return None
-    start = 2 * m * P + np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-    return P, (start, counts)
+    for rings in (4, 2):  # banded (profile="volume") or not
+        if len(v) % (rings * m):
+            continue
+        P = len(v) // (rings * m)
+        if P < 3:
+            continue
+        counts = _face_counts(graph.degree, P)
+        bbase = 2 * m * P + int(counts.sum())
+        if len(f) != bbase + (4 * m * P if rings == 4 else 0):
+            continue
+        # the tubes: rows 2 P e + 2 k, +1 join the rings (2 e) P + k and (2 e + 1) P + k
+        # (the band rings, 2 M P further on, when banded)
+        tubes = f[: 2 * m * P].reshape(m, P, 2, 3)
+        base = (2 * np.arange(m) * P)[:, None] + (2 * m * P if rings == 4 else 0)
+        k = np.arange(P)[None, :]
+        if not (
+            np.array_equal(tubes[:, :, 0, 0], base + k)
+            and np.array_equal(tubes[:, :, 1, 0], base + k)
+        ):
+            return None
+        start = 2 * m * P + np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        return P, (start, counts, bbase if rings == 4 else -1)
+    return None
 
 
 def split_lattice(
@@ -249,10 +262,10 @@ def split_lattice(
     lay = _layout(graph, v, f)
     if lay is None:
         return None
-    P, (fstart, fcount) = lay
+    P, (fstart, fcount, bbase) = lay
     nodes, edges = graph.nodes, graph.edges
     n_nodes, m = len(nodes), len(edges)
-    rings = v.reshape(m, 2, P, 3)
+    rings = v[: 2 * m * P].reshape(m, 2, P, 3)  # the hub rings
     centre = rings.mean(axis=2)  # (m, 2, 3)
     # hub of node n: inside the ball about the node through its farthest ring vertex
     reach = np.linalg.norm(rings - nodes[edges][:, :, None, :], axis=3).max(axis=2)  # (m, 2)
@@ -260,6 +273,14 @@ def split_lattice(
     np.maximum.at(hub_r, edges.ravel(), reach.ravel())
     # tube of strut e: inside the capsule about its ring centres, radius its widest ring
     tube_r = np.linalg.norm(rings - centre[:, :, None, :], axis=3).max(axis=(1, 2))  # (m,)
+    if bbase >= 0:  # the band rings lie between the hub rings: widen to the widest ring
+        band = v[2 * m * P :].reshape(m, 2, P, 3)
+        axis_u = centre[:, 1] - centre[:, 0]
+        axis_u /= np.maximum(np.linalg.norm(axis_u, axis=1), 1e-300)[:, None]
+        rel = band - centre[:, :1, None, :]
+        along = np.einsum("mspc,mc->msp", rel, axis_u)
+        radial = np.linalg.norm(rel - along[..., None] * axis_u[:, None, None, :], axis=3)
+        tube_r = np.maximum(tube_r, radial.max(axis=(1, 2)))
     seg = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
     far = float(hub_r.max() + tube_r.max() + 0.5 * seg.max()) + 2.0 * margin
     dist = inner.distance(nodes, max_distance=far)  # inf beyond: clear of everything below
@@ -293,7 +314,9 @@ def split_lattice(
     # every face's element
     fcls = np.empty(len(f), dtype=np.int64)
     fcls[: 2 * m * P] = np.repeat(ecls, 2 * P)
-    fcls[2 * m * P :] = np.repeat(ncls, fcount)
+    fcls[2 * m * P : 2 * m * P + int(fcount.sum())] = np.repeat(ncls, fcount)
+    if bbase >= 0:
+        fcls[bbase:] = np.repeat(ecls, 4 * P)  # the bands go with their tube
     n_deep = int((fcls == _DEEP).sum())
     if n_deep < MIN_DEEP_FRACTION * len(f):
         return None
@@ -308,7 +331,8 @@ def split_lattice(
     # the tube uses ring (e, s) in direction +k when sign... read it from its faces: the
     # first tube triangle of e starts at ring 0 vertex 0 and holds ring 0's edge (0 -> 1)
     # or (1 -> 0)
-    first = f[2 * P * e_idx]  # (K, 3)
+    # (banded: the band of end 0, rows bbase + 4 P e, joins ring 0 as the tube did)
+    first = f[2 * P * e_idx] if bbase < 0 else f[bbase + 4 * P * e_idx]  # (K, 3)
     base0 = 2 * e_idx * P
     nxt = np.roll(first, -1, axis=1)
     plus0 = np.any((first == base0[:, None]) & (nxt == base0[:, None] + 1), axis=1)

@@ -154,3 +154,96 @@ def hub_mesh_volumes(reps, axis, sign, frame_u, frame_v, faces, face_start, offs
             s = inc_side[lo + t]
             total += poly * prad[e, s] * prad[e, s] * end_offset[e, s] / 3.0
         out[ri] = total
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _band_end(s, d, rho, rho_far, body, gap0, gap_far, up):
+    """One strut end scaled by ``s`` (:func:`fast_stitch.hubvolume.band_rings`).
+
+    ``r(t)`` is the unscaled strut's radius at distance ``t`` from the end's node (the line
+    from ``(d, rho)`` to ``(d + body, rho_far)``). Returns the band ring's offset ``x`` and
+    radius ``b = max(s, 1) r(x)``; ``delta(s)``: the volume of the band (frustum from
+    ``(s d, s rho)`` to ``(x, b)``) and of the strut from there to the far end's band ring
+    with that end unscaled (``T = d + body - gap_far``, radius ``r(T)``), minus the
+    unscaled strut's between ``d`` and ``T``; and ``d delta / d s`` (one-sided at ``s = 1``:
+    from above where ``up``, else from below). Volumes divided by ``poly / 3`` (a regular
+    P-gon of circumradius rho has area ``poly rho^2``)."""
+    sig = max(s, 1.0)
+    a1 = max(1.0 - s, 0.0) * d
+    gap = np.sqrt(a1 * a1 + gap0 * gap0)
+    x = s * d + gap
+    dx = d - a1 * d / gap
+    k = (rho_far - rho) / body
+    rx = rho + k * (x - d)
+    b = sig * rx
+    db = sig * k * dx
+    if s > 1.0 or (s == 1.0 and up):
+        db += rx
+    a = s * rho
+    t_far = body - gap_far
+    r_t = rho + k * t_far
+    qa = a * a + a * b + b * b
+    band = gap * qa
+    dband = (dx - d) * qa + gap * (2.0 * a * rho + rho * b + a * db + 2.0 * b * db)
+    h_mid = t_far - (x - d)
+    qm = b * b + b * r_t + r_t * r_t
+    mid = h_mid * qm
+    dmid = -dx * qm + h_mid * (2.0 * b * db + db * r_t)
+    full = t_far * (rho * rho + rho * r_t + r_t * r_t)
+    return x, b, band + mid - full, dband + dmid
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def band_scales(offsets, inc_edge, inc_side, prad, end_offset, length, gap0, v_hull, v_exact,
+                lo_s, hi_s, poly, out):  # fmt: skip
+    """Newton's method for every node's ``s_n`` (``hubvolume.hub_scales``), from 1.
+
+    Each node iterates on its own (at most 20 steps, until a step is below 1e-13): its
+    result depends on its own struts only, so a shard gives the same bits. The derivative
+    at ``s = 1`` is taken on the side the node moves to (grows where the hub is lighter
+    than the exact solid)."""
+    c = poly / 3.0
+    for n in prange(offsets.shape[0] - 1):
+        lo = offsets[n]
+        hi = offsets[n + 1]
+        s = 1.0
+        if hi - lo >= 2:
+            for _ in range(20):
+                g = s * s * s * v_hull[n] - v_exact[n]
+                for pass_ in range(2):  # g first (its sign picks the side), then dg
+                    up = g < 0.0
+                    dg = 3.0 * s * s * v_hull[n]
+                    gsum = 0.0
+                    for t in range(lo, hi):
+                        e = inc_edge[t]
+                        sd = inc_side[t]
+                        body = length[e] - end_offset[e, 0] - end_offset[e, 1]
+                        _, _, de, dde = _band_end(
+                            s, end_offset[e, sd], prad[e, sd], prad[e, 1 - sd], body,
+                            gap0[e, sd], gap0[e, 1 - sd], up,
+                        )  # fmt: skip
+                        gsum += c * de
+                        dg += c * dde
+                    if pass_ == 0:
+                        g += gsum
+                step = g / dg if dg > 0.0 else 0.0
+                new = min(max(s - step, lo_s), hi_s[n])
+                moved = abs(new - s) > 1e-13
+                s = new
+                if not moved:
+                    break
+        out[n] = s
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def band_rings(edges, scale, prad, end_offset, length, gap0, out_x, out_b):
+    """(M, 2) band ring offset and radius of every strut end (``hubvolume.band_rings``)."""
+    for e in prange(edges.shape[0]):
+        body = length[e] - end_offset[e, 0] - end_offset[e, 1]
+        for sd in range(2):
+            x, b, _, _ = _band_end(
+                scale[edges[e, sd]], end_offset[e, sd], prad[e, sd], prad[e, 1 - sd], body,
+                gap0[e, sd], gap0[e, 1 - sd], False,
+            )  # fmt: skip
+            out_x[e, sd] = x
+            out_b[e, sd] = b

@@ -5,7 +5,8 @@ wrappers in :mod:`fast_stitch.stitch` validate inputs, coerce dtypes, call
 these kernels and wrap the results.
 
 Vertex numbering: profile vertex ``k`` of strut ``e`` at end ``side`` has id
-``(2 * e + side) * P + k``, so ``V == 2 * M * P`` exactly.
+``(2 * e + side) * P + k``, so ``V == 2 * M * P`` exactly; with ``profile="volume"`` the
+band rings (:func:`band_faces`) follow: ``V == 4 * M * P``.
 
 Every strut gets one frame ``(u, v)`` shared by both of its ends (no twist).
 The frame and a pseudo-random phase are derived from the strut's *quantised,
@@ -851,30 +852,53 @@ def profile_vertices(nodes, edges, axis, sign, frame_u, frame_v, radii, end_offs
                     )
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _tube(a0, a1, row, plus, P, out):
+    """2P outward triangles (rows ``row`` onward) joining the rings of P vertices from ``a0``
+    and from ``a1`` (``a0`` nearer the strut's first node; ``plus``: ``sign == 1``)."""
+    for k in range(P):
+        k1 = (k + 1) % P
+        if plus:
+            out[row + 2 * k, 0] = a0 + k
+            out[row + 2 * k, 1] = a0 + k1
+            out[row + 2 * k, 2] = a1 + k1
+            out[row + 2 * k + 1, 0] = a0 + k
+            out[row + 2 * k + 1, 1] = a1 + k1
+            out[row + 2 * k + 1, 2] = a1 + k
+        else:
+            out[row + 2 * k, 0] = a0 + k
+            out[row + 2 * k, 1] = a1 + k1
+            out[row + 2 * k, 2] = a0 + k1
+            out[row + 2 * k + 1, 0] = a0 + k
+            out[row + 2 * k + 1, 1] = a1 + k
+            out[row + 2 * k + 1, 2] = a1 + k1
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def cylinder_faces(sign, P, out):
     """2P side triangles per strut, outward (rows ``2 * P * e`` onward)."""
     m = sign.shape[0]
     for e in prange(m):
-        a0 = 2 * e * P
-        a1 = a0 + P
-        base = 2 * P * e
-        for k in range(P):
-            k1 = (k + 1) % P
-            if sign[e] == 1:
-                out[base + 2 * k, 0] = a0 + k
-                out[base + 2 * k, 1] = a0 + k1
-                out[base + 2 * k, 2] = a1 + k1
-                out[base + 2 * k + 1, 0] = a0 + k
-                out[base + 2 * k + 1, 1] = a1 + k1
-                out[base + 2 * k + 1, 2] = a1 + k
-            else:
-                out[base + 2 * k, 0] = a0 + k
-                out[base + 2 * k, 1] = a1 + k1
-                out[base + 2 * k, 2] = a0 + k1
-                out[base + 2 * k + 1, 0] = a0 + k
-                out[base + 2 * k + 1, 1] = a1 + k
-                out[base + 2 * k + 1, 2] = a1 + k1
+        _tube(2 * e * P, (2 * e + 1) * P, 2 * P * e, sign[e] == 1, P, out)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def band_faces(sign, P, xbase, bbase, out):
+    """Struts with band rings (``profile="volume"``, :func:`fast_stitch.hubvolume.band_rings`).
+
+    The band ring of end (e, side) is vertices ``xbase + (2e + side) P + k``. Rows ``2 P e``
+    onward: the strut's prism between its two band rings; rows ``bbase + 2 P (2e + side)``
+    onward: the band joining the hub ring ``(2e + side) P`` to the band ring."""
+    m = sign.shape[0]
+    for e in prange(m):
+        plus = sign[e] == 1
+        h0 = 2 * e * P
+        h1 = h0 + P
+        x0 = xbase + h0
+        x1 = xbase + h1
+        _tube(x0, x1, 2 * P * e, plus, P, out)
+        _tube(h0, x0, bbase + 4 * P * e, plus, P, out)
+        _tube(x1, h1, bbase + 4 * P * e + 2 * P, plus, P, out)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -1011,13 +1035,18 @@ def _seg_seg_dist2(sa, sb, i, j):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _elem_rows(el, m, edges, degree, face_start, P, rows):
-    """Face rows of element el (struts 0..m-1 incl. leaf caps; hubs m + node)."""
+def _elem_rows(el, m, edges, degree, face_start, P, bbase, rows):
+    """Face rows of element el (struts 0..m-1 incl. leaf caps and bands from row ``bbase``
+    when ``bbase >= 0``; hubs m + node)."""
     c = 0
     if el < m:
         for k in range(2 * P):
             rows[c] = 2 * P * el + k
             c += 1
+        if bbase >= 0:
+            for k in range(4 * P):
+                rows[c] = bbase + 4 * P * el + k
+                c += 1
         for side in range(2):
             n = edges[el, side]
             if degree[n] == 1:
@@ -1254,7 +1283,7 @@ def _pair_d2(
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def clearance(
-    vertices, faces, edges, degree, offsets, inc_edge, face_start, P,
+    vertices, faces, edges, degree, offsets, inc_edge, face_start, P, bbase,
     seg_a, seg_b, rad, lo, hi, cell, origin, dims, max_rows, found,
 ):  # fmt: skip
     """Find overlapping non-incident elements (struts, hubs) of a stitched mesh.
@@ -1289,8 +1318,8 @@ def clearance(
                 b = max(i, j)
                 rows_i = np.empty(max_rows, dtype=np.int64)
                 rows_j = np.empty(max_rows, dtype=np.int64)
-                na = _elem_rows(a, m, edges, degree, face_start, P, rows_i)
-                nb = _elem_rows(b, m, edges, degree, face_start, P, rows_j)
+                na = _elem_rows(a, m, edges, degree, face_start, P, bbase, rows_i)
+                nb = _elem_rows(b, m, edges, degree, face_start, P, bbase, rows_j)
                 hit = False
                 for p in range(na):
                     fa = rows_i[p]

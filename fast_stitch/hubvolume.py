@@ -31,15 +31,26 @@ leaves), which is what :func:`reference_boolean.build_reference` builds. Two ste
    The correction scales every profile at node n (radius and offset) by one factor
    ``s_n <= 1``. Offsets are homogeneous of degree 1 in the radii, so the scaled hub is
    the hub of the scaled radii, exactly ``s_n`` times the original about the node
-   (same triangles, volume ``s_n^3 V_hull``), and every strut becomes a frustum between
-   similar, parallel polygons (planar faces, volume ``l / 3 (A_0 + A_1 + sqrt(A_0 A_1))``).
-   The exact solid does not change, so ``s_n`` solves, per node (each strut end counted
-   with its far end unscaled; the cross terms are ``O(eps_0 eps_1)``, ~1e-4 of a strut):
+   (same triangles, volume ``s_n^3 V_hull``). The strut keeps its unscaled profile: each
+   strut end gets a second ring, the *band ring* (:func:`band_rings`), at
+   ``x = s d + sqrt(((1 - s) d)^2 + g^2)`` (``g``: :func:`band_gaps`, about 0.05 rho), that
+   is at the unscaled offset ``d`` (up to ``g^2 / (2 (1 - s) d)``) where ``s < 1``, of the
+   unscaled strut's radius there; a short *band* (frustum) joins the hub ring to it, and
+   the strut between its two band rings is the unscaled prism (frustum when tapered). So
+   the correction stays inside the hub zone and the strut region keeps the design's
+   radius (before, the strut ran between the two scaled hub rings: a frustum along its
+   whole length, 0.95-1.18 r on tet lattices). Where a hub grows (``s > 1``) the band ring
+   is ``s`` times wider too, so that the strut carries the missing volume (as before: the
+   strut is a frustum towards that end). The exact solid does not change, so ``s_n``
+   solves, per node (each strut end counted with its far end unscaled; the cross terms
+   are ``O(eps_0 eps_1)``, ~1e-4 of a strut):
 
-       s^3 V_hull - vol(H_n) + sum_i [F_i(s) - F_i(1)] = 0,
-       F_i(s) = (l_i + (1 - s) d_i) / 3 * (A_i s^2 + A_o + s sqrt(A_i A_o)),
+       s^3 V_hull - vol(H_n) + sum_i delta_i(s) = 0,
 
-   by Newton's method from ``s = 1``, clamped to ``[config.MIN_HUB_SCALE,
+   ``delta_i(s)``: the band and the strut to the far band ring minus the unscaled strut
+   there (closed-form frustum volumes, ``_hub_kernels._band_end``; for a cylinder and ``s < 1``
+   about ``A_i d_i (1 - s^3) / 3``, the cone shell between the scaled and unscaled
+   profile), by Newton's method from ``s = 1``, clamped to ``[config.MIN_HUB_SCALE,
    config.MAX_HUB_SCALE]``. Where ``s_n <= 1`` (hubs fuller than the exact solid: every
    node with struts around it) the scaled mesh lies inside the unscaled one (hubs shrink
    about their node, frusta stay within their hub's cone and the prism), so the
@@ -73,7 +84,14 @@ from numpy.typing import NDArray
 from fast_stitch import _hub_kernels
 from lattice_cad.core import config
 
-__all__ = ["Profile", "PROFILES", "area_factor", "profile_factor", "hub_scales"]
+__all__ = [
+    "Profile",
+    "PROFILES",
+    "area_factor",
+    "profile_factor",
+    "hub_scales",
+    "band_rings",
+]
 
 Profile = Literal["volume", "area", "inscribed", "circumscribed"]
 PROFILES: tuple[str, ...] = ("volume", "area", "inscribed", "circumscribed")
@@ -98,6 +116,45 @@ def profile_factor(P: int, profile: str) -> float:
     if profile == "circumscribed":
         return 1.0 / math.cos(math.pi / P)
     raise ValueError(f"profile must be one of {', '.join(map(repr, PROFILES))}, got {profile!r}")
+
+
+def band_gaps(
+    prad: NDArray[np.float64], end_offset: NDArray[np.float64], length: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(M, 2) smallest band length ``g`` of every strut end (:func:`band_rings`).
+
+    ``config.HUB_BAND_GAP`` times the end's profile radius, at most a quarter of the body
+    between the unscaled profiles and 2 % of the strut (so that the two band rings of a
+    strut never meet: ``s_a d_a + s_b d_b <= 0.95 L`` by the growth bound)."""
+    body = length - end_offset.sum(axis=1)
+    cap = np.minimum(0.25 * body, 0.02 * length)[:, None]
+    return np.minimum(float(config.HUB_BAND_GAP) * prad, cap)
+
+
+def band_rings(
+    scale: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    prad: NDArray[np.float64],
+    end_offset: NDArray[np.float64],
+    length: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(M, 2) offset and radius of every strut end's band ring (``profile="volume"``).
+
+    The hub at node n is its unscaled hub scaled by ``s_n`` (profiles at ``s d`` of radius
+    ``s rho``); the strut between the two band rings is the unscaled prism (frustum when
+    tapered), so the strut region keeps the design's radius, and a short band (frustum)
+    joins each band ring to its hub ring: the hub correction stays inside the hub zone.
+    The band ring sits at ``x = s d + sqrt(((1 - s) d)^2 + g^2)`` (``g``:
+    :func:`band_gaps`): at the unscaled offset ``d`` (the band then lies on the cone from
+    the node through the unscaled profile, inside the unscaled hub) up to ``g^2 / (2 (1 -
+    s) d)``, and ``g`` beyond the hub ring where ``s >= 1`` (leaves: a split of the prism).
+    Its radius is the unscaled strut's there, times ``s`` where the hub grows (``s > 1``:
+    the strut carries the volume the hub lacks)."""
+    x = np.empty_like(end_offset)
+    b = np.empty_like(end_offset)
+    gap0 = band_gaps(prad, end_offset, length)
+    _hub_kernels.band_rings(edges, scale, prad, end_offset, length, gap0, x, b)
+    return x, b
 
 
 def hub_scales(
@@ -173,23 +230,6 @@ def hub_scales(
     v_hull[hubs] = vh[pos]
     v_exact[hubs] = vx[pos]
 
-    # per strut end at a hub: its polygon area, the far end's, offset and body length
-    poly = 0.5 * P * math.sin(2.0 * math.pi / P)
-    area = poly * prad * prad  # (M, 2)
-    body = length - end_offset.sum(axis=1)
-    node_end = edges.ravel()  # (2M,) node of end (e, side)
-    e_idx = np.repeat(np.arange(len(edges)), 2)
-    s_idx = np.tile(np.arange(2), len(edges))
-    at_hub = degree[node_end] >= 2
-    node_end, e_idx, s_idx = node_end[at_hub], e_idx[at_hub], s_idx[at_hub]
-    a_i = area[e_idx, s_idx]
-    a_o = area[e_idx, 1 - s_idx]
-    g_io = np.sqrt(a_i * a_o)
-    d_i = end_offset[e_idx, s_idx]
-    l_i = body[e_idx]
-    f1 = l_i / 3.0 * (a_i + a_o + g_io)
-    s = np.ones(n_nodes)
-    lo_s = float(config.MIN_HUB_SCALE)
     # growth (hubs lighter than the exact solid: struts all on one side of a boundary
     # node) is bounded so that every strut keeps its open cylinder whatever both ends do
     need = end_offset.sum(axis=1)
@@ -200,26 +240,14 @@ def hub_scales(
     np.minimum.at(hi_s, edges[:, 0], room)
     np.minimum.at(hi_s, edges[:, 1], room)
     hi_s = np.maximum(hi_s, 1.0)
-    # every node iterates on its own until its step is below 1e-13 (then it is frozen):
-    # a node's scale depends on its own struts only, not on how long other nodes take
-    # (a shard of the graph gives the same bits; see lattice_cad.distributed)
-    active = degree >= 2
-    for _ in range(20):
-        se = s[node_end]
-        li = l_i + (1.0 - se) * d_i
-        quad = a_i * se * se + a_o + se * g_io
-        g_end = li / 3.0 * quad - f1
-        dg_end = -d_i / 3.0 * quad + li / 3.0 * (2.0 * a_i * se + g_io)
-        g = s**3 * v_hull - v_exact + np.bincount(node_end, g_end, minlength=n_nodes)
-        dg = 3.0 * s * s * v_hull + np.bincount(node_end, dg_end, minlength=n_nodes)
-        step = np.zeros(n_nodes)
-        ok = dg > 0.0
-        step[ok] = g[ok] / dg[ok]
-        new = np.clip(s - step, lo_s, hi_s)
-        new[~active] = s[~active]
-        moved = np.abs(new - s) > 1e-13
-        s = new
-        active &= moved
-        if not active.any():
-            break
+    # every node iterates on its own until its step is below 1e-13: a node's scale depends
+    # on its own struts only (a shard of the graph gives the same bits; see
+    # lattice_cad.distributed)
+    poly = 0.5 * P * math.sin(2.0 * math.pi / P)
+    gap0 = band_gaps(prad, end_offset, length)
+    s = np.empty(n_nodes)
+    _hub_kernels.band_scales(
+        offsets, inc_edge, inc_side, prad, end_offset, length, gap0, v_hull, v_exact,
+        float(config.MIN_HUB_SCALE), hi_s, poly, s,
+    )  # fmt: skip
     return s, v_hull, v_exact

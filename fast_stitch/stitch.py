@@ -15,7 +15,10 @@ Algorithm (per node of degree d >= 2, in parallel over distinct hub shapes):
    strut with ``2P`` triangles; degree-1 nodes get a flat cap of ``P - 2``;
 5. ``profile="volume"`` (default): the profiles have the circle's area, and each hub
    is scaled about its node so that its volume is the exact solid's there
-   (:mod:`fast_stitch.hubvolume`): the mesh has the exact solid's volume.
+   (:mod:`fast_stitch.hubvolume`): the mesh has the exact solid's volume. The struts
+   keep the unscaled profile between two *band rings* (``2 M P`` more vertices, after the
+   hub rings), each joined to its scaled hub ring by a band of ``2 P`` triangles (after
+   the hub and cap triangles): the correction stays at the hubs.
 
 Profiles use one frame per strut (no twist) with a seeded pseudo-random
 phase derived from the strut's direction, so hubs that are translates of
@@ -34,7 +37,14 @@ from numpy.typing import NDArray
 
 from fast_stitch import _kernels
 from fast_stitch._predicates import box_stats, tri_tri
-from fast_stitch.hubvolume import PROFILES, Profile, area_factor, hub_scales, profile_factor
+from fast_stitch.hubvolume import (
+    PROFILES,
+    Profile,
+    area_factor,
+    band_rings,
+    hub_scales,
+    profile_factor,
+)
 from lattice_cad.core import config
 from lattice_cad.core.checks import (
     Progress,
@@ -89,18 +99,30 @@ def _face_counts(degree: NDArray[np.int64], P: int) -> NDArray[np.int64]:
     return counts.astype(np.int64)
 
 
-def estimate(graph: LatticeGraph, segments: int = config.DEFAULT_SEGMENTS) -> Estimate:
-    """Exact vertex and triangle counts, and binary STL size, of ``stitch(graph, segments)``.
+def estimate(
+    graph: LatticeGraph,
+    segments: int = config.DEFAULT_SEGMENTS,
+    profile: Profile = "volume",
+) -> Estimate:
+    """Exact vertex and triangle counts, and binary STL size, of
+    ``stitch(graph, segments, profile=profile)``.
 
-    ``V = 2 M P`` and ``F = 2 M P + sum_{d >= 2} (d P + 2 d - 4) + (P - 2) * #leaves``.
+    ``V = 2 M P`` and ``F = 2 M P + sum_{d >= 2} (d P + 2 d - 4) + (P - 2) * #leaves``;
+    ``profile="volume"`` adds the band rings and bands: ``2 M P`` vertices and ``4 M P``
+    triangles more.
     """
     P = check_segments(segments)
     if not isinstance(graph, LatticeGraph):
         raise TypeError(f"expected a LatticeGraph, got {type(graph).__name__}")
+    if profile not in PROFILES:
+        raise ValueError(
+            f"profile must be one of {', '.join(map(repr, PROFILES))}, got {profile!r}"
+        )
     m = graph.num_edges
     hub_tri = int(_face_counts(graph.degree, P).sum())
-    tri = 2 * m * P + hub_tri
-    v = 2 * m * P
+    banded = profile == "volume"
+    tri = (6 if banded else 2) * m * P + hub_tri
+    v = (4 if banded else 2) * m * P
     return Estimate(
         vertices=v,
         triangles=tri,
@@ -193,8 +215,11 @@ def stitch(
     Returns
     -------
     Mesh
-        ``vertices`` (2 M P, 3) float64 and ``faces`` (F, 3) int64, with F as
-        given by :func:`estimate`. Watertight, 2-manifold, outward oriented,
+        ``vertices`` (2 M P, 3) float64 (4 M P with ``profile="volume"``: the band
+        rings follow the hub rings) and ``faces`` (F, 3) int64, with F as given by
+        :func:`estimate`: the struts' ``2 P`` triangles each (rows ``2 P e``), the hubs'
+        and caps' (from ``2 M P``, node by node), then with ``profile="volume"`` the
+        bands' ``4 P`` per strut. Watertight, 2-manifold, outward oriented,
         without zero-area triangles.
 
     Raises
@@ -248,7 +273,7 @@ def stitch(
     m = graph.num_edges
     if m == 0:
         raise StitchError("the graph has no struts: nothing to stitch")
-    est = estimate(graph, P)
+    est = estimate(graph, P, profile)
     require_memory(
         est.memory_bytes,
         f"stitching {m:,} struts ({est.triangles:,} triangles)",
@@ -369,7 +394,9 @@ def _stitch(
     _kernels.scatter_offsets(offsets, slots, node_rep, rep_slot_start, rep_d, end_offset)
     _check_fit(graph, end_offset, length, offsets, slots, node_rep, rep_slot_start, rep_det)
 
-    vertices = np.empty((2 * m * P, 3))
+    n_rings = 4 if correct_hubs else 2  # hub rings, then band rings (hubvolume.band_rings)
+    all_vertices = np.empty((n_rings * m * P, 3))
+    vertices = all_vertices[: 2 * m * P]
     _kernels.profile_vertices(nodes, edges, axis, sign, fu, fv, radii, end_offset, P, vertices)
     counts = _face_counts(degree, P)
     face_start = np.empty(n_nodes, dtype=np.int64)
@@ -377,37 +404,48 @@ def _stitch(
     if n_nodes > 1:
         np.cumsum(counts[:-1], out=face_start[1:])
         face_start[1:] += 2 * m * P
-    faces = np.empty((2 * m * P + int(counts.sum()), 3), dtype=np.int64)
-    _kernels.cylinder_faces(sign, P, faces)
+    bbase = 2 * m * P + int(counts.sum())  # first band row (profile="volume")
+    faces = np.empty((bbase + (4 * m * P if correct_hubs else 0), 3), dtype=np.int64)
+    if not correct_hubs:  # else band_faces writes the strut rows below
+        _kernels.cylinder_faces(sign, P, faces)
     _kernels.node_faces(
         offsets, slots, sign, node_rep, rep_tri_start, rep_tris, face_start, P, faces
     )
-    if correct_hubs and len(hubs):
-        scale, _, _ = hub_scales(
-            nodes, edges, graph.incidence, degree, graph.radii, radii, end_offset, length,
-            vertices, faces, face_start, node_rep, P, frames=(axis, sign, fu, fv),
-        )  # fmt: skip
-        if report is not None:  # the unscaled profiles and scales (the sharded cap rounds)
-            report["scale0"], report["radii0"], report["offset0"] = scale, radii, end_offset
-        override = None if report is None else report.get("scale_override")
-        if report is None:
-            scale, capped = cap_growth(nodes, edges, radii, end_offset, scale)
-        else:
-            scale, capped = cap_growth(nodes, edges, radii, end_offset, scale, hits0=report)
-        if override is not None:  # scales of some nodes given (lattice_cad.distributed)
-            idx, given = override
-            scale = scale.copy()
-            scale[idx] = report["scale0"][idx] if given is None else given
-        if report is not None:
-            report["capped"], report["scale"] = capped, scale
+    if correct_hubs:
+        scale = np.ones(n_nodes)
+        if len(hubs):
+            scale, _, _ = hub_scales(
+                nodes, edges, graph.incidence, degree, graph.radii, radii, end_offset, length,
+                vertices, faces, face_start, node_rep, P, frames=(axis, sign, fu, fv),
+            )  # fmt: skip
+            if report is not None:  # the unscaled profiles and scales (the sharded cap rounds)
+                report["scale0"], report["radii0"], report["offset0"] = scale, radii, end_offset
+            override = None if report is None else report.get("scale_override")
+            if report is None:
+                scale, capped = cap_growth(nodes, edges, radii, end_offset, scale)
+            else:
+                scale, capped = cap_growth(nodes, edges, radii, end_offset, scale, hits0=report)
+            if override is not None:  # scales of some nodes given (lattice_cad.distributed)
+                idx, given = override
+                scale = scale.copy()
+                scale[idx] = report["scale0"][idx] if given is None else given
+            if report is not None:
+                report["capped"], report["scale"] = capped, scale
+        # the strut between its band rings keeps the unscaled profiles (hubvolume.band_rings)
+        x_off, x_rad = band_rings(scale, edges, radii, end_offset, length)
+        _kernels.profile_vertices(
+            nodes, edges, axis, sign, fu, fv, x_rad, x_off, P, all_vertices[2 * m * P :]
+        )
         # similar hubs: same triangles, profiles (radius and offset) scaled about the node
         node_scale = scale[edges]
-        radii = radii * node_scale
+        hub_rad = radii * node_scale
         end_offset = end_offset * node_scale
         _kernels.profile_vertices(
-            nodes, edges, axis, sign, fu, fv, radii, end_offset, P, vertices
+            nodes, edges, axis, sign, fu, fv, hub_rad, end_offset, P, vertices
         )
-    return Mesh(vertices=vertices, faces=faces), end_offset, face_start, radii
+        radii = np.maximum(hub_rad, x_rad)  # the clearance capsules hold the bands
+        _kernels.band_faces(sign, P, 2 * m * P, bbase, faces)
+    return Mesh(vertices=all_vertices, faces=faces), end_offset, face_start, radii
 
 
 def cap_growth(
@@ -646,10 +684,11 @@ def _check_clearance(
     seg_a, seg_b, rad, lo, hi, cell, origin, dims = _clearance_elements(
         graph.nodes, edges, radii, end_offset, unit, offsets, inc_edge, inc_side
     )
-    max_rows = max(4 * P, int((degree * P + 2 * degree).max()))
+    bbase = _band_base(graph, mesh, P)
+    max_rows = max(8 * P, int((degree * P + 2 * degree).max()))
     found = np.empty((int(np.prod(dims)), 2), dtype=np.int64)
     _kernels.clearance(
-        mesh.vertices, mesh.faces, edges, degree, offsets, inc_edge, face_start, P,
+        mesh.vertices, mesh.faces, edges, degree, offsets, inc_edge, face_start, P, bbase,
         seg_a, seg_b, rad, lo, hi, cell, origin, dims, max_rows, found,
     )  # fmt: skip
     hits = np.flatnonzero(found[:, 0] >= 0)
@@ -705,6 +744,7 @@ def _check_tapered_neighbours(
     widening = r_at_far * d_near > r_at_near * d_far_s
     unit = graph.edge_vectors / L[:, None]
     v, f = mesh.vertices, mesh.faces
+    bb = _band_base(graph, mesh, P)
     for n in np.flatnonzero(graph.degree >= 2):
         lo, hi = int(offsets[n]), int(offsets[n + 1])
         if not widening[lo:hi].any():
@@ -718,14 +758,14 @@ def _check_tapered_neighbours(
                 if half[lo + a] + half[lo + b] < ang[a, b]:
                     continue
                 ea, eb = int(e_all[lo + a]), int(e_all[lo + b])
-                hit = _faces_meet(v, f, _strut_faces(ea, P), _strut_faces(eb, P))
+                hit = _faces_meet(v, f, _strut_faces(ea, P, bb), _strut_faces(eb, P, bb))
                 for e_cyl, e_far, side in ((ea, eb, s_all[lo + b]), (eb, ea, s_all[lo + a])):
                     if hit:
                         break
                     far = int(edges[e_far, 1 - side])
                     count = int(_face_counts(graph.degree[far : far + 1], P)[0])
                     far_faces = np.arange(face_start[far], face_start[far] + count)
-                    hit = _faces_meet(v, f, _strut_faces(e_cyl, P), far_faces)
+                    hit = _faces_meet(v, f, _strut_faces(e_cyl, P, bb), far_faces)
                 if hit:
                     raise StitchError(
                         f"node {int(n)}: struts {ea} and {eb} meet at "
@@ -735,8 +775,18 @@ def _check_tapered_neighbours(
                     )
 
 
-def _strut_faces(e: int, P: int) -> NDArray[np.int64]:
-    return np.arange(2 * P * e, 2 * P * (e + 1), dtype=np.int64)
+def _band_base(graph: LatticeGraph, mesh: Mesh, P: int) -> int:
+    """First band row of a stitched mesh (``profile="volume"``), -1 if it has no bands."""
+    bbase = 2 * graph.num_edges * P + int(_face_counts(graph.degree, P).sum())
+    return bbase if len(mesh.faces) > bbase else -1
+
+
+def _strut_faces(e: int, P: int, bbase: int = -1) -> NDArray[np.int64]:
+    """Face rows of strut e: its prism and, from row ``bbase`` if >= 0, its two bands."""
+    rows = np.arange(2 * P * e, 2 * P * (e + 1), dtype=np.int64)
+    if bbase < 0:
+        return rows
+    return np.concatenate([rows, np.arange(bbase + 4 * P * e, bbase + 4 * P * (e + 1))])
 
 
 def _faces_meet(

@@ -370,7 +370,9 @@ def _owned_records(
     deg = graph.degree
     counts = np.where(deg >= 2, deg * P + 2 * deg - 4, np.where(deg == 1, P - 2, 0))
     mask = np.concatenate([np.repeat(owned_strut, 2 * P), np.repeat(owned_node, counts)])
-    assert len(mask) == len(mesh.faces) and len(mesh.faces) - 2 * m * P == counts.sum()
+    if len(mesh.faces) > len(mask):  # profile="volume": the bands of each strut follow
+        mask = np.concatenate([mask, np.repeat(owned_strut, 4 * P)])
+    assert len(mask) == len(mesh.faces) and len(mesh.faces) - 2 * m * P >= counts.sum()
     rows = np.flatnonzero(mask)
 
     def gen() -> Iterator[NDArray[Any]]:

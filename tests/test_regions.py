@@ -136,8 +136,10 @@ def test_fast_stitch_hubs_lie_inside_the_hub_zones():
                 m = fast_stitch.stitch(g, P_, profile=prof)
             except Exception:  # noqa: BLE001 - a profile that does not fit is not measured
                 continue
-            v = m.vertices[: 2 * g.num_edges * P_].reshape(g.num_edges, 2, P_, 3)
-            d = np.linalg.norm(v - g.nodes[g.edges][:, :, None, :], axis=-1).max(axis=2)
+            # hub rings, then (profile="volume") the band rings: (k, M, 2, P, 3)
+            v = m.vertices.reshape(-1, g.num_edges, 2, P_, 3)
+            d = np.linalg.norm(v - g.nodes[g.edges][None, :, :, None, :], axis=-1)
+            d = d.max(axis=(0, 3))
             ext = np.zeros(g.num_nodes)
             np.maximum.at(ext, g.edges.ravel(), d.ravel())
             ratio = ext[hub] / zones[hub]

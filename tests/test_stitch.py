@@ -17,10 +17,11 @@ from fast_stitch.hubvolume import area_factor
 from lattice_cad import LatticeGraph, LatticeWarning
 
 
-def counts_ok(mesh, graph, P):
-    est = fast_stitch.estimate(graph, P)
+def counts_ok(mesh, graph, P, profile="volume"):
+    est = fast_stitch.estimate(graph, P, profile)
+    rings = 4 if profile == "volume" else 2  # volume: hub rings and band rings
     return (
-        len(mesh.vertices) == est.vertices == 2 * graph.num_edges * P
+        len(mesh.vertices) == est.vertices == rings * graph.num_edges * P
         and len(mesh.faces) == est.triangles
     )
 
@@ -55,10 +56,16 @@ def planar_star(d):
     ids=["4 beams", "8 beams", "16 beams", "18 beams 3D"],
 )
 def test_paper_table1_counts(dirs, expected):
-    """Verma et al. Table 1: beams of length 1, radius 0.1, P = 16."""
+    """Verma et al. Table 1: beams of length 1, radius 0.1, P = 16 (the paper's
+    construction: no hub correction, so no bands)."""
     g = star_graph(dirs, 1.0, 0.1)
-    mesh = fast_stitch.stitch(g, 16)
+    mesh = fast_stitch.stitch(g, 16, profile="inscribed")
     assert len(mesh.faces) == expected
+    assert counts_ok(mesh, g, 16, "inscribed")
+    assert_valid(mesh)
+    # the default adds a band ring per strut end and a band of 2 P triangles
+    mesh = fast_stitch.stitch(g, 16)
+    assert len(mesh.faces) == expected + 4 * g.num_edges * 16
     assert counts_ok(mesh, g, 16)
     assert_valid(mesh)
 
@@ -67,10 +74,13 @@ def test_estimate_formula_by_hand():
     g = LatticeGraph([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [[0, 1], [0, 2], [1, 3]], 0.1)
     # degrees: node0 2, node1 2, node2 1, node3 1
     P = 5
-    est = fast_stitch.estimate(g, P)
+    est = fast_stitch.estimate(g, P, "area")
     assert est.vertices == 2 * 3 * P
     assert est.triangles == 2 * 3 * P + 2 * (2 * P + 0) + 2 * (P - 2)
     assert est.stl_bytes == 84 + 50 * est.triangles
+    est = fast_stitch.estimate(g, P)  # profile="volume": band rings and bands
+    assert est.vertices == 4 * 3 * P
+    assert est.triangles == 6 * 3 * P + 2 * (2 * P + 0) + 2 * (P - 2)
 
 
 # ------------------------------------------------------ closed-form volumes
@@ -157,7 +167,7 @@ def test_collinear_chain_is_one_exact_prism():
     g = LatticeGraph(np.column_stack([x, 0 * x, 0 * x]), [[0, 1], [1, 2], [3, 2], [3, 4]], r)
     mesh = fast_stitch.stitch(g, P, profile="inscribed")
     assert mesh.volume == pytest.approx(0.5 * P * r * r * math.sin(2 * math.pi / P) * 4.2, rel=1e-9)
-    assert counts_ok(mesh, g, P)
+    assert counts_ok(mesh, g, P, "inscribed")
     assert_valid(mesh)
     # exact solid: one cylinder (balls inside it); hubs are prism slices, nothing to correct
     vol = fast_stitch.stitch(g, P)
@@ -209,7 +219,7 @@ def test_jittered_grid_matches_reference_and_is_valid(rng):
     v, f = reference_stitch(g, 7, seed=3)
     np.testing.assert_allclose(mesh.vertices, v, rtol=0, atol=1e-12)
     assert canonical_faces(mesh.faces) == canonical_faces(f)
-    assert counts_ok(mesh, g, 7)
+    assert counts_ok(mesh, g, 7, "inscribed")
     assert_valid(mesh)
 
 

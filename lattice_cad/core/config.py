@@ -376,3 +376,8 @@ HUB_QUADRATURE = 1024
 MIN_HUB_SCALE = 0.5
 #: Largest per-node scale of the hub correction (profile="volume"; boundary hubs grow).
 MAX_HUB_SCALE = 1.25
+#: Smallest length of the band between a scaled hub ring and its strut's unscaled band ring
+#: (profile="volume"), relative to the profile radius: the band is a frustum from the hub
+#: ring (offset ``s d``) to the band ring at ``s d + sqrt(((1 - s) d)^2 + g^2)``, so it is
+#: never flat where ``s_n`` is 1 (leaves) and nearly the hub's cone where ``s_n < 1``.
+HUB_BAND_GAP = 0.05
