@@ -215,20 +215,36 @@ def reference_validity(reference: Reference) -> dict[str, bool]:
 
 
 def mesh_validity(mesh: Mesh) -> dict[str, bool]:
-    """Watertight / winding-consistent / outward (trimesh) and manifold (manifold3d)."""
+    """Watertight / winding-consistent / outward and manifold, by manifold3d (and trimesh
+    when manifold3d refuses the mesh, to say which of the first two fails).
+
+    manifold3d accepts a mesh (status ``NoError``) only when every edge is shared by two
+    triangles of opposite orientation: watertight and consistently wound; the sign of its
+    volume then says outward. That is all the report needs on a valid mesh, and trimesh's
+    own checks (half of the time on a 5M-triangle reference) are only run on a refused one.
+    """
     import manifold3d as m3
-    import trimesh
 
     v = np.asarray(mesh.vertices, dtype=np.float64)
     f = np.asarray(mesh.faces, dtype=np.int64)
-    tm = trimesh.Trimesh(vertices=v, faces=f, process=False)
     man = m3.Manifold(m3.Mesh(vert_properties=v.astype(np.float32), tri_verts=f.astype(np.uint32)))
-    out = {
-        "watertight": bool(tm.is_watertight),
-        "winding_consistent": bool(tm.is_winding_consistent),
-        "outward": bool(tm.volume > 0),
-        "manifold3d": bool(man.status() == m3.Error.NoError),
-    }
+    if man.status() == m3.Error.NoError:
+        out = {
+            "watertight": True,
+            "winding_consistent": True,
+            "outward": bool(man.volume() > 0),
+            "manifold3d": True,
+        }
+    else:
+        import trimesh
+
+        tm = trimesh.Trimesh(vertices=v, faces=f, process=False)
+        out = {
+            "watertight": bool(tm.is_watertight),
+            "winding_consistent": bool(tm.is_winding_consistent),
+            "outward": bool(tm.volume > 0),
+            "manifold3d": False,
+        }
     out["valid"] = all(out.values())
     return out
 

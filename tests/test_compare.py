@@ -210,3 +210,31 @@ def test_surface_deviation_is_the_exact_distance_to_a_box_in_bounded_memory(monk
     expected = np.where(q.max(axis=1) > 0, outside, inside)
     assert len(pts) == 5000 + len(source.vertices)
     np.testing.assert_allclose(d, expected, atol=1e-9)
+
+
+def test_mesh_validity_agrees_with_trimesh_on_valid_inverted_open_and_flipped_meshes():
+    """mesh_validity reads a valid mesh from manifold3d alone (trimesh only for refused
+    ones); on each kind of mesh its answers must be trimesh's."""
+    import trimesh
+
+    from lattice_cad.core.mesh import Mesh
+    from reference_boolean.compare import mesh_validity
+
+    s = trimesh.creation.icosphere(subdivisions=2)
+    v, f = np.asarray(s.vertices), np.asarray(s.faces)
+    flipped_one = f.copy()
+    flipped_one[0] = flipped_one[0, ::-1]
+    cases = {
+        "valid": f,
+        "inverted": f[:, ::-1],
+        "open": f[1:],
+        "one flipped": flipped_one,
+    }
+    expect_valid = {"valid": True, "inverted": False, "open": False, "one flipped": False}
+    for name, faces in cases.items():
+        got = mesh_validity(Mesh(vertices=v, faces=faces))
+        tm = trimesh.Trimesh(vertices=v, faces=faces, process=False)
+        assert got["watertight"] == tm.is_watertight, name
+        assert got["winding_consistent"] == tm.is_winding_consistent, name
+        assert got["outward"] == (tm.volume > 0), name
+        assert got["valid"] == expect_valid[name], (name, got)
