@@ -220,13 +220,17 @@ def _cpu() -> float:
     return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
 
 
+#: The GE lattices ``--report`` measures (``--report-lattices``).
+REPORT_LATTICES: tuple[str, ...] = ("voxel", "tet")
+
+
 def bench_report(quick: bool) -> None:
     """4. The accuracy report as a user runs it: time per stage, hubs/s, the verdict."""
     from lattice_cad.core.errors import LatticeError, LatticeWarning
     from lattice_cad.validate import validate
     from reference_boolean.report import first_screen_pictures
 
-    kinds = ["smoke"] if quick else ["voxel", "tet"]
+    kinds = ["smoke"] if quick else list(REPORT_LATTICES)
     rows, verdicts = [], []
     for kind in kinds:
         with warnings.catch_warnings():
@@ -910,6 +914,8 @@ def main() -> None:
         action="store_true",
         help="stumps start at the node (the construction before trimming, for comparison)",
     )
+    ap.add_argument("--report-lattices", nargs="+", choices=["voxel", "tet"],
+                    default=list(REPORT_LATTICES), help="the GE lattices --report measures")
     ap.add_argument("--ge", choices=["all", "bcc", "tet"], default=None,
                     help="the GE bracket lattices (report time, hubs/s) instead of the rest")
     ap.add_argument("--ge-sample", type=int, default=24,
@@ -936,6 +942,8 @@ def main() -> None:
     ap.add_argument("--folders", nargs="+", default=None, choices=["step", "meshes"],
                     help="with --refused: only these folders of ../shared/data")
     a = ap.parse_args()
+    global REPORT_LATTICES
+    REPORT_LATTICES = tuple(a.report_lattices)
     if a.refused:
         global CASE_TIMEOUT
         CASE_TIMEOUT = a.case_timeout
