@@ -915,7 +915,7 @@ def main() -> None:
         help="stumps start at the node (the construction before trimming, for comparison)",
     )
     ap.add_argument("--report-lattices", nargs="+", choices=["voxel", "tet"],
-                    default=list(REPORT_LATTICES), help="the GE lattices --report measures")
+                    default=["voxel", "tet"], help="the GE lattices --report measures")
     ap.add_argument("--ge", choices=["all", "bcc", "tet"], default=None,
                     help="the GE bracket lattices (report time, hubs/s) instead of the rest")
     ap.add_argument("--ge-sample", type=int, default=24,
