@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from conformal.skin_crease import revert_flips
 from conformal.skin_untangle import unfolded, untangle
 from lattice_cad.core import config
 from lattice_cad.core.errors import LatticeWarning, OCCTFailure, SkinError
@@ -510,22 +511,8 @@ def _project_to_offset(
     v0, f = to_arrays(inner)
     if len(f) == 0:
         return inner
-    t0 = v0[f]
-    n0 = np.cross(t0[:, 1] - t0[:, 0], t0[:, 2] - t0[:, 0])
-    v = v0.copy()
-    for _ in range(steps):
-        d, c = surface.closest(v, max_distance=2.0 * thickness)
-        ok = np.isfinite(d) & (d > 0.5 * thickness)
-        move = np.zeros_like(v)
-        move[ok] = (thickness - d[ok])[:, None] * (v[ok] - c[ok]) / d[ok][:, None]
-        v = v + move
-    for _ in range(10):  # faces turned over (or flattened): their vertices go back
-        t = v[f]
-        n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        bad = np.einsum("ij,ij->i", n, n0) <= 0.0
-        if not bad.any():
-            break
-        v[f[bad].ravel()] = v0[f[bad].ravel()]
+    # faces turned over (or flattened): their vertices go back
+    v = revert_flips(v0, _newton_to_offset(v0, surface, thickness, steps), f)
     if refine:  # (the voxel method's creases do not converge: measured no better there)
         tol = 0.5 * max(WALL_RTOL * thickness, WALL_ATOL)
         v, f = _refine_to_offset(v, f, surface, thickness, tol)
