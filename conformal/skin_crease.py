@@ -327,9 +327,7 @@ def sharpen(
     # the work is local: the faces with a vertex within two edges of a crease (or of a
     # vertex off the level), cut out as a piece whose rim stays as it is
     fg = grad[f]
-    cos = np.minimum.reduce(
-        [np.einsum("ij,ij->i", fg[:, k], fg[:, (k + 1) % 3]) for k in range(3)]
-    )
+    cos = np.minimum.reduce([np.einsum("ij,ij->i", fg[:, k], fg[:, (k + 1) % 3]) for k in range(3)])
     hot = np.zeros(len(v), dtype=bool)
     hot[f[(cos < 0.985) | near[f].any(axis=1)].ravel()] = True
     for _ in range(2):
