@@ -42,7 +42,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from conformal.skin_untangle import untangle
+from conformal.skin_crease import revert_flips
+from conformal.skin_untangle import unfolded, untangle
 from lattice_cad.core import config
 from lattice_cad.core.errors import LatticeWarning, OCCTFailure, SkinError
 from lattice_cad.core.mesh import mesh_arrays, weld
@@ -70,6 +71,11 @@ WALL_RTOL = 0.02
 WALL_ATOL = 0.02
 #: The voxel method's surfaces are simplified to this fraction of the wall's accuracy bound.
 SIMPLIFY_FRACTION = 0.25
+#: Fractions of that tolerance tried in turn while the simplified surface has folds that
+#: ``conformal.skin_untangle`` cannot collapse (sheets of the wall a tolerance apart cross:
+#: Ventilator, skin 0.88882 mm), the unsimplified surface (valid as marching tetrahedra
+#: make it) after the last.
+SIMPLIFY_BACKOFF = (1.0, 0.5, 0.25, 0.1)
 #: The voxel method puts the creases of its inner surface back (conformal.skin_crease):
 #: box and sphere walls within max(2 % t, h/10) instead of +5.6 %; on real parts the p99
 #: wall goes from +9..+14 % to +0.5..+12 % but the max stays +13..+22 % (thin-cavity
@@ -474,8 +480,20 @@ def _voxel_steps(part: Any, thickness: float, h: float, mid_wall: bool = False) 
         man = _manifold(v, f, f"the inset by {level:g}")
         del v, f
         yield
-        out.append(man.simplify(tol))
+        out.append(_simplified(man, tol, f"the inset by {level:g}"))
     return tuple(out)
+
+
+def _simplified(man: Any, tol: float, name: str) -> Any:
+    """``man.simplify(tol)`` without folds (``conformal.skin_untangle.unfolded``); where
+    the simplification folds the surface beyond repair, a smaller tolerance
+    (``SIMPLIFY_BACKOFF``), else ``man`` itself. The booleans would carry the folds into
+    the skinned solid, which then fails the float32 check in every retry."""
+    for k in SIMPLIFY_BACKOFF:
+        done = unfolded(man.simplify(k * tol), name)
+        if done is not None:
+            return done[0]
+    return man
 
 
 def _project_to_offset(
@@ -493,22 +511,8 @@ def _project_to_offset(
     v0, f = to_arrays(inner)
     if len(f) == 0:
         return inner
-    t0 = v0[f]
-    n0 = np.cross(t0[:, 1] - t0[:, 0], t0[:, 2] - t0[:, 0])
-    v = v0.copy()
-    for _ in range(steps):
-        d, c = surface.closest(v, max_distance=2.0 * thickness)
-        ok = np.isfinite(d) & (d > 0.5 * thickness)
-        move = np.zeros_like(v)
-        move[ok] = (thickness - d[ok])[:, None] * (v[ok] - c[ok]) / d[ok][:, None]
-        v = v + move
-    for _ in range(10):  # faces turned over (or flattened): their vertices go back
-        t = v[f]
-        n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        bad = np.einsum("ij,ij->i", n, n0) <= 0.0
-        if not bad.any():
-            break
-        v[f[bad].ravel()] = v0[f[bad].ravel()]
+    # faces turned over (or flattened): their vertices go back
+    v = revert_flips(v0, _newton_to_offset(v0, surface, thickness, steps), f)
     if refine:  # (the voxel method's creases do not converge: measured no better there)
         tol = 0.5 * max(WALL_RTOL * thickness, WALL_ATOL)
         v, f = _refine_to_offset(v, f, surface, thickness, tol)
@@ -843,8 +847,8 @@ def build_skin(
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)
-    # folds of the inner wall (manifold3d's simplify) would pass into the result, which
-    # float32 then cannot hold: collapsed here (conformal.skin_untangle)
+    # folds of the inner wall would pass into the result, which float32 then cannot hold:
+    # collapsed here (conformal.skin_untangle; the voxel wall comes without them)
     inner, untangled = untangle(inner)
     if mid_wall:
         surfaces = (outer, inner, untangle(surfaces[2])[0])

@@ -86,14 +86,23 @@ def project_to_level(
         d, n, ok = gradients
     out = v0.copy()
     out[ok] = v0[ok] + (level - d[ok])[:, None] * n[ok]
+    return revert_flips(v0, out, f)
+
+
+def revert_flips(
+    v0: NDArray[np.float64], v: NDArray[np.float64], f: NDArray[np.int64], rounds: int = 10
+) -> NDArray[np.float64]:
+    """(V, 3) float64: ``v`` (the vertices ``v0`` moved) with the vertices of every face
+    the move turned over (or flattened) put back where they were in ``v0``, repeated up to
+    ``rounds`` times (a vertex put back can turn a neighbour). Modifies ``v`` in place."""
     n0 = _normals(v0, f)
-    for _ in range(10):
-        bad = np.einsum("ij,ij->i", _normals(out, f), n0) <= 0.0
+    for _ in range(rounds):
+        bad = np.einsum("ij,ij->i", _normals(v, f), n0) <= 0.0
         if not bad.any():
             break
         idx = f[bad].ravel()
-        out[idx] = v0[idx]
-    return out
+        v[idx] = v0[idx]
+    return v
 
 
 def _plane_points(
@@ -318,9 +327,7 @@ def sharpen(
     # the work is local: the faces with a vertex within two edges of a crease (or of a
     # vertex off the level), cut out as a piece whose rim stays as it is
     fg = grad[f]
-    cos = np.minimum.reduce(
-        [np.einsum("ij,ij->i", fg[:, k], fg[:, (k + 1) % 3]) for k in range(3)]
-    )
+    cos = np.minimum.reduce([np.einsum("ij,ij->i", fg[:, k], fg[:, (k + 1) % 3]) for k in range(3)])
     hot = np.zeros(len(v), dtype=bool)
     hot[f[(cos < 0.985) | near[f].any(axis=1)].ravel()] = True
     for _ in range(2):

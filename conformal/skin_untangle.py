@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["untangle"]
+__all__ = ["untangle", "unfolded"]
 
 #: Passes of collapses (each followed by a local check) before the surface is left as it is.
 UNTANGLE_ROUNDS = 8
@@ -39,6 +39,14 @@ def untangle(surface: Any, name: str = "the inner surface") -> tuple[Any, int]:
     it came, also when it is not a closed oriented 2-manifold or the collapses do not make
     it valid: the caller's final check then decides).
     """
+    done = unfolded(surface, name)
+    return (surface, 0) if done is None else done
+
+
+def unfolded(surface: Any, name: str = "the inner surface") -> tuple[Any, int] | None:
+    """:func:`untangle`, or None when ``surface`` is not valid and the collapses do not make
+    it valid (a fold across sheets of the wall, not a few faces: ``conformal.skin`` then
+    simplifies the wall less)."""
     import fast_stitch
     from conformal.skin import _manifold, to_arrays
     from fast_stitch.recheck import recheck
@@ -49,11 +57,13 @@ def untangle(surface: Any, name: str = "the inner surface") -> tuple[Any, int]:
     v, f = to_arrays(surface)
     mesh = Mesh(vertices=v, faces=f)
     report = fast_stitch.check(mesh)
-    if report.valid or not (report.watertight and report.manifold and report.oriented):
+    if report.valid:
         return surface, 0
+    if not (report.watertight and report.manifold and report.oriented):
+        return None
     for _ in range(UNTANGLE_ROUNDS):
         before, mesh = mesh, _collapse_folds(mesh, report)
         report = recheck(before, report, mesh)  # self-intersections near the collapses
         if report.valid:  # (a round can pinch an edge that the next one collapses)
             return _manifold(mesh.vertices, mesh.faces, name), len(f) - len(mesh.faces)
-    return surface, 0
+    return None

@@ -44,3 +44,54 @@ def test_untangle_leaves_a_valid_surface_as_it_is():
     assert out is sphere and collapsed == 0
     empty = manifold3d.Manifold()
     assert untangle(empty) == (empty, 0)
+
+
+def _prism(diagonals: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """A closed triangular prism, each side quad split along one of its two diagonals."""
+    v = np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1], [0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    f = [(0, 1, 2), (3, 5, 4)]
+    for (a, b, c, d), k in zip(((0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5)), diagonals, strict=True):
+        f += [(a, d, c), (a, c, b)] if k == 0 else [(a, d, b), (b, d, c)]
+    faces = np.array(f, dtype=np.int64)
+    if trimesh.Trimesh(v, faces, process=False).volume < 0:
+        faces = faces[:, ::-1].copy()
+    return v, faces
+
+
+def test_collapse_faces_keeps_the_surface_manifold():
+    """Regression: collapsing the shortest edge of a face whatever its neighbourhood could
+    join two sheets of the surface in a vertex (a pinch no later collapse removes); the
+    untangling of the Ventilator's inner wall then never became valid. An edge whose
+    vertices share a neighbour besides its two opposite corners is not collapsed: the
+    face's next edge is."""
+    from lattice_cad.io import collapse_faces
+    from lattice_cad.io.rounding import pinched_vertices
+
+    v, f = _prism((0, 0, 1))  # the top face's shortest edge (0, 1): 0 and 1 share 2, 4, 5
+    assert fast_stitch.check(Mesh(vertices=v, faces=f)).valid
+    v2, f2 = collapse_faces(v, f, np.array([0]))
+    assert len(f2) == len(f) - 2  # one edge went
+    report = fast_stitch.check(Mesh(vertices=v2, faces=f2), self_intersections=False)
+    assert report.watertight and report.manifold and report.oriented, report
+    assert len(pinched_vertices(f2, len(v2))) == 0
+
+
+def test_simplified_wall_backs_off_where_folds_cannot_be_collapsed(monkeypatch):
+    """conformal.skin._simplified: a simplification whose folds ``unfolded`` cannot repair
+    is replaced by one with a smaller tolerance (more triangles)."""
+    import manifold3d
+
+    from conformal import skin
+
+    sphere = manifold3d.Manifold.sphere(1.0, 96)
+    seen: list[int] = []
+    real = skin.unfolded
+
+    def first_fails(surface, name="x"):
+        seen.append(surface.num_tri())
+        return None if len(seen) == 1 else real(surface, name)
+
+    monkeypatch.setattr(skin, "unfolded", first_fails)
+    out = skin._simplified(sphere, 0.01, "the sphere")
+    assert len(seen) == 2 and seen[1] > seen[0]
+    assert out.num_tri() == seen[1]

@@ -157,23 +157,55 @@ def _collapse_flat(
 def collapse_faces(
     v: NDArray[np.float64], f: NDArray[np.int64], which: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Collapse the shortest edge of each face in ``which`` (an independent subset of them).
+    """Collapse an edge of each face in ``which``: its shortest edge whose collapse keeps
+    the surface 2-manifold, of an independent subset of them.
 
     The two vertices of the edge become one (the lower index, in place), which removes the
-    face and its neighbour across that edge; unused vertices are dropped.
+    face and its neighbour across that edge; unused vertices are dropped. An edge is
+    collapsed only when its two vertices have no common neighbour but the two opposite
+    corners of its faces (the link condition); otherwise the collapse would join two
+    sheets of the surface in an edge or a vertex (a pinch no later collapse removes), and
+    the face's next shorter edge is tried. No two collapses of one call touch each
+    other's ring of neighbours, so each sees the mesh its condition was tested on; a
+    face skipped is left for the caller's next round.
     vertices : (V, 3) float64, faces : (F, 3) int64, which : (K,) int64.
     """
+    which = np.asarray(which, dtype=np.int64).reshape(-1)
+    if not len(which):
+        return v, f
     t = v[f[which]]
     lengths = np.stack([np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)])
-    k = np.argmin(lengths, axis=0)
-    a = f[which, k]
-    b = f[which, (k + 1) % 3]
+    order = np.argsort(lengths, axis=0, kind="stable")  # (3, K): edges shortest first
+    # vertex -> faces (CSR) for the rings of the candidates only
+    corner_v = f.ravel()
+    by_vertex = np.argsort(corner_v, kind="stable")
+    start = np.searchsorted(corner_v[by_vertex], np.arange(len(v) + 1))
+
+    def ring_faces(x: int) -> NDArray[np.int64]:
+        return by_vertex[start[x] : start[x + 1]] // 3
+
+    def ring(x: int) -> set[int]:
+        return set(f[ring_faces(x)].ravel().tolist()) - {x}
+
     target = np.arange(len(v))
     busy = np.zeros(len(v), dtype=bool)
-    for x, y in zip(a.tolist(), b.tolist(), strict=True):
-        if not (busy[x] or busy[y]):
-            busy[x] = busy[y] = True
-            target[max(x, y)] = min(x, y)
+    for i, face in enumerate(which.tolist()):
+        for k in order[:, i].tolist():
+            a, b = int(f[face, k]), int(f[face, (k + 1) % 3])
+            if a == b or busy[a] or busy[b]:
+                continue
+            shared = ring_faces(a)
+            shared = shared[(f[shared] == b).any(axis=1)]  # the faces on edge (a, b)
+            if len(shared) != 2:
+                continue
+            opposite = set(f[shared].ravel().tolist()) - {a, b}
+            ra, rb = ring(a), ring(b)
+            if len(opposite) != 2 or (ra & rb) != opposite:
+                continue
+            busy[a] = busy[b] = True
+            busy[list(ra | rb)] = True
+            target[max(a, b)] = min(a, b)
+            break
     f = target[f]
     keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
     f = f[keep]
