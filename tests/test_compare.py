@@ -238,3 +238,22 @@ def test_mesh_validity_agrees_with_trimesh_on_valid_inverted_open_and_flipped_me
         assert got["winding_consistent"] == tm.is_winding_consistent, name
         assert got["outward"] == (tm.volume > 0), name
         assert got["valid"] == expect_valid[name], (name, got)
+
+
+def test_two_sided_deviation_in_two_processes_gives_the_serial_numbers(monkeypatch, star, star_ref):
+    """The report measures the two sides in two processes on big meshes (libigl holds the
+    GIL); forced on a small one, the numbers must be the serial ones, bit for bit."""
+    from lattice_cad.core import config
+    from reference_boolean.compare import surface_deviation, two_sided_deviation
+
+    mesh = fast_stitch.stitch(star, segments=6)
+    ref = star_ref.mesh
+    serial = (
+        surface_deviation(mesh, ref, samples=3000, seed=5),
+        surface_deviation(ref, mesh, samples=3000, seed=6),
+    )
+    monkeypatch.setattr(config, "DEVIATION_PARALLEL_MIN", 0)
+    forked = two_sided_deviation(mesh, ref, samples=3000, seed=5)
+    for (p, d), (q, e) in zip(serial, forked, strict=True):
+        np.testing.assert_array_equal(p, q)
+        np.testing.assert_array_equal(d, e)

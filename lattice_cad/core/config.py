@@ -251,6 +251,10 @@ DEFAULT_SAMPLES = 50_000
 #: Points per query of the deviation measure's distance tree (bounds its memory).
 DEVIATION_CHUNK = 200_000
 
+#: Vertices (of both meshes) from which the two sides of the deviation are measured in
+#: two processes (``reference_boolean.compare.two_sided_deviation``).
+DEVIATION_PARALLEL_MIN = 500_000
+
 #: Default surface tolerance of the accuracy report's verdict, as a fraction of the median
 #: strut radius: the mesh passes when 95 % of its two-sided surface deviation from the exact
 #: solid is within +-(this x radius) mm (issue 14: p95 under 10 % of the radius).
