@@ -214,7 +214,11 @@ def main() -> None:
                     proc = subprocess.run(
                         cmd, capture_output=True, text=True, env=env, timeout=args.timeout
                     )
-                    failed = proc.returncode != 0 and (proc.stderr.strip().splitlines() or ["?"])
+                    # the CLI's "error:" line (progress bars share stderr), else its last line
+                    lines = [ln.strip() for ln in proc.stderr.replace("\r", "\n").splitlines()]
+                    lines = [ln for ln in lines if ln] or ["?"]
+                    errors = [ln[ln.index("error:") :] for ln in lines if "error:" in ln]
+                    failed = proc.returncode != 0 and (errors or lines)
                 except subprocess.TimeoutExpired:
                     failed = [f"timeout {args.timeout:g} s"]
                 wall, cpu = time.perf_counter() - w0, _children_cpu() - c0
