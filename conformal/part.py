@@ -307,10 +307,17 @@ class Part:
         """(P,) float64 unsigned distance of (P, 3) points to the surface."""
         return self.closest(points, max_distance=max_distance)[0]
 
-    def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
-        """(P,) float64 signed distance: negative inside, positive outside."""
+    def signed_distance(
+        self, points: ArrayLike, *, max_distance: float = np.inf
+    ) -> NDArray[np.float64]:
+        """(P,) float64 signed distance: negative inside, positive outside.
+
+        ``max_distance``: points farther than this from the surface get ``-inf`` (inside)
+        or ``inf`` (outside); much faster for points deep inside a finely meshed part (the
+        nearest-triangle search grows with the distance).
+        """
         p = _as_points(points)
-        d = self.distance(p)
+        d = self.distance(p, max_distance=max_distance)
         return np.where(self.contains(p), -d, d)
 
     def segment_crossings(

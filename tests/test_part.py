@@ -191,6 +191,22 @@ def test_sphere_contains_and_distance(sphere, rng):
     assert np.all(np.sign(sd) == np.sign(r[far] - 10))
 
 
+def test_signed_distance_within_max_distance_equals_full():
+    # the protrusion bench measures only vertices near the surface of a fine mesh; points
+    # within the band get the full value, the others +-inf by side
+    part = load_part(DATA / "step" / "trimesh_featuretype.STEP")
+    rng = np.random.default_rng(7)
+    lo, hi = part.bounds
+    pts = rng.uniform(lo - 2.0, hi + 2.0, size=(3000, 3))
+    band = 0.05 * float(part.size.max())
+    full = part.signed_distance(pts)
+    banded = part.signed_distance(pts, max_distance=band)
+    near = np.abs(full) <= band
+    assert 100 < near.sum() < len(pts) - 100
+    np.testing.assert_array_equal(banded[near], full[near])
+    np.testing.assert_array_equal(banded[~near], np.where(full[~near] < 0, -np.inf, np.inf))
+
+
 def test_distance_matches_brute_force(box, rng):
     import trimesh
 

@@ -74,17 +74,19 @@ def signed_distance(
     for solid in solids:
         dist = BRepExtrema_DistShapeShape()
         dist.LoadS1(_boundary(solid))
-        tools.append((solid, dist))
+        # loaded once: building the classifier per point was most of the time
+        tools.append((BRepClass3d_SolidClassifier(solid), dist))
     for i, (x, y, z) in enumerate(p):
         pnt = gp_Pnt(float(x), float(y), float(z))
         vertex = BRepBuilderAPI_MakeVertex(pnt).Vertex()
         best_out, best_in = np.inf, -np.inf
-        for solid, dist in tools:
+        for classifier, dist in tools:
             dist.LoadS2(vertex)
             if not dist.Perform() or dist.NbSolution() == 0:
                 raise OCCTFailure(f"BRepExtrema found no distance from ({x:g}, {y:g}, {z:g})")
             d = float(dist.Value())
-            state = BRepClass3d_SolidClassifier(solid, pnt, tol).State()
+            classifier.Perform(pnt, tol)
+            state = classifier.State()
             if state == TopAbs_IN:
                 best_in = max(best_in, d)
             elif state == TopAbs_ON:
