@@ -59,7 +59,7 @@ def _cluster(
 
     Vertices are snapped to the cells of a uniform grid (each cell's vertices
     merge into their mean), faces that collapse are dropped, and so are the
-    coincident pairs of faces left where a thin slab collapsed. The surface
+    coincident faces left where a thin slab collapsed (in pairs). The surface
     stays closed, unlike dropping faces; the grid is coarsened until the count
     fits.
     """
@@ -79,11 +79,14 @@ def _cluster(
         f = inv.reshape(-1)[faces]
         f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
         # triangles on the same vertex set come from collapsed slabs (a pair of opposite
-        # faces): drop them all, which keeps the surface closed
-        _, inv_f, cnt = np.unique(
-            np.sort(f, axis=1), axis=0, return_inverse=True, return_counts=True
+        # faces): drop them in pairs, which keeps every edge on an even number of faces,
+        # so the surface stays closed (dropping all of an odd set, e.g. three where a
+        # strut's band and hub rings collapse together, would open it)
+        _, first, inv_f, cnt = np.unique(
+            np.sort(f, axis=1), axis=0, return_index=True, return_inverse=True, return_counts=True
         )
-        f = f[cnt[inv_f.reshape(-1)] == 1]
+        inv_f = inv_f.reshape(-1)
+        f = f[(cnt[inv_f] % 2 == 1) & (first[inv_f] == np.arange(len(f)))]
         if len(f) <= max_triangles:
             count = np.bincount(inv, minlength=len(uniq)).astype(np.float64)
             v = np.stack(
