@@ -546,20 +546,12 @@ def _closed_tessellation(
     problem, faces_at = "", np.zeros(0, dtype=np.int64)
     for healed in (False, True):
         shape = _occ.heal(solid) if healed else solid
-        report = None
-        if checked and config.CHORD_CONTROL > 0:
-            v, f, owner, report = _occ.tessellate(
-                shape,
-                defl,
-                angular,
-                face_ids=True,
-                control=config.CHORD_CONTROL,
-                clean=not (reuse and not healed),
-            )
-        else:
-            v, f, owner = _occ.tessellate(
-                shape, defl, angular, face_ids=True, clean=not (reuse and not healed)
-            )
+        control = config.CHORD_CONTROL if checked else 0.0
+        got = _occ.tessellate(
+            shape, defl, angular, face_ids=True, control=control, clean=not (reuse and not healed)
+        )
+        v, f, owner = got[:3]
+        report = got[3] if control > 0 else None
         if len(f) == 0:
             raise PartError(f"{name}: solid {k} has no faces to triangulate")
         limit = max(1e-6 * diag, min(_occ.max_tolerance(shape), 1e-4 * diag))

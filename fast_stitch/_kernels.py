@@ -856,22 +856,15 @@ def profile_vertices(nodes, edges, axis, sign, frame_u, frame_v, radii, end_offs
 def _tube(a0, a1, row, plus, P, out):
     """2P outward triangles (rows ``row`` onward) joining the rings of P vertices from ``a0``
     and from ``a1`` (``a0`` nearer the strut's first node; ``plus``: ``sign == 1``)."""
+    c1, c2 = (1, 2) if plus else (2, 1)  # the other sign: the same triangles, reversed
     for k in range(P):
         k1 = (k + 1) % P
-        if plus:
-            out[row + 2 * k, 0] = a0 + k
-            out[row + 2 * k, 1] = a0 + k1
-            out[row + 2 * k, 2] = a1 + k1
-            out[row + 2 * k + 1, 0] = a0 + k
-            out[row + 2 * k + 1, 1] = a1 + k1
-            out[row + 2 * k + 1, 2] = a1 + k
-        else:
-            out[row + 2 * k, 0] = a0 + k
-            out[row + 2 * k, 1] = a1 + k1
-            out[row + 2 * k, 2] = a0 + k1
-            out[row + 2 * k + 1, 0] = a0 + k
-            out[row + 2 * k + 1, 1] = a1 + k
-            out[row + 2 * k + 1, 2] = a1 + k1
+        out[row + 2 * k, 0] = a0 + k
+        out[row + 2 * k, c1] = a0 + k1
+        out[row + 2 * k, c2] = a1 + k1
+        out[row + 2 * k + 1, 0] = a0 + k
+        out[row + 2 * k + 1, c1] = a1 + k1
+        out[row + 2 * k + 1, c2] = a1 + k
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
