@@ -315,7 +315,7 @@ def two_sided_deviation(
     libigl's tree holds the GIL, so with more than one CPU and at least
     ``config.DEVIATION_PARALLEL_MIN`` vertices in all, the second side is measured by a
     forked child process (Linux; it inherits the meshes) while this one measures the first:
-    the same numbers (same seeds), in about half the time on the GE tet lattice.
+    the same numbers (same seeds); the GE tet report's deviation stage took 78 -> 56 s.
     """
     import multiprocessing as mp
     import sys
