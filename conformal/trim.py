@@ -279,7 +279,7 @@ def trim_to_part(
         piece.
     """
     from conformal.skin import as_manifold, part_solid, to_arrays
-    from conformal.voxel import _solid_shells
+    from conformal.voxel import _solid_shells, shell_owner
 
     t0 = time.perf_counter()
     lat = as_manifold(lattice, name="the lattice mesh")
@@ -313,8 +313,8 @@ def trim_to_part(
         if len(shells) > 1:
             for i, p in enumerate(pieces):
                 pv, _ = to_arrays(p)
-                inside = [int(s.contains(pv[:64]).sum()) for s in shells]
-                owner[i] = int(np.argmax(inside))
+                votes = shell_owner(shells, pv[:64])
+                owner[i] = int(np.argmax(np.bincount(votes, minlength=len(shells))))
         keep = []
         for o in np.unique(owner):
             mine = np.flatnonzero(owner == o)

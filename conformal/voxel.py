@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
 from conformal.cells import UnitCell, _resolve, tile_arrays
-from conformal.part import Part
+from conformal.part import Part, _as_points
 from conformal.radius import (
     FitError,
     Profile,
@@ -816,6 +816,30 @@ def _solid_shells(part: Part) -> list[Part]:
     return shells or [part]
 
 
+def shell_owner(shells: list[Part], points: ArrayLike) -> NDArray[np.int64]:
+    """(P,) int64: the index in ``shells`` of the solid each of (P, 3) ``points`` lies in.
+
+    A point that no shell contains (it lies on a surface, as a cut lattice's vertices and a
+    clipped strut's end do, or within rounding of one) belongs to the nearest shell. Before,
+    such a point fell to shell 0, and a speck cut off on the surface of one solid was kept as
+    the "largest piece" of another (kcl_enclosure, tet: a second body of 8 triangles).
+    """
+    p = _as_points(points)
+    owner = np.zeros(len(p), dtype=np.int64)
+    if len(shells) <= 1 or not len(p):
+        return owner
+    found = np.zeros(len(p), dtype=bool)
+    for i, shell in enumerate(shells):
+        inside = shell.contains(p) & ~found
+        owner[inside] = i
+        found |= inside
+    rest = np.flatnonzero(~found)
+    if len(rest):
+        d = np.stack([s.distance(p[rest]) for s in shells])
+        owner[rest] = np.argmin(d, axis=0)
+    return owner
+
+
 def main_components(
     part: Part | None, nodes: NDArray[np.float64], edges: NDArray[np.int64]
 ) -> tuple[NDArray[np.bool_], int, int]:
@@ -852,10 +876,7 @@ def main_components(
     first = np.full(k, -1, dtype=np.int64)
     first[elab[::-1]] = np.arange(len(edges))[::-1]
     mids = 0.5 * (nodes[edges[first[present], 0]] + nodes[edges[first[present], 1]])
-    owner = np.zeros(len(present), dtype=np.int64)
-    if len(shells) > 1:
-        for i, shell in enumerate(shells):
-            owner[shell.contains(mids)] = i
+    owner = shell_owner(shells, mids)
     keep = np.zeros(k, dtype=bool)
     for o in np.unique(owner):
         mine = present[owner == o]

@@ -1736,7 +1736,7 @@ def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult)
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from conformal.voxel import _solid_shells
+    from conformal.voxel import _solid_shells, shell_owner
 
     base = np.cumsum([0] + [len(b["owned_count"]) for b in live])
     total = int(base[-1])
@@ -1765,11 +1765,8 @@ def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult)
     present = np.flatnonzero(size > 0)
     # the order of conformal's labels: by the smallest global node id of each piece
     present = present[np.argsort(min_key[present], kind="stable")]
-    owner = np.zeros(len(present), dtype=np.int64)
     shells = _solid_shells(part) if len(present) > 1 else []
-    if len(shells) > 1:
-        for i, shell in enumerate(shells):
-            owner[shell.contains(rep[present])] = i
+    owner = shell_owner(shells, rep[present])
     keep_root = np.zeros(n_root, dtype=bool)
     for o in np.unique(owner):
         mine = present[owner == o]

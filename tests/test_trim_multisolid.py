@@ -87,3 +87,34 @@ def test_kcl_enclosure_tet_is_cut_to_the_part():
 def test_box_sides_tet_is_cut_to_the_part():
     lat, part = _bench_fill("trimesh_box_sides.STEP", method="tet")
     _assert_cut_and_valid(lat, part)
+
+
+def test_a_point_on_a_solids_surface_belongs_to_that_solid():
+    """Regression (kcl_enclosure, tet): points that no solid contains (on a surface) went to
+    solid 0, so a speck cut off on solid 1's surface was kept as solid 0's "largest piece"."""
+    from conformal.part import Part
+    from conformal.voxel import _solid_shells, shell_owner
+
+    a = trimesh.creation.box(extents=(1, 1, 1))
+    b = trimesh.creation.box(extents=(1, 1, 1))
+    b.apply_translation((3, 0, 0))
+    both = trimesh.util.concatenate([a, b])
+    shells = _solid_shells(Part(both.vertices, both.faces))
+    assert len(shells) == 2
+    points = np.array([[3.5, 0.0, 0.0], [3.2, 0.5, 0.1], [0.5, 0.2, 0.2], [0.1, 0.1, 0.1]])
+    owner = shell_owner(shells, points)
+    # whichever order the shells come in, each point goes to the box whose surface it is on
+    # (or inside which it lies): the first two to the box at x = 3, the others to the box at 0
+    at3 = [int(s.triangles[:, :, 0].min() > 1) for s in shells]
+    assert [at3[o] for o in owner] == [1, 1, 0, 0]
+
+
+@pytest.mark.slow
+def test_kcl_enclosure_tet_gives_one_body_without_specks():
+    """The bench setting gave a second body of 8 triangles (8.7e-5 mm^3) on the surface."""
+    lat, part = _bench_fill("kcl_enclosure.step", method="tet")
+    m = lat.mesh()
+    tm = trimesh.Trimesh(m.vertices, m.faces)
+    bodies = tm.split(only_watertight=False)
+    assert len(bodies) == 1, [(len(b.faces), b.volume) for b in bodies]
+    assert lat.trim_report.bodies == 1
