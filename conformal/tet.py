@@ -155,7 +155,21 @@ def _gmsh_tets(
     source: str, size: float, how: str, angle: float, algorithm: str
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
     """One gmsh run on a file (run in a child process): node tags (N,), coordinates (N, 3),
-    tetrahedra (T, 4) as node tags."""
+    tetrahedra (T, 4) as node tags.
+
+    gmsh's boundary recovery prints its debugging (``Found two duplicated facets``, ``el1 =
+    np = ...``: 856 lines on kcl_enclosure) with C ``printf``, past ``General.Terminal``;
+    standard output is captured for the run, so none of it reaches the user's terminal.
+    """
+    from lattice_cad.occ_impl.quiet import c_stdout_captured
+
+    with c_stdout_captured():
+        return _gmsh_tets_run(source, size, how, angle, algorithm)
+
+
+def _gmsh_tets_run(
+    source: str, size: float, how: str, angle: float, algorithm: str
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
     import gmsh
 
     if gmsh.isInitialized():

@@ -50,6 +50,12 @@ class _Console:
     def __init__(self, quiet: bool) -> None:
         self.quiet = quiet
 
+    @property
+    def bars(self) -> bool:
+        """Whether library calls draw their own tqdm bars: only on a terminal (in a log the
+        redraws of a bar nested in a step's bar pile up with cursor-up codes)."""
+        return not self.quiet and sys.stderr.isatty()
+
     def say(self, msg: str) -> None:
         if not self.quiet:
             print(msg, flush=True)
@@ -62,7 +68,9 @@ class _Console:
         if not self.quiet:
             from tqdm.auto import tqdm
 
-            bar = tqdm(total=1, desc=desc, leave=False, file=sys.stderr, delay=1.0)
+            # disable=None: no bar when stderr is not a terminal (a log file would get every
+            # redraw and its cursor-up codes); the "  step: N s" lines still say where it is
+            bar = tqdm(total=1, desc=desc, leave=False, file=sys.stderr, delay=1.0, disable=None)
 
         def progress(stage: str, done: int, total: int) -> None:
             if bar is not None:
@@ -321,7 +329,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             escape_at=args.escape_at,
             keep=args.keep,
         )
-    lat.progress = not con.quiet
+    lat.progress = con.bars
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
     rep = lat.build_report
     if rep is not None:
@@ -395,7 +403,7 @@ def _cmd_stitch(args: argparse.Namespace, con: _Console) -> int:
 
     graph = _load_graph(args.graph)
     lat = Lattice(graph, segments=args.segments)
-    lat.progress = not con.quiet
+    lat.progress = con.bars
     out = Path(args.output)
     _check_output(out)
     with con.step("stitch"):

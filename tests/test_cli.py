@@ -11,6 +11,7 @@ import pytest
 
 from conformal import CELLS, block
 from lattice_cad.cli import build_parser, main
+from tests.conftest import DATA
 
 COMMANDS = ["fill", "stitch", "reference", "validate", "cells", "check", "preview"]
 
@@ -342,3 +343,20 @@ def test_check_with_self_intersections(capsys, graph_json, tmp_path):
     assert run(capsys, "stitch", graph_json, "-o", stl, "-q")[0] == 0
     code, stdout, _ = run(capsys, "check", stl)
     assert code == 0 and "self-intersections checked" in stdout
+
+
+def test_tet_fill_output_has_no_gmsh_debugging_or_cursor_codes(tmp_path):
+    """Regression: on kcl_enclosure (the parts benchmark's tet setting) the CLI printed 856
+    lines of gmsh's boundary-recovery debugging (``el1 = np = ...``) to stdout, and in a log
+    the stitch's tqdm bar, nested in the step's bar, left cursor-up codes."""
+    r = subprocess.run(
+        [sys.executable, "-m", "lattice_cad.cli", "fill", str(DATA / "step" / "kcl_enclosure.step"),
+         "--method", "tet", "--cell-size", "18.3333", "--radius", "1.5278",
+         "-o", str(tmp_path / "t.stl")],
+        capture_output=True, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    out = r.stdout + r.stderr
+    assert "el1 = np" not in out and "duplicated facets" not in out, out[:2000]
+    assert "\x1b[A" not in out and "hub/s" not in out
+    assert "wrote" in r.stdout and len(out.splitlines()) < 40, out
