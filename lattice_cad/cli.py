@@ -323,6 +323,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             fill=args.fill,
             skin=args.skin,
             segments=args.segments,
+            profile=args.profile,
             min_radius=args.min_radius,
             **_print_kwargs(args),
             escape_holes=args.escape_holes,
@@ -402,7 +403,7 @@ def _cmd_stitch(args: argparse.Namespace, con: _Console) -> int:
     from lattice_cad.lattice import Lattice
 
     graph = _load_graph(args.graph)
-    lat = Lattice(graph, segments=args.segments)
+    lat = Lattice(graph, segments=args.segments, profile=args.profile)
     lat.progress = con.bars
     out = Path(args.output)
     _check_output(out)
@@ -437,7 +438,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
 
     src = Path(args.input)
     if src.suffix.lower() in suffixes(Kind.GRAPH, action="read"):
-        lat = Lattice(_load_graph(args.input), segments=args.segments)
+        lat = Lattice(_load_graph(args.input), segments=args.segments, profile=args.profile)
         _graph_print_options(lat, args)
     else:
         with con.step("load + lattice"):
@@ -449,6 +450,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
                 method=args.method,
                 fill=args.fill,
                 segments=args.segments,
+                profile=args.profile,
                 **_print_kwargs(args),
             )
     rep = _write_report(con, lat, args.report, args)
@@ -587,6 +589,7 @@ def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> No
         metavar="P",
         help="sides of each strut's polygon profile (default 6)",
     )
+    _add_profile_option(g)
     g.add_argument(
         "--min-radius",
         type=float,
@@ -664,6 +667,18 @@ def _add_fe_options(p: argparse.ArgumentParser) -> None:
         default=config.FE_ELEMENTS_PER_STRUT,
         metavar="K",
         help=f"quadratic beam elements per strut (default {config.FE_ELEMENTS_PER_STRUT})",
+    )
+
+
+def _add_profile_option(g: Any) -> None:
+    g.add_argument(
+        "--profile",
+        choices=("volume", "area", "inscribed", "circumscribed"),
+        default="volume",
+        help="stitched strut profile: volume (default: the design's exact volume; hubs of "
+        "irregular nodes are scaled down, so struts meet them in a neck, down to ~0.75 r "
+        "on tet lattices), area (no neck, heavier: +1-11 %%), inscribed (never wider than "
+        "the design), circumscribed (never thinner)",
     )
 
 
@@ -777,6 +792,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="P",
         help="sides of each strut's polygon profile (default 6)",
     )
+    _add_profile_option(p)
     _add_beam_lattice_option(p)
     p.set_defaults(func=_cmd_stitch)
 
@@ -964,6 +980,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
             workers=args.workers,
             fill=args.fill or "inside",
             segments=args.segments,
+            profile=args.profile,
             progress=not con.quiet,
             beam_lattice=bool(args.beam_lattice),
         )
