@@ -866,7 +866,8 @@ def build_skin(
             sample = v[:: max(1, len(v) // 2000)]
             return bool(surface.distance(sample, max_distance=2 * tol).min() <= tol)
 
-        n_bodies = split.bodies(solid.decompose(), touches)
+        # pieces found on the arrays (one vertex per position: no vertex properties)
+        n_bodies = split.bodies(*to_arrays(solid), touches) if solid.num_prop() == 0 else None
         if n_bodies is None:  # islands: the booleans on the whole lattice remove them
             split = None
         else:
