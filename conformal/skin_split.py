@@ -289,6 +289,8 @@ def split_lattice(
         None when the mesh is not the stitcher's, when too little is deep to be worth it,
         or when the float32 rounding touches a deep element.
     """
+    from conformal._skin_kernels import any_flat_triangle
+
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     lay = _layout(graph, v, f)
@@ -386,9 +388,7 @@ def split_lattice(
     mask = np.zeros(len(v), dtype=bool)
     mask[deep_f.ravel()] = True
     used_d = np.flatnonzero(mask)
-    tri = v32[deep_f]
-    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    if not np.all(np.any(nrm != 0.0, axis=1)):
+    if any_flat_triangle(v32, deep_f):
         return None
     u = v32[used_d]
     order = np.lexsort((u[:, 2], u[:, 1], u[:, 0]))
