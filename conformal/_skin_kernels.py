@@ -370,3 +370,17 @@ def unique_inverse(a):
     for i in range(n):
         inv[i] = rank[ids[i]]
     return keys[order], inv
+
+
+@njit(cache=True)
+def any_flat_triangle(v, f):
+    """Whether a triangle ``f`` (F, 3) of vertices ``v`` (V, 3) float64 has a zero normal
+    (``cross(b - a, c - a)``, each component exactly as ``np.cross`` computes it: a
+    product minus a product, no fused multiply-add), without the (F, 3, 3) temporaries."""
+    for i in range(f.shape[0]):
+        a, b, c = f[i, 0], f[i, 1], f[i, 2]
+        ux, uy, uz = v[b, 0] - v[a, 0], v[b, 1] - v[a, 1], v[b, 2] - v[a, 2]
+        wx, wy, wz = v[c, 0] - v[a, 0], v[c, 1] - v[a, 1], v[c, 2] - v[a, 2]
+        if uy * wz - uz * wy == 0.0 and uz * wx - ux * wz == 0.0 and ux * wy - uy * wx == 0.0:
+            return True
+    return False

@@ -318,8 +318,22 @@ def start_offsets(
         raise SkinError("OCCT offsets need a B-rep part (STEP, CadQuery or build123d)")
     worker = IsolatedWorker() if worker is None else worker
     depths = _offset_depths(thickness, mid_wall)
-    occ.start_fused_offsets(list(part.shape), tuple(-d for d in depths), worker)
+    deflection, angular, merge_tol = _offset_meshing(thickness)
+    occ.start_fused_offsets(
+        list(part.shape),
+        tuple(-d for d in depths),
+        worker,
+        deflection=deflection,
+        angular=angular,
+        merge_tol=merge_tol,
+    )
     return PendingOffsets(worker, part, float(thickness), bool(mid_wall))
+
+
+def _offset_meshing(thickness: float) -> tuple[float, float, float]:
+    """How the child meshes OCCT's offsets: chord deflection, angular deflection, and the
+    distance below which ``merge_close`` merges the faces' copies of edge nodes."""
+    return 0.01 * thickness, 0.1, 1e-6 * thickness
 
 
 def _pending_for(pending: PendingOffsets, part: Any, thickness: float, mid_wall: bool) -> bool:
@@ -351,20 +365,14 @@ def _occt_surfaces(
         pending = None
     if pending is None:
         pending = start_offsets(part, thickness, mid_wall=mid_wall)
-    defl = 0.01 * thickness
     tol = max(WALL_RTOL * thickness, WALL_ATOL)
     dists = _offset_depths(thickness, mid_wall)
     out = [manifold3d.Manifold() for _ in range(1 + len(dists))]
-    for k, (solid, offsets) in enumerate(occ.fused_offsets_result(pending.worker)):
-        vol = occ.volume(solid)
-        shapes = [solid, *offsets]
-        meshes = []
-        for shape, dist in zip(shapes, (0.0, *dists), strict=True):
-            if dist and not 0.0 < occ.volume(shape) < vol:
-                raise OCCTFailure(f"solid {k}: the offset by {-dist:g} is not inside the solid")
-            v, f = occ.tessellate(shape, defl, 0.1)
-            v, f, _ = occ.merge_close(v, f, 1e-6 * thickness)
-            meshes.append((v, f))
+    # volumes and meshes come from the child (meshed there, while this process stitched)
+    for k, (vols, meshes) in enumerate(occ.fused_offsets_result(pending.worker)):
+        if meshes is None:
+            bad = next(d for d, v in zip(dists, vols[1:], strict=True) if not 0.0 < v < vols[0])
+            raise OCCTFailure(f"solid {k}: the offset by {-bad:g} is not inside the solid")
         # the offsets must really be offsets: every inner vertex at its depth below the
         # outer surface (OCCT can return valid solids that are not)
         from conformal.part import Part
@@ -866,7 +874,8 @@ def build_skin(
             sample = v[:: max(1, len(v) // 2000)]
             return bool(surface.distance(sample, max_distance=2 * tol).min() <= tol)
 
-        n_bodies = split.bodies(solid.decompose(), touches)
+        # pieces found on the arrays (one vertex per position: no vertex properties)
+        n_bodies = split.bodies(*to_arrays(solid), touches) if solid.num_prop() == 0 else None
         if n_bodies is None:  # islands: the booleans on the whole lattice remove them
             split = None
         else:

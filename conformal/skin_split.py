@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SplitLattice", "split_lattice"]
+__all__ = ["SplitLattice", "pieces", "split_lattice"]
 
 #: Sample spacing along a strut for its distance to the inner surface, in strut radii
 #: (at least ``MIN_SPACING`` mm).
@@ -79,48 +79,53 @@ class SplitLattice:
     cap_piece: NDArray[np.int64]
     counts: dict[str, int]
 
-    def bodies(self, pieces: list[Any], touches: Any) -> int | None:
+    def bodies(
+        self, vertices: NDArray[np.float64], faces: NDArray[np.int64], touches: Any
+    ) -> int | None:
         """Bodies of the glued result (positive pieces reaching the outer surface, as
         ``conformal.skin._keep_attached`` counts them), or None when the glued result has
         an island (a piece of lattice joined to nothing that reaches the outer surface or
         to a cavity wall), for the full booleans to remove.
 
-        ``pieces``: the components of the boolean's result (manifold3d Manifolds of the
-        near part, each closed by its caps), joined here by the deep pieces at their caps;
-        ``touches(vertices) -> bool``: whether a piece reaches the outer surface.
+        ``vertices`` (V, 3) float64, ``faces`` (F, 3) int64: the boolean's result (the near
+        part, each piece closed by its caps; a manifold3d mesh, its vertices shared by the
+        triangles around them), whose connected pieces are joined here by the deep pieces
+        at their caps; ``touches(vertices) -> bool``: whether a piece reaches the outer
+        surface.
+
+        The pieces are found on the arrays (:func:`pieces`), not by manifold3d's
+        ``decompose``, which rebuilds a Manifold per piece (2.8 CPU s for the GE bracket's
+        0.95 M triangles, against 0.1 s here).
         """
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
 
-        from lattice_cad.core.mesh import mesh_arrays
-
-        if sum(1 for p in pieces if p.volume() > 0) <= 1 and len(pieces) <= 1:
-            return len(pieces)
-        arrays = [mesh_arrays(p) for p in pieces]
-        vols = np.array([p.volume() for p in pieces])
-        allv = np.vstack([a[0] for a in arrays])  # type: ignore[index]
-        label = np.repeat(np.arange(len(pieces)), [len(a[0]) for a in arrays])  # type: ignore[index]
+        n_pieces, vlabel, vols = pieces(vertices, faces)
+        if n_pieces <= 1:
+            return n_pieces
         # the piece holding each cap (its first vertex; a position may repeat in a piece)
         key = np.dtype((np.void, 24))
-        hk = np.ascontiguousarray(allv).view(key).ravel()
+        hk = np.ascontiguousarray(vertices, dtype=np.float64).view(key).ravel()
         nk = np.ascontiguousarray(self.deep_vertices[self.caps[:, 0]]).view(key).ravel()
         order = np.argsort(hk)
         pos = np.minimum(np.searchsorted(hk[order], nk), len(hk) - 1)
         if not np.array_equal(hk[order[pos]], nk):
             return None
         n_deep = int(self.cap_piece.max(initial=-1)) + 1
-        n = len(pieces) + n_deep
-        rows, cols = label[order[pos]], len(pieces) + self.cap_piece
+        n = n_pieces + n_deep
+        rows, cols = vlabel[order[pos]], n_pieces + self.cap_piece
         g = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
         n_groups, group = connected_components(g, directed=False)
         anchored = np.zeros(n_groups, dtype=bool)
-        anchored[group[: len(pieces)][vols < 0]] = True  # cavity walls are kept
+        anchored[group[:n_pieces][vols < 0]] = True  # cavity walls are kept
         bodies = 0
-        for k, (v, _) in enumerate(arrays):  # type: ignore[misc]
-            if vols[k] > 0 and touches(v):
+        by_piece = np.argsort(vlabel, kind="stable")
+        starts = np.searchsorted(vlabel[by_piece], np.arange(n_pieces + 1))
+        for k in range(n_pieces):
+            if vols[k] > 0 and touches(vertices[by_piece[starts[k] : starts[k + 1]]]):
                 anchored[group[k]] = True
                 bodies += 1
-        if not anchored[group[: len(pieces)]].all():
+        if not anchored[group[:n_pieces]].all():
             return None
         return bodies
 
@@ -163,6 +168,33 @@ class SplitLattice:
         v = np.vstack([vertices, self.deep_vertices[other]])
         f = np.vstack([faces[keep], to_out[self.deep_faces]])
         return v, f
+
+
+def pieces(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64]
+) -> tuple[int, NDArray[np.int64], NDArray[np.float64]]:
+    """The connected pieces of a closed triangle mesh whose triangles share their vertices
+    (a manifold3d mesh): their number ``n``, each vertex's piece (V,) int64 (in ``0 .. n-1``;
+    a vertex of no triangle: -1) and each piece's signed volume (n,) float64, as
+    ``len(Manifold.decompose())`` and the pieces' ``volume()`` give them."""
+    from conformal._kernels import component_labels
+
+    f = np.asarray(faces, dtype=np.int64)
+    edges = np.concatenate([f[:, :2], f[:, 1:]])
+    _, labels = component_labels(len(vertices), edges)
+    used = np.zeros(len(vertices), dtype=bool)
+    used[f.ravel()] = True
+    # number the pieces of the used vertices 0 .. n - 1 (in the order of their first vertex)
+    kinds, inverse = np.unique(labels[used], return_inverse=True)
+    vlabel = np.full(len(vertices), -1, dtype=np.int64)
+    vlabel[used] = inverse
+    v = np.asarray(vertices, dtype=np.float64)
+    vols = np.zeros(len(kinds))
+    for start in range(0, len(f), 1 << 16):  # chunks: the temporaries stay in cache
+        tri = v[f[start : start + (1 << 16)]]
+        six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+        vols += np.bincount(vlabel[f[start : start + (1 << 16), 0]], six, len(kinds))
+    return len(kinds), vlabel, vols / 6.0
 
 
 def _face_keys(f: NDArray[np.int64], nv: np.int64) -> NDArray[np.int64]:
@@ -257,6 +289,8 @@ def split_lattice(
         None when the mesh is not the stitcher's, when too little is deep to be worth it,
         or when the float32 rounding touches a deep element.
     """
+    from conformal._skin_kernels import any_flat_triangle
+
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     lay = _layout(graph, v, f)
@@ -354,9 +388,7 @@ def split_lattice(
     mask = np.zeros(len(v), dtype=bool)
     mask[deep_f.ravel()] = True
     used_d = np.flatnonzero(mask)
-    tri = v32[deep_f]
-    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    if not np.all(np.any(nrm != 0.0, axis=1)):
+    if any_flat_triangle(v32, deep_f):
         return None
     u = v32[used_d]
     order = np.lexsort((u[:, 2], u[:, 1], u[:, 0]))

@@ -237,3 +237,32 @@ def test_ge_bracket_skin_by_occt_offset():
     rep = res.report
     assert rep.method == "occt" and not rep.fallback, rep.summary()
     assert rep.accurate, rep.summary()
+
+
+def _face_set(f: np.ndarray) -> np.ndarray:
+    """The triangles as a sorted set of rows, each from its smallest vertex (orientation
+    kept)."""
+    r = np.argmin(f, axis=1)[:, None]
+    rot = np.take_along_axis(f, (r + np.arange(3)[None, :]) % 3, axis=1)
+    return rot[np.lexsort(rot.T[::-1])]
+
+
+def test_offsets_meshed_in_the_child_equal_the_meshes_made_here():
+    """start_offsets has the child mesh OCCT's offsets too (so that the meshing runs while
+    this process stitches): the volumes and meshes it returns equal those made here from
+    the same offset of the same real part."""
+    from lattice_cad.occ_impl import shapes as occ
+
+    part = _part("kcl_mounting-plate.step")
+    t = 1.0
+    pending = S.start_offsets(part, t)
+    [(vols, meshes)] = occ.fused_offsets_result(pending.worker)
+    assert meshes is not None and len(vols) == len(meshes) == 2
+    solid = list(_part("kcl_mounting-plate.step").shape)[0]
+    deflection, angular, merge_tol = S._offset_meshing(t)
+    for shape, vol, (v, f) in zip((solid, occ.offset_solid(solid, -t)), vols, meshes, strict=True):
+        assert vol == pytest.approx(occ.volume(shape), rel=1e-12)
+        v2, f2, _ = occ.merge_close(*occ.tessellate(shape, deflection, angular), merge_tol)
+        np.testing.assert_array_equal(v, v2)
+        np.testing.assert_array_equal(_face_set(f), _face_set(f2))  # (in another order)
+    assert 0 < vols[1] < vols[0]

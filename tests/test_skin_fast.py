@@ -185,3 +185,25 @@ def test_early_offsets_serve_the_refined_part():
     assert not skin._pending_for(pending, fine, 1.0, True)
     other = load_part(DATA / "step" / "kcl_flange-with-patterns.step")
     assert not skin._pending_for(pending, other, 1.0, False)
+
+
+def test_any_flat_triangle_equals_the_np_cross_test():
+    """conformal._skin_kernels.any_flat_triangle (skin_split's float32 test of the deep
+    triangles) answers as ``np.cross`` did: a real part's triangles in float32 have no
+    zero normal; one made of three points on a line, or with a repeated corner, has."""
+    from conformal._skin_kernels import any_flat_triangle
+
+    part = load_part(DATA / "meshes" / "fandisk.obj")
+    v = part.vertices.astype(np.float32).astype(np.float64)
+    f = np.ascontiguousarray(part.faces, dtype=np.int64)
+
+    def reference(v, f):
+        t = v[f]
+        return not np.all(np.any(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]) != 0, axis=1))
+
+    assert any_flat_triangle(v, f) == reference(v, f) is False
+    a, b = v[f[0, 0]], v[f[0, 1]]
+    line = np.vstack([v, a + 0.25 * (b - a)])  # a point on the edge a-b (exact in binary)
+    for bad in ([f[0, 0], f[0, 1], len(v)], [f[5, 0], f[5, 1], f[5, 1]]):
+        g = np.vstack([f, [bad]])
+        assert any_flat_triangle(line, g) == reference(line, g) is True

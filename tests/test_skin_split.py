@@ -111,3 +111,29 @@ def test_isolated_worker_result_error_and_crash():
     w.submit(os.abort)
     with pytest.raises(ExternalCrash, match="abort crashed"):
         w.result(timeout=60, what="abort")
+
+
+def test_pieces_equal_manifold_decompose_on_a_real_part():
+    """skin_split.pieces (what SplitLattice.bodies counts, on the arrays) gives the pieces
+    manifold3d's decompose gives: a real part with a spherical cavity (a negative piece), a
+    ball inside the cavity and a loose copy of the part beside it."""
+    import manifold3d
+
+    from conformal.skin import as_manifold, to_arrays
+
+    part = load_part(DATA / "meshes" / "fandisk.obj")
+    solid = as_manifold(part)
+    size = np.asarray(part.size, dtype=np.float64)
+    centre = list(np.asarray(part.vertices, dtype=np.float64).mean(axis=0))
+    r = 0.1 * float(size.min())
+    cavity = manifold3d.Manifold.sphere(r, 48).translate(centre)
+    ball = manifold3d.Manifold.sphere(0.5 * r, 24).translate(centre)
+    loose = solid.translate([2.0 * float(size[0]), 0.0, 0.0])
+    whole = (solid - cavity) + ball + loose
+    v, f = to_arrays(whole)
+    n, vlabel, vols = skin_split.pieces(v, f)
+    expected = sorted(p.volume() for p in whole.decompose())
+    assert n == len(expected) == 4 and expected[0] < 0  # the cavity wall
+    assert np.allclose(sorted(vols), expected, rtol=1e-9, atol=1e-12)
+    assert (vlabel >= 0).all() and set(np.unique(vlabel)) == set(range(n))
+    assert (vlabel[f] == vlabel[f[:, :1]]).all()  # a triangle's corners lie in one piece

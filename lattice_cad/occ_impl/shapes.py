@@ -568,9 +568,9 @@ def offset_solid_isolated(
     return [from_bytes(b) for b in data]
 
 
-def _fused_offsets_bytes(
+def _fused_offsets(
     breps: list[bytes], distances: tuple[float, ...]
-) -> list[tuple[bytes, list[bytes]]]:
+) -> list[tuple[TopoDS_Shape, list[TopoDS_Shape]]]:
     """In a child: the solids fused where they touch (as they are when there is one or
     the fuse fails), and each one's offsets (see :func:`start_fused_offsets`)."""
     solids_in = [from_bytes(b) for b in breps]
@@ -580,25 +580,66 @@ def _fused_offsets_bytes(
             fused = solids(fuse(solids_in, simplify=True)) or solids_in
         except Exception:  # OCCT raises Standard_Failure as RuntimeError & co; OCCTFailure
             fused = solids_in
-    return [(to_bytes(s), [to_bytes(offset_solid(s, d)) for d in distances]) for s in fused]
+    return [(s, [offset_solid(s, d) for d in distances]) for s in fused]
 
 
-def start_fused_offsets(solid_list: Any, distances: tuple[float, ...], worker: Any) -> None:
+def _fused_offset_meshes(
+    breps: list[bytes],
+    distances: tuple[float, ...],
+    deflection: float,
+    angular: float,
+    merge_tol: float,
+) -> list[tuple[list[float], list[tuple[NDArray[np.float64], NDArray[np.int64]]] | None]]:
+    """In a child: :func:`_fused_offsets`, then each fused solid's and offset's volume and
+    mesh (:func:`tessellate`, :func:`merge_close`); the meshes are None when an offset is
+    not inside its solid by volume (the caller says so)."""
+    out: list[Any] = []
+    for solid, offsets in _fused_offsets(breps, distances):
+        shapes = [solid, *offsets]
+        vols = [volume(s) for s in shapes]
+        if not all(0.0 < v < vols[0] for v in vols[1:]):
+            out.append((vols, None))
+            continue
+        meshes = []
+        for shape in shapes:
+            v, f = tessellate(shape, deflection, angular)
+            v, f, _ = merge_close(v, f, merge_tol)
+            meshes.append((v, f))
+        out.append((vols, meshes))
+    return out
+
+
+def start_fused_offsets(
+    solid_list: Any,
+    distances: tuple[float, ...],
+    worker: Any,
+    *,
+    deflection: float,
+    angular: float,
+    merge_tol: float,
+) -> None:
     """Start, in ``worker`` (a :class:`lattice_cad.core.isolate.IsolatedWorker`), the
     offsets of the solids fused where they touch (an assembly's offset then leaves no
-    partition wall of twice the thickness between its solids): the caller goes on with
-    its own work meanwhile and collects them with :func:`fused_offsets_result`."""
+    partition wall of twice the thickness between its solids), measured and meshed there
+    (``tessellate(shape, deflection, angular)``, ``merge_close(..., merge_tol)``): the
+    caller goes on with its own work meanwhile (the meshing too runs on the child's core)
+    and collects them with :func:`fused_offsets_result`."""
     worker.submit(
-        _fused_offsets_bytes,
+        _fused_offset_meshes,
         [to_bytes(s) for s in solid_list],
         tuple(float(d) for d in distances),
+        float(deflection),
+        float(angular),
+        float(merge_tol),
     )
 
 
 def fused_offsets_result(
     worker: Any, *, timeout: float = 120.0
-) -> list[tuple[TopoDS_Shape, list[TopoDS_Shape]]]:
-    """The (fused solid, its offsets) pairs of :func:`start_fused_offsets`.
+) -> list[tuple[list[float], list[tuple[NDArray[np.float64], NDArray[np.int64]]] | None]]:
+    """Per fused solid of :func:`start_fused_offsets`: the volumes of the solid and of its
+    offsets, and their meshes (vertices (V, 3) float64, faces (F, 3) int64; None when an
+    offset's volume is not between 0 and its solid's).
 
     Raises
     ------
@@ -608,10 +649,9 @@ def fused_offsets_result(
     from lattice_cad.core.errors import ExternalCrash
 
     try:
-        data = worker.result(timeout=timeout, what="OCCT's offset")
+        return worker.result(timeout=timeout, what="OCCT's offset")
     except ExternalCrash as exc:
         raise OCCTFailure(str(exc)) from None
-    return [(from_bytes(s), [from_bytes(b) for b in offs]) for s, offs in data]
 
 
 # ---------------------------------------------------------------- measures
