@@ -299,5 +299,9 @@ def test_meshes_of_one_report_share_the_reference_side_with_the_same_numbers(mon
         np.testing.assert_array_equal(a.node_deviation, b.node_deviation)
         np.testing.assert_array_equal(a.node_worst_point, b.node_worst_point)
         np.testing.assert_array_equal(a.node_worst_side, b.node_worst_side)
+    # the reference's validity was checked while the child measured (cached for the report)
+    from reference_boolean.compare import _REFERENCE_VALIDITY
+
+    assert both.timings["reference_validity"] >= 0.0 and ref in _REFERENCE_VALIDITY
     # and the two meshes do differ (the test would be empty otherwise)
     assert both.comparisons["volume"].hausdorff != both.comparisons["inscribed"].hausdorff
