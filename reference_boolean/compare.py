@@ -407,9 +407,10 @@ def two_sided_deviations(
     sampled once (they are the same for every mesh: same seed), so a second mesh (the
     report compares two) costs only its own side and its own tree.
 
-    ``while_waiting``, if given, is called once in this process after its own side, while
+    ``while_waiting``, if given, is called once in this process after its own side while
     the forked child may still measure the other (on the GE tet lattice the reference's
-    side is the longer: the report checks the reference's validity there)."""
+    side is the longer: the report checks the reference's validity there); not called
+    when both sides are measured here (small meshes, one CPU)."""
     import multiprocessing as mp
     import sys
     from concurrent.futures import ProcessPoolExecutor
@@ -426,8 +427,6 @@ def two_sided_deviations(
     if not (big and (os.cpu_count() or 1) > 1 and sys.platform.startswith("linux")):
         first = _to_reference(meshes, reference, samples, seed)
         p2, d2s = _from_reference(meshes, reference, samples, seed + 1)
-        if while_waiting is not None:
-            while_waiting()
     else:
         _FORKED["pair"] = (meshes, reference)
         pool = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("fork"))
@@ -945,7 +944,7 @@ def compare(
     ]
     tv = 0.0
 
-    def validity() -> None:  # cached; the report asks for it (it used to run after this)
+    def validity() -> None:  # cached for the report's files (it used to run after this)
         nonlocal tv
         t1 = time.perf_counter()
         reference_validity(reference)
@@ -954,7 +953,8 @@ def compare(
     devs = two_sided_deviations(
         as_mesh, reference.mesh, samples=samples, seed=seed, while_waiting=validity
     )
-    # the validity check ran within the deviation's wall time (overlapped with the child)
+    # the validity check ran within the deviation's wall time (overlapped with the child;
+    # 0 when the deviation ran in this process alone)
     timings["reference_validity"] = tv
     share = (time.perf_counter() - t) / max(len(todo), 1)  # each mesh's share of the time
     shared: dict[str, Any] = {}
