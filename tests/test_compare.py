@@ -257,3 +257,51 @@ def test_two_sided_deviation_in_two_processes_gives_the_serial_numbers(monkeypat
     for (p, d), (q, e) in zip(serial, forked, strict=True):
         np.testing.assert_array_equal(p, q)
         np.testing.assert_array_equal(d, e)
+
+
+@pytest.mark.slow  # the GE bracket lattice and its reference (~15 s)
+def test_meshes_of_one_report_share_the_reference_side_with_the_same_numbers(monkeypatch):
+    """The report compares two meshes with one reference: the reference's tree, its sample
+    points, their hub-zone mask and nearest nodes are computed once for both (the GE tet
+    report's deviation stage measured them twice). Each mesh must get, bit for bit, the
+    numbers of a comparison of it alone - here on a real part, with the two sides forced
+    into two processes as on the big GE lattices."""
+    import warnings
+
+    from conformal.part import load_part
+    from conformal.voxel import voxel_lattice
+    from lattice_cad.core import config
+    from lattice_cad.core.errors import LatticeWarning
+    from tests.conftest import DATA
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        part = load_part(DATA / "step" / "dolfiny_ge_bracket_rotated_nonds.step")
+        g = voxel_lattice(part, "bcc", 16.0, 0.6, fill="inside")
+    ref = build_reference(g, keep_solids=False)
+    meshes = {
+        "volume": fast_stitch.stitch(g, 6),
+        "inscribed": fast_stitch.stitch(g, 6, profile="inscribed"),
+    }
+    alone = {
+        lab: compare(g, reference=ref, meshes={lab: m}, union_segments=(), samples=5000)
+        for lab, m in meshes.items()
+    }
+    monkeypatch.setattr(config, "DEVIATION_PARALLEL_MIN", 0)
+    both = compare(g, reference=ref, meshes=meshes, union_segments=(), samples=5000)
+    assert list(both.comparisons) == list(meshes)
+    for lab in meshes:
+        a, b = alone[lab].comparisons[lab], both.comparisons[lab]
+        assert a.hausdorff == b.hausdorff
+        assert a.regions == b.regions
+        for side in ("mesh_to_reference", "reference_to_mesh"):
+            np.testing.assert_array_equal(a.distances[side], b.distances[side])
+        np.testing.assert_array_equal(a.node_deviation, b.node_deviation)
+        np.testing.assert_array_equal(a.node_worst_point, b.node_worst_point)
+        np.testing.assert_array_equal(a.node_worst_side, b.node_worst_side)
+    # the reference's validity was checked while the child measured (cached for the report)
+    from reference_boolean.compare import _REFERENCE_VALIDITY
+
+    assert both.timings["reference_validity"] >= 0.0 and ref in _REFERENCE_VALIDITY
+    # and the two meshes do differ (the test would be empty otherwise)
+    assert both.comparisons["volume"].hausdorff != both.comparisons["inscribed"].hausdorff
