@@ -33,9 +33,10 @@ from OCP.gp import gp_Pnt
 from OCP.IMeshTools import IMeshTools_Parameters
 from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
-from OCP.TopExp import TopExp_Explorer
+from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
+from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 
 from lattice_cad.core.errors import OCCTFailure
 
@@ -262,6 +263,33 @@ def _mesh(shape: TopoDS_Shape, deflection: float, angular: float, parallel: bool
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
 
 
+def _edges_shared(shape: TopoDS_Shape, faces: list[TopoDS_Face]) -> bool:
+    """True when every edge of ``faces`` has the same nodes in the triangulation of each
+    face of ``shape`` that holds it (the faces share their edge nodes: a closed mesh)."""
+    ancestors = TopTools_IndexedDataMapOfShapeListOfShape()
+    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, ancestors)
+    for face in faces:
+        exp = TopExp_Explorer(face, TopAbs_EDGE)
+        while exp.More():
+            edge = TopoDS.Edge_s(exp.Current())
+            exp.Next()
+            if BRep_Tool.Degenerated_s(edge):
+                continue
+            nodes = set()
+            for other in ancestors.FindFromKey(edge):
+                loc = TopLoc_Location()
+                tri = BRep_Tool.Triangulation_s(TopoDS.Face_s(other), loc)
+                pol = None if tri is None else BRep_Tool.PolygonOnTriangulation_s(edge, tri, loc)
+                if pol is None:
+                    return False
+                n = pol.NbNodes()
+                par = pol.Parameter if pol.HasParameters() else (lambda k: 0.0)
+                nodes.add(tuple(par(k) for k in range(1, n + 1)))
+            if len(nodes) > 1:  # the same edge nodes (parameters) in every face
+                return False
+    return True
+
+
 def _mesh_faces_finer(
     shape: TopoDS_Shape,
     over: dict[int, float],
@@ -293,6 +321,7 @@ def _mesh_faces_finer(
     """
     scale: dict[int, float] = {}
     todo = dict(over)
+    dev0 = dev.copy()
     for _ in range(rounds):
         if not todo:
             break
@@ -316,9 +345,14 @@ def _mesh_faces_finer(
                 exp.Next()
         _mesh(shape, deflection, angular, parallel)
         faces = _faces(shape)
-        if not all(_has_triangulation(f) for f in faces):
+        if not all(_has_triangulation(f) for f in faces) or not _edges_shared(
+            shape, [faces[i] for i in scale]
+        ):
+            # BRepMesh failed, or meshed an edge of these faces again for a neighbour
+            # (M6 countersunk screw, thread faces: 1338 open edges): the plain mesh
             BRepTools.Clean_s(shape)
             _mesh(shape, deflection, angular, parallel)
+            dev[:] = dev0
             return shape, [], sorted(over)
         # BRepMesh ran on the whole shape again: measure every face, not only these
         todo = {}
