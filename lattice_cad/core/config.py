@@ -332,7 +332,10 @@ CUT_ANGULAR_DEFLECTION = 0.3
 #: at most as 1 / chord error), so parts whose default mesh is already dense (threads,
 #: gear teeth: 340k-410k triangles and minutes of BRepMesh at 0.5 % r) stay affordable;
 #: there the cut may stand out of the exact surface by somewhat more than TRIM_RTOL.
-CUT_MAX_TRIANGLES = 300_000
+#: 700k (was 300k): the Ventilator's cut reaches 0.5 % r (clip 3.14 -> 0.50 % r exact; fill
+#: 24 -> 60 s, 2.5x; the cycloidal gear 34 -> 43 CPU s, 1.3x; benchmarks/results/
+#: bench_protrusion_exact.txt).
+CUT_MAX_TRIANGLES = 700_000
 #: A refined tessellation (``conformal.Part.refined``, so the cutting one) is checked face by
 #: face against the exact surface (``occ_impl.chord``): B-spline faces whose triangles
 #: deviate by more than this factor times the chord error asked get knots inserted where
