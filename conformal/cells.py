@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.graph import LatticeGraph
 
 __all__ = ["UnitCell", "CELLS", "tile", "tile_arrays", "block", "cell_counts"]
@@ -796,13 +797,13 @@ def _tile_int_rows(
     """:func:`_tile_int` for a huge, sparse extent: unique on coordinate rows."""
     d, k_nodes = cell.denominator, cell.num_nodes
     g = (cells[:, None, :] * d + cell.nodes[None, :, :]).reshape(-1, 3)
-    node_ijk, inv = np.unique(g, axis=0, return_inverse=True)
+    node_ijk, inv = unique_rows(g, return_inverse=True)
     del g
     inv = inv.reshape(len(cells), k_nodes)
     a = inv[:, cell.edges[:, 0]]
     b = inv[:, cell.edges[:, 1]]
     lo, hi = np.minimum(a, b), np.maximum(a, b)
-    edges = np.unique(np.stack([lo.ravel(), hi.ravel()], axis=1), axis=0)
+    edges = unique_rows(np.stack([lo.ravel(), hi.ravel()], axis=1))
     return node_ijk, edges.astype(np.int64, copy=False)
 
 
@@ -819,7 +820,7 @@ def _tile_edges_rows(
         a = np.searchsorted(uniq, (b0 + off_a[None, :]).ravel())
         b = np.searchsorted(uniq, (b0 + off_b[None, :]).ravel())
         rows.append(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1))
-    return np.unique(np.concatenate(rows), axis=0)
+    return unique_rows(np.concatenate(rows))
 
 
 def tile_arrays(

@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
 from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import LatticeWarning, MissingFileError, PartError
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
@@ -574,7 +575,7 @@ def _closed_tessellation(
 def _open_triangles(f: NDArray[np.int64]) -> NDArray[np.bool_]:
     """(F,) bool: triangles with an edge used once or more than twice."""
     he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    _, inv, cnt = np.unique(np.sort(he, axis=1), axis=0, return_inverse=True, return_counts=True)
+    _, inv, cnt = unique_rows(np.sort(he, axis=1), return_inverse=True, return_counts=True)
     bad = (cnt != 2)[inv.reshape(-1)]
     return bad.reshape(3, -1).any(axis=0)
 
@@ -585,7 +586,7 @@ def _closed_problem(f: NDArray[np.int64]) -> str:
         return "no triangles"
     he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     und = np.sort(he, axis=1)
-    _, inv, cnt = np.unique(und, axis=0, return_inverse=True, return_counts=True)
+    _, inv, cnt = unique_rows(und, return_inverse=True, return_counts=True)
     inv = inv.reshape(-1)
     open_edges = int((cnt == 1).sum())
     nonman = int((cnt > 2).sum())

@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from fast_stitch.fit import clashes, misfits, strut_lengths
 from fast_stitch.hubvolume import Profile, profile_factor
 from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.checks import check_segments
 from lattice_cad.core.errors import FitError
 from lattice_cad.core.graph import LatticeGraph
@@ -661,7 +662,7 @@ def _collapse(
     e2 = target[edges]
     keep = e2[:, 0] != e2[:, 1]
     e2, r2 = np.sort(e2[keep], axis=1), radii[keep]
-    _, first = np.unique(e2, axis=0, return_index=True)
+    _, first = unique_rows(e2, return_index=True)
     first = np.sort(first)
     return nodes, e2[first], r2[first], surface, merged
 

@@ -35,6 +35,7 @@ from conformal.radius import (
 )
 from conformal.voxel import BuildReport, FitMode, _finish
 from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import ExternalCrash, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.isolate import run_isolated
@@ -302,7 +303,7 @@ def tet_edges(tets: NDArray[np.int64]) -> NDArray[np.int64]:
     """(M, 2) int64: the distinct edges of (T, 4) tetrahedra, ``[:, 0] < [:, 1]``, sorted."""
     pairs = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
     e = np.sort(tets[:, pairs].reshape(-1, 2), axis=1)
-    return np.unique(e, axis=0)
+    return unique_rows(e)
 
 
 def tet_lattice(
@@ -406,7 +407,7 @@ def tet_lattice(
 def boundary_nodes(tets: NDArray[np.int64], n_nodes: int) -> NDArray[np.bool_]:
     """(N,) bool: nodes on the boundary of a tet mesh (on a face used by one tet only)."""
     faces = np.sort(tets[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3), axis=1)
-    uniq, count = np.unique(faces, axis=0, return_counts=True)
+    uniq, count = unique_rows(faces, return_counts=True)
     out = np.zeros(n_nodes, dtype=bool)
     out[uniq[count == 1].ravel()] = True
     return out

@@ -54,6 +54,7 @@ from conformal.radius import (
     unstitchable_dropped,
 )
 from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import FillError, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.resources import require_memory
@@ -756,7 +757,7 @@ def merge_close(
         rep.merged_nodes = int((root != np.arange(n)).sum())
     edges = root[edges]
     edges = edges[edges[:, 0] != edges[:, 1]]
-    edges = np.unique(np.sort(edges, axis=1), axis=0)
+    edges = unique_rows(np.sort(edges, axis=1))
     return edges, root
 
 

@@ -100,6 +100,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.atomic import atomic_write, check_target
 from lattice_cad.core.errors import (
     DistributedUnavailableError,
@@ -1883,7 +1884,7 @@ def _graph_stitch(
         e_glob = np.concatenate([q["edges"] for q in parts])
         radii = np.concatenate([q["radii"] for q in parts])
         # a strut routed from two input shards appears once per input; keep one copy
-        e_glob, first = np.unique(e_glob, axis=0, return_index=True)
+        e_glob, first = unique_rows(e_glob, return_index=True)
         radii = radii[first]
         ids, where_ = np.unique(np.concatenate([q["node_ids"] for q in parts]), return_index=True)
         nodes = np.concatenate([q["nodes"] for q in parts])[where_]

@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from lattice_cad.core.arrays import unique_rows
+
 __all__ = ["repair_rounded", "pinched_vertices", "flat_triangles"]
 
 #: How far (in float32 steps at the vertex's largest coordinate) the copies of a pinched
@@ -126,7 +128,7 @@ def _separate_pinches(
     corners = np.argwhere(is_pinched[f])  # (C, 2): face, k
     vid = f[corners[:, 0], corners[:, 1]]
     fan = fans[corners[:, 0], corners[:, 1]]
-    groups, inv = np.unique(np.stack([vid, fan], axis=1), axis=0, return_inverse=True)
+    groups, inv = unique_rows(np.stack([vid, fan], axis=1), return_inverse=True)
     inv = inv.reshape(-1)
     new_v = [v]
     new_f = f.copy()

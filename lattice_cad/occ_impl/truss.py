@@ -67,6 +67,7 @@ from OCP.TopoDS import TopoDS_Shape
 from OCP.TopTools import TopTools_ListOfShape
 
 from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import OCCTFailure
 from lattice_cad.occ_impl.shapes import (
     check_done,
@@ -597,7 +598,7 @@ def circle_loops(
     strut in errors)."""
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     key = np.sort(e, axis=1)
-    uniq, counts = np.unique(key, axis=0, return_counts=True)
+    uniq, counts = unique_rows(key, return_counts=True)
     if (counts > 2).any():
         raise OCCTFailure(f"{int((counts > 2).sum())} non-manifold edge(s) in the hub mesh")
     bverts = np.unique(uniq[counts == 1])

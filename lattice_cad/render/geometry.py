@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from lattice_cad.core.arrays import unique_rows
+
 __all__ = ["tubes", "strut_angles", "node_values"]
 
 
@@ -35,7 +37,7 @@ def _icosphere(level: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     for _ in range(level):
         edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+        uniq, inv = unique_rows(edges, return_inverse=True)
         mid = v[uniq].mean(axis=1)
         mid /= np.linalg.norm(mid, axis=1, keepdims=True)
         m = inv.reshape(-1) + len(v)
