@@ -11,6 +11,7 @@ no library but numpy. Importing it has no side effects.
 - ``config``: every shared tolerance, limit and default.
 - ``checks``: the argument checks the engines share (segments, seed, workers, progress).
 - ``atomic``: :func:`atomic_write`, so that no file is ever left half-written.
+- ``arrays``: :func:`unique_rows` (``np.unique(axis=0)`` of integer rows, fast).
 """
 
 from lattice_cad.core import config
