@@ -20,8 +20,8 @@ describes what is left, for a :class:`FitError`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Union
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, TypedDict, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -466,7 +466,14 @@ class RepairReport:
     dropped: int = 0
     thinned: int = 0
     unfit: int = 0
-    where: list[list[float]] | None = None
+    where: list[list[float]] = field(default_factory=list)
+
+
+class _Polygons(TypedDict):
+    """The stitch's profile polygons (the options of :func:`fast_stitch.stitch`)."""
+
+    segments: int
+    profile: str
 
 
 def repair_graph(
@@ -517,7 +524,7 @@ def repair_graph(
     asked = np.asarray(radii, dtype=np.float64)
     on_surf = np.zeros(len(nodes), bool) if surface is None else np.asarray(surface, bool).copy()
     rep = RepairReport()
-    poly = {"segments": segments, "profile": profile}  # what the stitch will build
+    poly: _Polygons = {"segments": segments, "profile": profile}  # what the stitch will build
     median = float(np.median(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)))
     budget = max_change * len(edges)  # the repair changes the lattice, it must not replace it
     for _ in range(max_rounds):

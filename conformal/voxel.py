@@ -808,7 +808,7 @@ def _solid_shells(part: Part) -> list[Part]:
     if k == 1:
         return [part]
     flab = lab[f[:, 0]]
-    shells = []
+    shells: list[Part] = []
     for c in range(k):
         fc = f[flab == c]
         t = v[fc]

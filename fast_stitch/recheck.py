@@ -146,15 +146,22 @@ def recheck(
         and len(pairs) == report.n_self_intersections
         and len(zero) == report.n_zero_area
     )
-    opts = {"max_report": max_report, "coplanar_rtol": coplanar_rtol}
+    def whole(self_intersections: bool = True) -> CheckReport:
+        return check(
+            (va, fa),
+            self_intersections=self_intersections,
+            max_report=max_report,
+            coplanar_rtol=coplanar_rtol,
+        )
+
     if not complete or len(fa) == 0:
-        return check((va, fa), **opts)
+        return whole()
     named = np.union1d(zero, pairs.ravel())
     marked = np.isin(_row_hash(va), _row_hash(vb[fb[named]].reshape(-1, 3)))
     changed = np.flatnonzero(marked[fa].any(axis=1))
     if len(changed) > MAX_CHANGED:
-        return check((va, fa), **opts)
-    topo = check((va, fa), self_intersections=False, **opts)
+        return whole()
+    topo = whole(self_intersections=False)
     if len(changed) == 0:
         return dataclasses.replace(
             topo,
@@ -167,7 +174,7 @@ def recheck(
     scale = _scale(va, fa)
     near = _near(lo, hi, changed, 1e-9 * max(scale, 1.0))
     if len(near) > MAX_LOCAL_FRACTION * len(fa):
-        return check((va, fa), **opts)
+        return whole()
     sub = fa[near]
     sub_scale = _scale(va, sub)
     rtol = coplanar_rtol * scale / sub_scale if sub_scale > 0 else coplanar_rtol

@@ -428,7 +428,8 @@ def _stitch(
                 scale, capped = cap_growth(nodes, edges, radii, end_offset, scale)
             else:
                 scale, capped = cap_growth(nodes, edges, radii, end_offset, scale, hits0=report)
-            if override is not None:  # scales of some nodes given (lattice_cad.distributed)
+            # scales of some nodes given (lattice_cad.distributed); an override implies a report
+            if override is not None and report is not None:
                 idx, given = override
                 scale = scale.copy()
                 scale[idx] = report["scale0"][idx] if given is None else given

@@ -94,7 +94,7 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -109,6 +109,9 @@ from lattice_cad.core.errors import (
     ShardHaloError,
     ShardingError,
 )
+
+if TYPE_CHECKING:
+    from fast_stitch.hubvolume import Profile
 
 __all__ = [
     "fill_sharded",
@@ -269,7 +272,9 @@ def _threads(n: int) -> Iterator[None]:
     import numba
 
     prev = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+    # numba.config sets its (documented) options at import time, unseen by mypy
+    limit = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+    numba.set_num_threads(max(1, min(int(n), limit)))
     try:
         yield
     finally:
@@ -319,7 +324,7 @@ def _prune(n: int, edges: NDArray[np.int64], protected: NDArray[np.bool_]) -> ND
         alive &= ~drop
 
 
-def _hops(profile: str) -> int:
+def _hops(profile: Profile) -> int:
     """How far (in struts) from an owned node the complete stars must reach.
 
     A profile's offset at a node depends on all struts at that node; the owned triangles
@@ -406,7 +411,7 @@ def _stitch_owned(
     *,
     segments: int,
     seed: int,
-    profile: str,
+    profile: Profile,
     piece: Path,
     where: str,
     report: dict[str, Any] | None = None,
@@ -772,7 +777,7 @@ def _reach(
     owned: NDArray[np.bool_],
     *,
     segments: int,
-    profile: str,
+    profile: Profile,
     pad: float,
     growth: float = 1.0,
     misfit_hops: bool = True,
@@ -836,7 +841,7 @@ def _fit_round(
     radius: Any,
     floor: float,
     segments: int,
-    profile: str,
+    profile: Profile,
 ) -> dict[str, Any] | None:
     """Round ``rnd`` of the radius fit of :func:`conformal.radius.fit_radii`, for the struts
     this shard owns.
@@ -871,8 +876,10 @@ def _fit_round(
 
         def save(**cols: NDArray[np.float64]) -> None:
             data = {k: _canon(v, swap)[owned_strut][order] for k, v in cols.items()}
+            # numpy's stub also matches **data against savez's allow_pickle: bool; the
+            # keys are column names ("M", "C", ...), never "allow_pickle"
             np.savez(Path(spec.tmpdir) / f"fit-{rnd}-{shard}.npz",
-                     ids=out_ids.view(np.int64).reshape(-1, 2), **data)  # fmt: skip
+                     ids=out_ids.view(np.int64).reshape(-1, 2), **data)  # type: ignore[arg-type]  # fmt: skip
 
         r_res = resolve_radii(radius, nodes, edges)
         if rnd == 0:
@@ -911,13 +918,13 @@ def _fit_round(
         }  # fmt: skip
         cols = {"M": new_m}
         if not mis_owned.any():
-            pairs, dist, reach = clashes(
+            pairs, dist, clash_reach = clashes(
                 nodes, edges, r, margin=2 * CLEARANCE_MARGIN, segments=segments,
                 profile=profile,
             )  # fmt: skip
             node_f = np.ones(n_nodes)
             edge_f = np.ones(m)
-            factor = np.repeat(np.clip(0.98 * dist / reach, 0.2, 0.97), 2)
+            factor = np.repeat(np.clip(0.98 * dist / clash_reach, 0.2, 0.97), 2)
             el = pairs.ravel()
             strut = el < m
             np.minimum.at(edge_f, el[strut], factor[strut])
@@ -946,7 +953,7 @@ def _fit_sharded(
     radius: Any,
     min_radius: float | None,
     segments: int,
-    profile: str,
+    profile: Profile,
     *,
     retries: int,
     progress: bool,
@@ -1129,7 +1136,7 @@ def _fill_stitch(
     radius: Any,
     segments: int,
     seed: int,
-    profile: str,
+    profile: Profile,
 ) -> ShardStats | None:
     """Phase 2 of a shard: keep the selected pieces, radii (the fitted ones of their
     owners, :func:`_fit_sharded`), stitch, write owned triangles."""
@@ -1469,13 +1476,15 @@ def _workdir(tmpdir: str | os.PathLike[str] | None, keep: bool) -> Iterator[Path
 
 
 
-def _check_profile(profile: str) -> None:
-    """The profiles of :func:`fast_stitch.stitch` (all give identical seams sharded)."""
+def _check_profile(profile: object) -> Profile:
+    """``profile`` as a plain str, one of the profiles of :func:`fast_stitch.stitch` (all
+    give identical seams sharded)."""
     if profile not in ("volume", "area", "inscribed", "circumscribed"):
         raise ValueError(f"unknown profile {profile!r}")
+    return cast("Profile", str(profile))
 
 
-def _default_halo(fill: str, fit: str, profile: str) -> int:
+def _default_halo(fill: str, fit: str, profile: Profile) -> int:
     """The first halo (cells) :func:`fill_sharded` tries: 1 cell for the struts of cells
     that stay inside the cell (2 for ``"clip"``, whose merges of surface nodes reach a
     strut length plus ``min_strut`` further, 3 for ``"conform"``, whose moved nodes make
@@ -1504,7 +1513,7 @@ def fill_sharded(
     prune: bool = True,
     fit: Literal["shrink", "off"] = "shrink",
     min_radius: float | None = None,
-    profile: str = config.DEFAULT_PROFILE,
+    profile: Profile = config.DEFAULT_PROFILE,
     min_strut: float = 0.1,
     halo: int | None = None,
     retries: int = 2,
@@ -1595,23 +1604,24 @@ def fill_sharded(
     if halo is None:  # the default, grown while a shard finds it too small
         kw = dict(locals())
         base = _default_halo(fill, fit, profile)
-        for extra in (0, 2, 4):
+        for grow in (0, 2, 4):
             with warnings.catch_warnings(record=True) as seen:
                 warnings.simplefilter("always")
                 try:
-                    result = fill_sharded(**{**kw, "halo": base + extra})
+                    result = fill_sharded(**{**kw, "halo": base + grow})
                 except ShardHaloError:
-                    if extra == 4:
+                    if grow == 4:
                         raise
                     continue
             for w in seen:  # the warnings of the attempt that worked only
                 warnings.warn(w.message, w.category, stacklevel=2)
             return result
+        raise AssertionError("unreachable: the last attempt returns or raises")
     from conformal.voxel import _nothing_fits, grid_of
 
     t_start = time.perf_counter()
     _require_dask()
-    _check_profile(profile)
+    profile = _check_profile(profile)
     out = check_target(path)
     fmt = _format(out)
     if fill not in ("inside", "auto", "clip", "conform"):
@@ -1669,7 +1679,7 @@ def fill_sharded(
         if fit == "shrink":
             t0 = time.perf_counter()
             fitted = _fit_sharded(client, spec, [b["shard"] for b in live], keep, radius,
-                                  min_radius, int(segments), str(profile), retries=retries,
+                                  min_radius, int(segments), profile, retries=retries,
                                   progress=progress)  # fmt: skip
             result.seconds["fit"] = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -1868,7 +1878,7 @@ def _graph_stitch(
     tmpdir: str,
     segments: int,
     seed: int,
-    profile: str,
+    profile: Profile,
     threads: int,
     beams: bool = False,
 ) -> ShardStats | None:
@@ -1924,7 +1934,7 @@ def stitch_sharded(
     *,
     blocks: int = 2,
     seed: int = 0,
-    profile: str = config.DEFAULT_PROFILE,
+    profile: Profile = config.DEFAULT_PROFILE,
     scheduler: Any = None,
     workers: int | None = None,
     retries: int = 2,
@@ -1967,7 +1977,7 @@ def stitch_sharded(
     """
     t_start = time.perf_counter()
     _require_dask()
-    _check_profile(profile)
+    profile = _check_profile(profile)
     out = check_target(path)
     fmt = _format(out)
     _threemf_layout(threemf, 0, False)

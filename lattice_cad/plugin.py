@@ -87,7 +87,7 @@ def lattice(
 
 def register() -> None:
     """Add :func:`lattice` to ``cadquery.Workplane`` (idempotent; done on import)."""
-    cq.Workplane.lattice = lattice
+    setattr(cq.Workplane, "lattice", lattice)  # noqa: B010 (mypy: Workplane declares no lattice)
 
 
 register()

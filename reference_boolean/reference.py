@@ -54,7 +54,7 @@ from lattice_cad.core.formats import Kind, resolve
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.mesh import Mesh
 from reference_boolean.frame import frame_scale, scale_spec, unscale_result
-from reference_boolean.rotations import RotationCache
+from reference_boolean.rotations import Congruence, RotationCache
 
 __all__ = [
     "Reference",
@@ -415,7 +415,8 @@ def _unit_specs(graph: LatticeGraph, cache: bool, *, rotations: bool = False) ->
 
     specs: list[Any] = []
     keys: dict[bytes, int] = {}
-    template, anchor, members, slots = [], [], [], []
+    template: list[int] = []
+    anchor, members, slots = [], [], []
     turns: dict[int, NDArray[np.float64]] = {}
     scale = float(np.max(graph.edge_lengths))
     rcache = (
@@ -426,7 +427,7 @@ def _unit_specs(graph: LatticeGraph, cache: bool, *, rotations: bool = False) ->
     node_instance = np.full(graph.num_nodes, -1, dtype=np.int64)
     for c in range(len(cuts) - 1):
         group = order[cuts[c] : cuts[c + 1]]
-        turn = None
+        turn: tuple[int, Congruence] | None = None
         if len(group) == 1 and R[group[0]] > 0:  # a single hub
             n = int(group[0])
             spec, es, _, key = node_spec(n)
@@ -434,12 +435,12 @@ def _unit_specs(graph: LatticeGraph, cache: bool, *, rotations: bool = False) ->
             mem, slot = np.array([n], np.int64), es
             if rcache is not None and key not in keys:
                 radii_ = np.column_stack([spec.r_node, spec.r_mid])
-                t_rot, found = rcache.find(spec.radius, spec.vecs, radii_)
-                if t_rot is None:
-                    rcache.add(found, len(specs), spec.vecs, radii_)
+                hit = rcache.find(spec.radius, spec.vecs, radii_)
+                if hit[0] is None:  # hit[1] is the key to register the template under
+                    rcache.add(hit[1], len(specs), spec.vecs, radii_)
                 else:  # template stump k is this hub's stump perm[k]
-                    turn = (t_rot, found)
-                    slot = es[found.perm]
+                    turn = hit
+                    slot = es[hit[1].perm]
         else:  # a cluster (or one leaf)
             pos = np.rint((nodes[group] - nodes[group].min(axis=0)) / q).astype(np.int64)
             mem = group[np.lexsort(pos.T[::-1])].astype(np.int64)
@@ -1136,10 +1137,10 @@ def _stack(
             ends[int(e)].append(0.0)
     n_ph = np.ones(m, dtype=np.int64)
     phases: dict[int, list[float]] = {}
-    for e, ph in ends.items():
+    for e, angles in ends.items():
         step = 2.0 * math.pi / K[e]
         uniq: list[float] = []
-        for p in sorted(ph):
+        for p in sorted(angles):
             if not any(min(abs(p - u), step - abs(p - u)) < 10.0 * config.ANGLE_TOL for u in uniq):
                 uniq.append(p)
         phases[e] = uniq

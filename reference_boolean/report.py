@@ -642,7 +642,9 @@ def lattice_render(
 
     # the worst hubs highlighted: a ring in the close-ups' colour and their hub zone (below)
     markers = [Marker(p.position, f"#{p.rank}", color=HIGHLIGHT) for p in places]
-    markers += [Marker(tuple(map(float, g.nodes[int(i)])), "failed") for i in rep.reference.failed]
+    for i in rep.reference.failed:
+        x, y, z = map(float, g.nodes[int(i)])
+        markers.append(Marker((x, y, z), "failed"))
     colorbar = None
     if has:
         lo, hi = float(np.nanmin(dev)), float(np.nanmax(dev))

@@ -8,6 +8,8 @@ codes) stay beside their kernels.
 
 from __future__ import annotations
 
+from typing import Final
+
 # ---------------------------------------------------------------------------------- defaults
 #: Unit cell, cell size (mm), strut radius (mm) and polygon segments per strut when the
 #: user gives none (Lattice.fill, Workplane.lattice and ``lattice-cad fill``).
@@ -376,7 +378,7 @@ BREP_SEW_RTOL = 1e-5
 
 #: Default strut profile of :func:`fast_stitch.stitch` (see its ``profile`` option):
 #: "volume" keeps the exact solid's volume (cross-section area and hub volume).
-DEFAULT_PROFILE = "volume"
+DEFAULT_PROFILE: Final = "volume"  # Final: its type is Literal["volume"]
 #: Directions of the spherical quadrature of the exact hub volume (profile="volume").
 HUB_QUADRATURE = 1024
 #: Smallest per-node scale of the hub correction (profile="volume").

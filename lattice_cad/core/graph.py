@@ -485,9 +485,9 @@ def _as_edges(edges: ArrayLike, n_nodes: int) -> NDArray[np.int64]:
     out = (raw < 0) | (raw >= n_nodes)
     if out.any():
         e = int(np.flatnonzero(out.any(axis=1))[0])
-        k = _fmt_index(raw[e][np.asarray(out[e], dtype=bool)][0])
+        node = _fmt_index(raw[e][np.asarray(out[e], dtype=bool)][0])
         has = f"{n_nodes} nodes (valid indices 0..{n_nodes - 1})" if n_nodes else "no nodes"
-        raise InvalidGraphError(f"edge {e} references node {k}, but the graph has {has}")
+        raise InvalidGraphError(f"edge {e} references node {node}, but the graph has {has}")
     return np.ascontiguousarray(raw.astype(np.int64))
 
 

@@ -405,7 +405,7 @@ def _set_geometry(
     pos = np.ascontiguousarray(v, dtype=np.float32)
     tri = np.ascontiguousarray(f, dtype=np.uint32)
     if digest is not None:
-        digest.update(np.uint64([len(pos), len(tri)]).tobytes())
+        digest.update(np.array([len(pos), len(tri)], dtype=np.uint64).tobytes())
         digest.update(pos.tobytes())
         digest.update(tri.tobytes())
     pbuf = (lib3mf.Position * len(pos)).from_buffer(pos) if len(pos) else None

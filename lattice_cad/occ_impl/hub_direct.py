@@ -70,7 +70,14 @@ from OCP.gp import (
 from OCP.TColgp import TColgp_Array1OfPnt2d
 from OCP.TColStd import TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
-from OCP.TopoDS import TopoDS_Face, TopoDS_Shape, TopoDS_Shell, TopoDS_Solid, TopoDS_Wire
+from OCP.TopoDS import (
+    TopoDS_Edge,
+    TopoDS_Face,
+    TopoDS_Shape,
+    TopoDS_Shell,
+    TopoDS_Solid,
+    TopoDS_Wire,
+)
 
 from lattice_cad.core.errors import LatticeError
 
@@ -96,6 +103,11 @@ _SAME_POINT = 1e-7
 _DISC_MARGIN = 1e-3
 #: Points of each parameter-curve fit (B-spline through exact points of the pcurve).
 _FIT_POINTS = 17
+
+#: An arc on the sphere where it meets stump j: (j, theta0, theta1, key0, key1, edge).
+_SphereArc = tuple[int, float, float, object, object, TopoDS_Edge]
+#: An ellipse arc where the stumps of ``pair`` meet: (pair, key0, key1), vertex keys.
+_EllipseArc = tuple[tuple[int, int], object, object]
 
 
 class DirectNotApplicable(LatticeError):
@@ -457,9 +469,9 @@ def build_direct(
             for key in (k0, k1):
                 if key not in on_ell[pair]:
                     on_ell[pair][key] = ells[pair].param(points[key])
-    edges: dict[tuple[tuple[int, int], object, object], object] = {}
+    edges: dict[_EllipseArc, tuple[TopoDS_Edge, float, float]] = {}
 
-    def arc_edges(pair: tuple[int, int], ka: object, kb: object) -> list[tuple[object, bool]]:
+    def arc_edges(pair: tuple[int, int], ka: object, kb: object) -> list[tuple[_EllipseArc, bool]]:
         """Edges from vertex ka to kb along the ellipse, each with 'forward' (t increases)."""
         ta, tb = on_ell[pair][ka], on_ell[pair][kb]
         fwd = tb > ta
@@ -485,7 +497,7 @@ def build_direct(
         return out if fwd else out[::-1]
 
     # 3. faces
-    floor_arcs: list[tuple[int, float, float, object, object, object]] = []
+    floor_arcs: list[_SphereArc] = []
     shell = TopoDS_Shell()
     bb.MakeShell(shell)
     for j in range(d):
@@ -594,7 +606,7 @@ def _sphere_axis(
 
 def _sphere_face(
     bb: BRep_Builder,
-    arcs: list[tuple[int, float, float, object, object, object]],
+    arcs: list[_SphereArc],
     u: NDArray[np.float64],
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -611,10 +623,10 @@ def _sphere_face(
 
     r = math.sqrt(R * R - c * c)
     start = {}
-    for a in arcs:
-        if a[4] in start:
+    for arc in arcs:
+        if arc[4] in start:
             raise DirectNotApplicable("the exposed sphere has a degenerate boundary")
-        start[a[4]] = a  # in the sphere face the arc runs from key1 back to key0
+        start[arc[4]] = arc  # in the sphere face the arc runs from key1 back to key0
     # one loop through every arc
     loop = [arcs[0]]
     while True:
@@ -648,6 +660,7 @@ def _sphere_face(
         # shoelace over the reversed arc (from th1 to th0)
         area += 0.5 * float(np.sum(uu[1:] * vv[:-1] - uu[:-1] * vv[1:]))
         samples.append((t, uu, vv, edge))
+    assert prev_u is not None and first_u is not None  # the loop holds arcs[0]
     if abs(prev_u - first_u) > 1e-6:
         raise DirectNotApplicable("the exposed sphere winds round the sphere's axis")
     if area <= 0.0:

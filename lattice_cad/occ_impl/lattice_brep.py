@@ -217,9 +217,10 @@ def sew_hubs(
             if t < 0:
                 continue
             q = None if rotations is None else rotations[n]
-            turned = q is not None and bool(np.abs(q - np.eye(3)).max() > 0.0)
+            if q is not None and not np.abs(q - np.eye(3)).max() > 0.0:
+                q = None  # the identity: a plain move
             for f in kept[t]:
-                sew.Add(_turned(f, q, nodes[n]) if turned else _moved(f, nodes[n]))
+                sew.Add(_moved(f, nodes[n]) if q is None else _turned(f, q, nodes[n]))
         sew.Perform()
         if sew.NbFreeEdges() or sew.NbMultipleEdges():
             raise OCCTFailure(

@@ -234,7 +234,10 @@ def _palette_png(data: bytes, keep: NDArray[np.float64] | None = None) -> bytes:
     adaptive = img.quantize(
         colors=256 - len(extra), method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
     )
-    pal = np.asarray(adaptive.getpalette()[: 3 * (256 - len(extra))], dtype=np.uint8)
+    palette = adaptive.getpalette()
+    if palette is None:  # quantize returns a "P" image, which has one
+        raise RuntimeError("Pillow's quantize returned an image without a palette")
+    pal = np.asarray(palette[: 3 * (256 - len(extra))], dtype=np.uint8)
     pal = np.concatenate([pal.reshape(-1, 3), extra]).reshape(-1)
     # exact nearest palette colour of every distinct colour of the picture (Pillow's own
     # mapping works on a coarse colour grid and would band the colour bar)
