@@ -146,6 +146,7 @@ def recheck(
         and len(pairs) == report.n_self_intersections
         and len(zero) == report.n_zero_area
     )
+
     def whole(self_intersections: bool = True) -> CheckReport:
         return check(
             (va, fa),
