@@ -254,7 +254,11 @@ def check_fit(
     if clearance and not out:  # clearance is only meaningful once every strut has a cylinder
         out.extend(
             _clash_list(
-                graph.nodes, graph.edges, graph.radii, shrink=shrink, segments=segments,
+                graph.nodes,
+                graph.edges,
+                graph.radii,
+                shrink=shrink,
+                segments=segments,
                 profile=profile,
             )  # fmt: skip
         )

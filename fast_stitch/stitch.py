@@ -505,9 +505,7 @@ def cap_growth(
     halvings = np.zeros(n_nodes, dtype=np.int64)
     while True:
         node_scale = scale[edges]
-        pairs, _, _ = _clashes(
-            nodes, edges, radii * node_scale, end_offset * node_scale, inc, 1e-9
-        )
+        pairs, _, _ = _clashes(nodes, edges, radii * node_scale, end_offset * node_scale, inc, 1e-9)
         el = np.unique(pairs.ravel())
         hit = np.zeros(n_nodes, dtype=bool)
         hit[edges[el[el < m]].ravel()] = True

@@ -336,9 +336,7 @@ def _hops(profile: Profile) -> int:
     return 2 if profile == "volume" else 1
 
 
-def _within(
-    seed: NDArray[np.bool_], edges: NDArray[np.int64], hops: int
-) -> NDArray[np.bool_]:
+def _within(seed: NDArray[np.bool_], edges: NDArray[np.int64], hops: int) -> NDArray[np.bool_]:
     """(N,) bool: the nodes at most ``hops`` struts away from a ``seed`` node."""
     out = seed.copy()
     for _ in range(hops):
@@ -719,8 +717,9 @@ def _shard_graph(
     return nodes[used], edges, owned[used], key[used], exact[used]
 
 
-def _strut_ids(key: NDArray[np.int64], edges: NDArray[np.int64]) -> tuple[NDArray[Any],
-                                                                           NDArray[np.bool_]]:
+def _strut_ids(
+    key: NDArray[np.int64], edges: NDArray[np.int64]
+) -> tuple[NDArray[Any], NDArray[np.bool_]]:
     """(M,) 16-byte global strut ids (the two ends' global ids, lower first) and (M,) bool
     ``swap``: the strut's local orientation is the reverse of its id's."""
     a, b = key[edges[:, 0]], key[edges[:, 1]]
@@ -1408,9 +1407,7 @@ def _run(
             bar.close()
 
 
-def _assemble(
-    path: Path, pieces: Sequence[Path], triangles: int, *, fmt: str
-) -> None:
+def _assemble(path: Path, pieces: Sequence[Path], triangles: int, *, fmt: str) -> None:
     """Stream the pieces into one file (atomically: complete or absent)."""
     from lattice_cad.core.mesh import stl_size
     from lattice_cad.core.resources import require_disk
@@ -1418,9 +1415,7 @@ def _assemble(
     if fmt == "stl":
         require_disk(path, stl_size(triangles))
         if triangles >= 2**32:
-            raise ShardingError(
-                f"{path}: {triangles:,} triangles exceed binary STL's uint32 count"
-            )
+            raise ShardingError(f"{path}: {triangles:,} triangles exceed binary STL's uint32 count")
         with atomic_write(path) as fh:
             fh.write(_HEADER.ljust(80, b" "))
             fh.write(np.uint32(0).tobytes())  # the count goes in last
@@ -1473,7 +1468,6 @@ def _workdir(tmpdir: str | os.PathLike[str] | None, keep: bool) -> Iterator[Path
     finally:
         if not keep:
             shutil.rmtree(d, ignore_errors=True)
-
 
 
 def _check_profile(profile: object) -> Profile:
@@ -1626,8 +1620,7 @@ def fill_sharded(
     fmt = _format(out)
     if fill not in ("inside", "auto", "clip", "conform"):
         raise ShardingError(
-            f"fill={fill!r} is not supported sharded (choose 'inside', 'auto', 'clip' or "
-            "'conform')"
+            f"fill={fill!r} is not supported sharded (choose 'inside', 'auto', 'clip' or 'conform')"
         )
     if fit not in ("shrink", "off"):
         raise ShardingError(f"fit={fit!r} is not supported sharded ('shrink' or 'off')")
@@ -1797,9 +1790,7 @@ def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult)
 
 
 # ========================================================= sharded user graphs
-def write_graph_shards(
-    graph: Any, directory: str | os.PathLike[str], *, chunks: int
-) -> list[Path]:
+def write_graph_shards(graph: Any, directory: str | os.PathLike[str], *, chunks: int) -> list[Path]:
     """Write a graph as NPZ shards of struts (the input of :func:`stitch_sharded`).
 
     Each ``graph-shard-K.npz`` holds ``edges`` (m, 2) int64 global node ids, ``radii``

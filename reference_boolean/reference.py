@@ -762,9 +762,7 @@ def run_with_estimate(
         flush=True,
     )
     if estimate is not None:
-        estimate.update(
-            {"estimate": est_wall, "estimate_cpu": est_cpu, "calibration_cpu": cpu}
-        )
+        estimate.update({"estimate": est_wall, "estimate_cpu": est_cpu, "calibration_cpu": cpu})
     bar = tqdm(total=d, initial=k, unit="hub", desc="reference hubs", file=out, smoothing=0.05)
 
     def tick(stage: str, done: int, total: int) -> None:

@@ -187,11 +187,7 @@ def first_screen(rep: ValidationReport, *, k: int = config.REPORT_WORST_HUBS) ->
                 f"{o.status}: volume error {100 * o.volume_error:+.2f} %, deviation p95 "
                 f"{_fmt(o.deviation['p95'])} mm, max {_fmt(o.deviation['max'])} mm"
                 + (" along struts" if o.deviation_region == "struts" else "")
-                + (
-                    f" (hubs: p95 {_fmt(o.deviation_hubs['p95'])} mm)"
-                    if o.deviation_hubs
-                    else ""
-                ),
+                + (f" (hubs: p95 {_fmt(o.deviation_hubs['p95'])} mm)" if o.deviation_hubs else ""),
             )
         )
     places, unranked = worst_places(rep, k) if comp is not None else ([], 0)
@@ -337,8 +333,7 @@ def to_text(rep: ValidationReport) -> str:
             pos = ", ".join(f"{c:.4g}" for c in p.position)
             lines.append(
                 f"    #{p.rank} node {p.node} at ({pos}): {_fmt(p.deviation)} mm "
-                f"({p.percent_of_radius:.0f} % of r)"
-                + (f", {p.where}" if p.where != "-" else "")
+                f"({p.percent_of_radius:.0f} % of r)" + (f", {p.where}" if p.where != "-" else "")
             )
     note = _unranked_note(screen)
     if note:

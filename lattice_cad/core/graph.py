@@ -422,9 +422,7 @@ def _as_number_array(value: Any, what: str) -> NDArray[Any]:
         if found is not None:
             where, x = found
             at = f" at index {list(where)}" if where else ""
-            raise InvalidGraphError(
-                f"{what} must be real numbers, got {_describe(x)}{at}"
-            )
+            raise InvalidGraphError(f"{what} must be real numbers, got {_describe(x)}{at}")
         if kind == "O" and what != "edges":  # e.g. Python ints beyond 64 bits
             try:
                 a = np.asarray(value, dtype=np.float64)
@@ -566,9 +564,7 @@ def _validate(
         raise InvalidGraphError(f"node {bad} has a non-finite coordinate {nodes[bad].tolist()}")
     if m == 0:
         return
-    huge = _first_row(
-        n_nodes, lambda s, t: np.abs(nodes[s:t]).max(axis=1) > config.MAX_COORDINATE
-    )
+    huge = _first_row(n_nodes, lambda s, t: np.abs(nodes[s:t]).max(axis=1) > config.MAX_COORDINATE)
     if huge is not None:
         n = huge
         raise InvalidGraphError(
@@ -643,9 +639,7 @@ def _check_duplicates(edges: NDArray[np.int64]) -> None:
     m = len(edges)
     normal = _first_row(m, lambda s, t: edges[s:t, 0] >= edges[s:t, 1]) is None
     if normal and _is_sorted_rows(edges, strict=False):
-        dup = _first_row(
-            m - 1, lambda s, t: (edges[s:t] == edges[s + 1 : t + 1]).all(axis=1)
-        )
+        dup = _first_row(m - 1, lambda s, t: (edges[s:t] == edges[s + 1 : t + 1]).all(axis=1))
         if dup is None:
             return
         first, second = dup, dup + 1

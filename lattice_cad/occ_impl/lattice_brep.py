@@ -63,9 +63,7 @@ def _turned(
     """A copy of ``shape`` mapped by ``x -> q x + offset`` (``q`` orthogonal, maybe a
     reflection, which ``BRepBuilderAPI_Transform`` handles by copying the geometry)."""
     trsf = gp_Trsf()
-    trsf.SetValues(
-        *(float(v) for r in range(3) for v in (*q[r], offset[r]))
-    )
+    trsf.SetValues(*(float(v) for r in range(3) for v in (*q[r], offset[r])))
     mk = BRepBuilderAPI_Transform(shape, trsf, True)
     check_done(mk, "placing a turned hub")
     return mk.Shape()
