@@ -269,7 +269,7 @@ class SteadyLattice:
                 lo, hi = int(item), int(item) + 1
             else:
                 try:
-                    lo, hi = (int(x) for x in item)  # type: ignore[union-attr]
+                    lo, hi = (int(x) for x in item)
                 except (TypeError, ValueError):
                     raise SteadyLatticeError(
                         f"region {name}: expected (start, stop), a slice or an index, got {item!r}"

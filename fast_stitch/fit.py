@@ -86,7 +86,7 @@ def _incidence(
         offsets = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
         return offsets, order // 2, (order % 2).astype(np.int8)  # type: ignore[return-value]
-    return _fit_kernels.incidence(edges, n)  # type: ignore[no-any-return]
+    return _fit_kernels.incidence(edges, n)
 
 
 def _radii_array(radii: ArrayLike, shape: tuple[int, int]) -> NDArray[np.float64]:

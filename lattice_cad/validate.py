@@ -102,7 +102,7 @@ def validate(
             stacklevel=2,
         )
         profiles = {True: ("area",), False: ("inscribed",), "both": ("inscribed", "area")}[
-            volume_preserving  # type: ignore[index]
+            volume_preserving
         ]
     profiles = tuple(profiles) if not isinstance(profiles, str) else (profiles,)
     bad = [p for p in profiles if p not in PROFILES]
