@@ -241,7 +241,12 @@ def clashes(
         _incidence_arrays=inc,
     )  # fmt: skip
     return _clashes(
-        nodes_a, edges_a, radii_a, off, inc, margin,
+        nodes_a,
+        edges_a,
+        radii_a,
+        off,
+        inc,
+        margin,
         radius_scale=_profile_scale(segments, profile),
     )
 
