@@ -309,6 +309,8 @@ class Lattice:
         Keep-solid zones (see :meth:`fill`), resolved on the part.
     """
 
+    _pending_offsets: Any  # OCCT's offsets started by fill(), collected by the skin
+
     def __init__(
         self,
         graph: LatticeGraph,
@@ -674,6 +676,8 @@ class Lattice:
             step = shift * config.TRIM_RTOL * float(self.graph.radii.max())
             moved = lattice.vertices + SHIFT_DIRECTION * step
             lattice = Mesh(vertices=moved, faces=lattice.faces)
+        if self.skin is None:
+            raise ValueError("this lattice has no skin: Lattice(..., skin=MM) builds one")
         # checked after rounding to float32 (what the files hold)
         pending = self.__dict__.pop("_pending_offsets", None)
         # the booleans on the struts near the wall only, the deep ones glued back after the
@@ -1116,6 +1120,8 @@ class Lattice:
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
+        if self.skin is None:
+            raise ValueError("this lattice has no skin: Lattice(..., skin=MM) builds one")
         result = _skin.build_skin(
             manifold3d.Manifold(), self._cutting_part, self.skin, check=False
         )
