@@ -172,21 +172,36 @@ def _fill(part, *args, **kwargs):
         return Lattice.fill(part, *args, **kwargs)
 
 
+#: Ray directions of the independent containment test: generic (no axis, edge or face of
+#: these parts lies along them) but each close to one axis.
+_RAYS = np.array([[0.0213, 0.0137, 0.99968], [0.99971, 0.0171, 0.0168]])
+
+
 def _inside_printable(mesh, pts, *, independent=200):
     """Containment by exact winding numbers, and for ``independent`` of the points also by
-    trimesh's ray tests (slow on large meshes), which must agree."""
+    trimesh's ray tests (forward and backward parity), which must agree.
+
+    trimesh's default ray is diagonal: the box of each ray spans the whole lattice, so every
+    ray was tested against most triangles (0.2 CPU s a point on 700K triangles, half of
+    test_real_parts). Rays close to an axis meet only the triangles of a thin column; two
+    such directions, each of which must agree with the winding numbers on its own, stand in
+    for trimesh's one default direction and the random one it retries where its two
+    parities disagree (a point a direction cannot decide comes back outside, so it fails
+    the test rather than passes it)."""
     import trimesh
+    from trimesh.ray.ray_util import contains_points
 
     from conformal.part import Part
 
     inside = Part(mesh.vertices, mesh.faces, name="printable").contains(pts)
     few = slice(None, independent)
     tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False)
-    # trimesh's ray test divides by the area of every triangle it meets: the slivers a
-    # boolean cut leaves (valid, nonzero in exact arithmetic) give it a zero denominator
-    with np.errstate(divide="ignore", invalid="ignore"):
-        independent_inside = tm.contains(pts[few])
-    assert (independent_inside == inside[few]).all()
+    for direction in _RAYS:
+        # trimesh's ray test divides by the area of every triangle it meets: the slivers a
+        # boolean cut leaves (valid, nonzero in exact arithmetic) give it a zero denominator
+        with np.errstate(divide="ignore", invalid="ignore"):
+            independent_inside = contains_points(tm.ray, pts[few], check_direction=direction)
+        assert (independent_inside == inside[few]).all(), direction
     return inside
 
 

@@ -77,9 +77,16 @@ def test_box_sides_bcc_is_cut_to_the_part():
     _assert_cut_and_valid(lat, part)
 
 
+@pytest.fixture(scope="module")
+def kcl_enclosure_tet() -> tuple[Lattice, object]:
+    """The bench tet fill of kcl_enclosure, built once: both tests below check the same fill
+    (the cut and validity, and the bodies), neither changes it (the mesh is cached)."""
+    return _bench_fill("kcl_enclosure.step", method="tet")
+
+
 @pytest.mark.slow
-def test_kcl_enclosure_tet_is_cut_to_the_part():
-    lat, part = _bench_fill("kcl_enclosure.step", method="tet")
+def test_kcl_enclosure_tet_is_cut_to_the_part(kcl_enclosure_tet):
+    lat, part = kcl_enclosure_tet
     _assert_cut_and_valid(lat, part)
 
 
@@ -110,9 +117,9 @@ def test_a_point_on_a_solids_surface_belongs_to_that_solid():
 
 
 @pytest.mark.slow
-def test_kcl_enclosure_tet_gives_one_body_without_specks():
+def test_kcl_enclosure_tet_gives_one_body_without_specks(kcl_enclosure_tet):
     """The bench setting gave a second body of 8 triangles (8.7e-5 mm^3) on the surface."""
-    lat, part = _bench_fill("kcl_enclosure.step", method="tet")
+    lat, _ = kcl_enclosure_tet
     m = lat.mesh()
     tm = trimesh.Trimesh(m.vertices, m.faces)
     bodies = tm.split(only_watertight=False)
