@@ -331,6 +331,40 @@ def _adjacent_groups(
     return list(groups.values())
 
 
+def _mesh_alone(
+    shape: TopoDS_Shape, asked: dict[int, float], deflection: float, angular: float
+) -> None:
+    """Mesh the faces ``asked`` (TopExp index: deflection, mm) of ``shape`` without the
+    rest, and stamp their triangulations and edge polygons with ``deflection``, so that a
+    BRepMesh run on the whole ``shape`` at ``deflection`` keeps them (and their edge
+    nodes, which the neighbouring faces then share).
+
+    Neighbouring faces are meshed together, finest first, each run with the faces meshed
+    before: BRepMesh keeps their (finer, so consistent) triangulation and takes their
+    nodes on the edges they share with the next face. Meshed each alone, two neighbours
+    put their own nodes on their common edge (M6 countersunk screw, faces 1-3 and 3-11:
+    285 and 273 nodes) and the whole mesh is open.
+    """
+    faces = _faces(shape)
+    for group in _adjacent_groups(shape, faces, sorted(asked)):
+        group.sort(key=lambda i: asked[i])
+        for k, i in enumerate(group):
+            _mesh(_compound([faces[j] for j in group[: k + 1]]), asked[i], angular, False)
+    for i in asked:
+        face = faces[i]
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None:
+            continue
+        tri.Deflection(float(deflection))  # consistent for the whole-shape run: kept
+        exp = TopExp_Explorer(face, TopAbs_EDGE)
+        while exp.More():
+            pol = BRep_Tool.PolygonOnTriangulation_s(TopoDS.Edge_s(exp.Current()), tri, loc)
+            if pol is not None:
+                pol.Deflection(float(deflection))
+            exp.Next()
+
+
 def _mesh_faces_finer(
     shape: TopoDS_Shape,
     over: dict[int, float],
@@ -369,29 +403,7 @@ def _mesh_faces_finer(
         for i, d in todo.items():
             scale[i] = scale.get(i, 1.0) * min(0.5, 0.8 * limit / d)
         BRepTools.Clean_s(shape)
-        faces = _faces(shape)
-        for group in _adjacent_groups(shape, faces, sorted(scale)):
-            # finest first, each run with the faces meshed before: BRepMesh keeps their
-            # (finer, so consistent) triangulation and takes their nodes on the edges they
-            # share with the next face (meshed alone, two neighbours each put their own
-            # nodes on their common edge: M6 countersunk screw, faces 1-3 and 3-11)
-            group.sort(key=lambda i: scale[i])
-            for k, i in enumerate(group):
-                _mesh(_compound([faces[j] for j in group[: k + 1]]), deflection * scale[i],
-                      angular, False)  # fmt: skip
-        for i in scale:
-            face = faces[i]
-            loc = TopLoc_Location()
-            tri = BRep_Tool.Triangulation_s(face, loc)
-            if tri is None:
-                continue
-            tri.Deflection(float(deflection))  # consistent for the whole-shape run: kept
-            exp = TopExp_Explorer(face, TopAbs_EDGE)
-            while exp.More():
-                pol = BRep_Tool.PolygonOnTriangulation_s(TopoDS.Edge_s(exp.Current()), tri, loc)
-                if pol is not None:
-                    pol.Deflection(float(deflection))
-                exp.Next()
+        _mesh_alone(shape, {i: deflection * s for i, s in scale.items()}, deflection, angular)
         _mesh(shape, deflection, angular, parallel)
         faces = _faces(shape)
         if not all(_has_triangulation(f) for f in faces) or not _edges_shared(
