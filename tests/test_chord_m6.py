@@ -17,7 +17,7 @@ import pytest
 from conftest import DATA
 
 M6 = DATA / "step" / "build123d_M6-1x12-countersunk-screw.step"
-#: ``Lattice.fill(M6, 'bcc', 0.8, R)``: the cut's chord error is about 0.00039 mm.
+#: ``Lattice.fill(M6, 'bcc', 0.8, R)``: the cut's chord error is 0.5 % r = 0.00033 mm.
 R = 0.06667
 
 
@@ -40,7 +40,7 @@ def test_adjacent_faces_meshed_finer_share_their_edges(solid):
     faces = chord._faces(shape)
     groups = chord._adjacent_groups(shape, faces, [1, 3, 11, 27])
     assert sorted(map(sorted, groups)) == [[1, 3, 11], [27]]
-    # each its own finer deflection, as on the cut at 0.00039 mm (0.5, 0.4, 0.32 times)
+    # each its own finer deflection, as on the cut at 0.00033 mm (0.5, 0.4, 0.32 times)
     asked = {1: 0.5 * defl, 3: 0.4 * defl, 11: 0.32 * defl}
 
     # meshed each alone (as before): neighbours put their own nodes on a common edge
@@ -71,7 +71,7 @@ def test_m6_cut_resolves_every_face(solid):
     from lattice_cad.core import config
     from lattice_cad.occ_impl import shapes
 
-    defl = 0.000389  # 0.58 % r: the triangle budget binds (CutBudgetWarning)
+    defl = 0.005 * R  # 0.5 % r, the chord error cutting_part takes for this screw
     v, f, report = shapes.tessellate(
         shapes.copied(solid), defl, config.CUT_ANGULAR_DEFLECTION, control=config.CHORD_CONTROL
     )
