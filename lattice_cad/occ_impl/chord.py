@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from OCP.BRep import BRep_Tool
+from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepTools import BRepTools
@@ -35,7 +35,7 @@ from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
 from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
-from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
+from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 
 from lattice_cad.core.errors import OCCTFailure
@@ -290,6 +290,81 @@ def _edges_shared(shape: TopoDS_Shape, faces: list[TopoDS_Face]) -> bool:
     return True
 
 
+def _compound(faces: list[TopoDS_Face]) -> TopoDS_Compound:
+    builder = BRep_Builder()
+    out = TopoDS_Compound()
+    builder.MakeCompound(out)
+    for face in faces:
+        builder.Add(out, face)
+    return out
+
+
+def _adjacent_groups(
+    shape: TopoDS_Shape, faces: list[TopoDS_Face], which: list[int]
+) -> list[list[int]]:
+    """The faces ``which`` (TopExp indices into ``faces``) grouped by shared edges
+    (connected components; degenerate edges do not connect)."""
+    ancestors = TopTools_IndexedDataMapOfShapeListOfShape()
+    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, ancestors)
+    parent = {i: i for i in which}
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i in which:
+        exp = TopExp_Explorer(faces[i], TopAbs_EDGE)
+        while exp.More():
+            edge = TopoDS.Edge_s(exp.Current())
+            exp.Next()
+            if BRep_Tool.Degenerated_s(edge):
+                continue
+            for other in ancestors.FindFromKey(edge):
+                for j in which:
+                    if j != i and faces[j].IsSame(other):
+                        parent[root(j)] = root(i)
+    groups: dict[int, list[int]] = {}
+    for i in which:
+        groups.setdefault(root(i), []).append(i)
+    return list(groups.values())
+
+
+def _mesh_alone(
+    shape: TopoDS_Shape, asked: dict[int, float], deflection: float, angular: float
+) -> None:
+    """Mesh the faces ``asked`` (TopExp index: deflection, mm) of ``shape`` without the
+    rest, and stamp their triangulations and edge polygons with ``deflection``, so that a
+    BRepMesh run on the whole ``shape`` at ``deflection`` keeps them (and their edge
+    nodes, which the neighbouring faces then share).
+
+    Neighbouring faces are meshed together, finest first, each run with the faces meshed
+    before: BRepMesh keeps their (finer, so consistent) triangulation and takes their
+    nodes on the edges they share with the next face. Meshed each alone, two neighbours
+    put their own nodes on their common edge (M6 countersunk screw, faces 1-3 and 3-11:
+    285 and 273 nodes) and the whole mesh is open.
+    """
+    faces = _faces(shape)
+    for group in _adjacent_groups(shape, faces, sorted(asked)):
+        group.sort(key=lambda i: asked[i])
+        for k, i in enumerate(group):
+            _mesh(_compound([faces[j] for j in group[: k + 1]]), asked[i], angular, False)
+    for i in asked:
+        face = faces[i]
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None:
+            continue
+        tri.Deflection(float(deflection))  # consistent for the whole-shape run: kept
+        exp = TopExp_Explorer(face, TopAbs_EDGE)
+        while exp.More():
+            pol = BRep_Tool.PolygonOnTriangulation_s(TopoDS.Edge_s(exp.Current()), tri, loc)
+            if pol is not None:
+                pol.Deflection(float(deflection))
+            exp.Next()
+
+
 def _mesh_faces_finer(
     shape: TopoDS_Shape,
     over: dict[int, float],
@@ -328,21 +403,7 @@ def _mesh_faces_finer(
         for i, d in todo.items():
             scale[i] = scale.get(i, 1.0) * min(0.5, 0.8 * limit / d)
         BRepTools.Clean_s(shape)
-        faces = _faces(shape)
-        for i, s in scale.items():
-            face = faces[i]
-            _mesh(face, deflection * s, angular, False)
-            loc = TopLoc_Location()
-            tri = BRep_Tool.Triangulation_s(face, loc)
-            if tri is None:
-                continue
-            tri.Deflection(float(deflection))  # consistent for the whole-shape run: kept
-            exp = TopExp_Explorer(face, TopAbs_EDGE)
-            while exp.More():
-                pol = BRep_Tool.PolygonOnTriangulation_s(TopoDS.Edge_s(exp.Current()), tri, loc)
-                if pol is not None:
-                    pol.Deflection(float(deflection))
-                exp.Next()
+        _mesh_alone(shape, {i: deflection * s for i, s in scale.items()}, deflection, angular)
         _mesh(shape, deflection, angular, parallel)
         faces = _faces(shape)
         if not all(_has_triangulation(f) for f in faces) or not _edges_shared(
