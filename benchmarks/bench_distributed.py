@@ -108,9 +108,11 @@ def fmt_rss(rss: dict) -> str:
 def cmd_scaling(args: argparse.Namespace) -> None:
     h = cell_for(args.total)
     print(f"# scaling: bunny, BCC cell {h:.5g} mm (~{args.total:.3g} struts), {load()}")
-    print("| shard target | workers | shards | struts | wall s | struts/s | task CPU s | "
-          "client CPU s | build peak RSS per worker GiB | stitch peak RSS per worker GiB | "
-          "halo % | load |")
+    print(
+        "| shard target | workers | shards | struts | wall s | struts/s | task CPU s | "
+        "client CPU s | build peak RSS per worker GiB | stitch peak RSS per worker GiB | "
+        "halo % | load |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory(dir=args.tmp) as d:
         for shard in args.shard:
@@ -132,11 +134,14 @@ def cmd_big(args: argparse.Namespace) -> None:
     with tempfile.TemporaryDirectory(dir=args.tmp) as d:
         r = run_sharded(h, shards, 2, Path(d) / "big.stl")
         phases = ", ".join(f"{k} {v:.1f}" for k, v in r["seconds"].items())
-        print(f"struts {r['struts']:,}, triangles {r['triangles']:,}, "
-              f"STL {r['bytes'] / 1e9:.2f} GB")
+        print(
+            f"struts {r['struts']:,}, triangles {r['triangles']:,}, STL {r['bytes'] / 1e9:.2f} GB"
+        )
         print(f"wall {r['wall']:.1f} s ({phases})")
-        print(f"{r['rate']:,.0f} struts/s; task CPU {r['task_cpu']:.1f} s, client CPU "
-              f"{r['client_cpu']:.1f} s; halo {100 * r['halo']:.1f} %")
+        print(
+            f"{r['rate']:,.0f} struts/s; task CPU {r['task_cpu']:.1f} s, client CPU "
+            f"{r['client_cpu']:.1f} s; halo {100 * r['halo']:.1f} %"
+        )
         print(f"peak RSS per worker (GiB): build {fmt_rss(r['build_rss'])}; stitch "
               f"{fmt_rss(r['rss'])}; client peak RSS "
               f"{r['client_rss'] / 2**30:.2f} GiB; {r['load']}")  # fmt: skip
@@ -153,14 +158,20 @@ def project(r: dict, shard_struts: float, total: float = 1e9) -> None:
     tris = total * tri_per_strut
     asm_rate = r["bytes"] / max(r["seconds"].get("assemble", 0.0), 1e-9)
     print(f"\n## PROJECTION (not a measurement) for a {total:.0e}-strut job, from the run above")
-    print(f"measured: {1e6 * cpu_per_strut:.1f} us task CPU per strut (halo included), "
-          f"{tri_per_strut:.1f} triangles per strut, peak RSS {rss / 2**30:.2f} GiB per worker "
-          f"with ~{shard_struts:,.0f}-strut shards, assembly {asm_rate / 1e6:.0f} MB/s")
-    print(f"job: {shards:,.0f} shards of ~{shard_struts:,.0f} struts, {tris:.3g} triangles "
-          f"({tris * 50 / 1e12:.2f} TB as binary STL: beyond STL's 2^32-triangle count, so the "
-          "output must stay one file per shard or a beam-lattice 3MF)")
-    print("| workers (1 core each) | stitch+build wall (h) | peak RSS per worker GiB | "
-          "cluster RAM GiB |")
+    print(
+        f"measured: {1e6 * cpu_per_strut:.1f} us task CPU per strut (halo included), "
+        f"{tri_per_strut:.1f} triangles per strut, peak RSS {rss / 2**30:.2f} GiB per worker "
+        f"with ~{shard_struts:,.0f}-strut shards, assembly {asm_rate / 1e6:.0f} MB/s"
+    )
+    print(
+        f"job: {shards:,.0f} shards of ~{shard_struts:,.0f} struts, {tris:.3g} triangles "
+        f"({tris * 50 / 1e12:.2f} TB as binary STL: beyond STL's 2^32-triangle count, so the "
+        "output must stay one file per shard or a beam-lattice 3MF)"
+    )
+    print(
+        "| workers (1 core each) | stitch+build wall (h) | peak RSS per worker GiB | "
+        "cluster RAM GiB |"
+    )
     print("|---|---|---|---|")
     for n in (2, 16, 64, 256, 1024):
         wall = -(-shards // n) * shard_struts * cpu_per_strut / 3600  # rounds of shards

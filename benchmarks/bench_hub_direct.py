@@ -77,13 +77,21 @@ def main() -> None:
         m = len(pick)
         rows = [[v, str(m), f"{t:.2f}", f"{t / m * 1e3:.0f}", f"{m / t:.2f}"]
                 for v, t in cpu.items()]  # fmt: skip
-        print(table(
-            f"GE {kind}: {m} of {len(hubs):,} distinct single hubs, alternating A/B; A = boolean "
-            f"chain, B = direct first; load {load0:.1f} -> {os.getloadavg()[0]:.1f}",
-            ["variant", "hubs", "CPU s", "ms per hub", "hubs per CPU s"], rows), flush=True)
+        print(
+            table(
+                f"GE {kind}: {m} of {len(hubs):,} distinct single hubs, alternating A/B; "
+                f"A = boolean chain, B = direct first; load {load0:.1f} -> "
+                f"{os.getloadavg()[0]:.1f}",
+                ["variant", "hubs", "CPU s", "ms per hub", "hubs per CPU s"],
+                rows,
+            ),
+            flush=True,
+        )
         print(f"B's path: {dict(paths)}")
-        print(f"volume |B/A - 1| max {worst:.1e}; hubs whose circle point counts differ: "
-              f"{kdiff}; failures (A or B): {fails[:5]}")
+        print(
+            f"volume |B/A - 1| max {worst:.1e}; hubs whose circle point counts differ: "
+            f"{kdiff}; failures (A or B): {fails[:5]}"
+        )
         tot = sum(stages.values())
         print(table(f"B per stage (CPU s over the {m} hubs)",
                     ["stage", "CPU s", "ms per hub", "share"],

@@ -155,7 +155,7 @@ def ab(specs: list, tol: float, angular: float, rounds: int) -> dict[str, list[f
     for rnd in range(rounds):
         for s in specs:
             vols = {}
-            for v in ("AB" if rnd % 2 == 0 else "BA"):
+            for v in "AB" if rnd % 2 == 0 else "BA":
                 use_main(v == "A")
                 try:
                     c = time.process_time()
@@ -179,13 +179,21 @@ def main() -> None:
     ap.add_argument("--sample", type=int, default=24, help="units of each kind per lattice")
     ap.add_argument("--graphs", type=Path, default=None, help="cache directory of the graphs")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--ab", type=int, default=0, metavar="N",
-                    help="instead: alternating A/B (main vs branch construction) on N units")
+    ap.add_argument(
+        "--ab",
+        type=int,
+        default=0,
+        metavar="N",
+        help="instead: alternating A/B (main vs branch construction) on N units",
+    )
     ap.add_argument("--max-degree", type=int, default=99, help="with --ab: skip larger")
     ap.add_argument("--min-degree", type=int, default=0, help="with --ab: skip smaller")
     ap.add_argument("--rounds", type=int, default=1, help="with --ab")
-    ap.add_argument("--main-primitives", action="store_true",
-                    help="profile main's primitives (the sphere always fused): 'before'")
+    ap.add_argument(
+        "--main-primitives",
+        action="store_true",
+        help="profile main's primitives (the sphere always fused): 'before'",
+    )
     a = ap.parse_args()
     from lattice_cad.core import config
     from reference_boolean.reference import _unit_specs
@@ -211,9 +219,12 @@ def main() -> None:
               flush=True)  # fmt: skip
         rng = np.random.default_rng(a.seed)
         if a.ab:
-            idx = [i for i in range(len(u.specs))
-                   if kind_of(u.specs[i]) != "leaf"
-                   and a.min_degree <= degree(u.specs[i]) <= a.max_degree]
+            idx = [
+                i
+                for i in range(len(u.specs))
+                if kind_of(u.specs[i]) != "leaf"
+                and a.min_degree <= degree(u.specs[i]) <= a.max_degree
+            ]
             pick = np.sort(rng.choice(idx, size=min(a.ab, len(idx)), replace=False))
             load0 = os.getloadavg()[0]
             cpu = ab([u.specs[int(i)] for i in pick], tol, config.DEFAULT_ANGULAR, a.rounds)

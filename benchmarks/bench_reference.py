@@ -301,8 +301,12 @@ def bench_report(quick: bool) -> None:
 #: The sections: flag name -> (function of ``quick``, one line of help). The default run
 #: (no flag) is the first three; ``--all`` runs every one.
 # ------------------------------------------------- GE bracket (issue 14, item 2: speed)
-GE = Path(__file__).resolve().parents[2] / "shared" / "data" / "step" / (
-    "dolfiny_ge_bracket_rotated_nonds.step"
+GE = (
+    Path(__file__).resolve().parents[2]
+    / "shared"
+    / "data"
+    / "step"
+    / ("dolfiny_ge_bracket_rotated_nonds.step")
 )
 
 
@@ -423,8 +427,11 @@ def bench_fuse_ab(sample: int, rounds: int) -> None:
             for k, v in spent.items():
                 cpu[k] += v
             n += 1
-            print(f"  hub {int(i)} degree {len(specs[i].vecs)}: "
-                  + ", ".join(f"{k} {v:.3f} s" for k, v in spent.items()), flush=True)
+            print(
+                f"  hub {int(i)} degree {len(specs[i].vecs)}: "
+                + ", ".join(f"{k} {v:.3f} s" for k, v in spent.items()),
+                flush=True,
+            )
             assert abs(vols[0] - vols[1]) < 1e-7 * vols[0], vols
     print(table(
         f"Hub fuse A/B, tet 5 mm GE bracket, {sample} hubs x {rounds} rounds alternating "
@@ -897,9 +904,7 @@ def main() -> None:
         "--volume-lattices", nargs="+", choices=list(VOLUME_LATTICES), default=None,
         help="with --volume-table: which lattices",
     )  # fmt: skip
-    ap.add_argument(
-        "--volume-out", default=None, help="with --volume-table: file name in results/"
-    )
+    ap.add_argument("--volume-out", default=None, help="with --volume-table: file name in results/")
     ap.add_argument("--window", type=int, default=WINDOW_HUBS,
                     help="with --volume-table: hubs in a -win lattice's window")  # fmt: skip
     ap.add_argument("--window-seed", type=int, default=WINDOW_SEED,
@@ -914,16 +919,37 @@ def main() -> None:
         action="store_true",
         help="stumps start at the node (the construction before trimming, for comparison)",
     )
-    ap.add_argument("--report-lattices", nargs="+", choices=["voxel", "tet"],
-                    default=["voxel", "tet"], help="the GE lattices --report measures")
-    ap.add_argument("--ge", choices=["all", "bcc", "tet"], default=None,
-                    help="the GE bracket lattices (report time, hubs/s) instead of the rest")
-    ap.add_argument("--ge-sample", type=int, default=24,
-                    help="distinct hubs built where the lattice is refused (tet)")
-    ap.add_argument("--full-union-study", action="store_true",
-                    help="with --ge: manifold3d unions of the whole lattice")
-    ap.add_argument("--fuse-ab", type=int, default=0, metavar="HUBS",
-                    help="A/B of the hub fuse on this many tet hubs (2 rounds)")
+    ap.add_argument(
+        "--report-lattices",
+        nargs="+",
+        choices=["voxel", "tet"],
+        default=["voxel", "tet"],
+        help="the GE lattices --report measures",
+    )
+    ap.add_argument(
+        "--ge",
+        choices=["all", "bcc", "tet"],
+        default=None,
+        help="the GE bracket lattices (report time, hubs/s) instead of the rest",
+    )
+    ap.add_argument(
+        "--ge-sample",
+        type=int,
+        default=24,
+        help="distinct hubs built where the lattice is refused (tet)",
+    )
+    ap.add_argument(
+        "--full-union-study",
+        action="store_true",
+        help="with --ge: manifold3d unions of the whole lattice",
+    )
+    ap.add_argument(
+        "--fuse-ab",
+        type=int,
+        default=0,
+        metavar="HUBS",
+        help="A/B of the hub fuse on this many tet hubs (2 rounds)",
+    )
     ap.add_argument("--refused", action="store_true", help="issue 14: lattices refused (only)")
     ap.add_argument("--max-struts", type=int, default=1500, help="with --refused")
     ap.add_argument("--parts", nargs="+", default=None, help="with --refused: name filters")
@@ -939,8 +965,13 @@ def main() -> None:
     ap.add_argument("--case-timeout", type=float, default=0.0,
                     help="with --refused: wall seconds per lattice build (0: none)")  # fmt: skip
     ap.add_argument("--cache", type=Path, default=None, help="with --refused: graphs cache")
-    ap.add_argument("--folders", nargs="+", default=None, choices=["step", "meshes"],
-                    help="with --refused: only these folders of ../shared/data")
+    ap.add_argument(
+        "--folders",
+        nargs="+",
+        default=None,
+        choices=["step", "meshes"],
+        help="with --refused: only these folders of ../shared/data",
+    )
     a = ap.parse_args()
     global REPORT_LATTICES
     REPORT_LATTICES = tuple(a.report_lattices)
@@ -949,8 +980,15 @@ def main() -> None:
         CASE_TIMEOUT = a.case_timeout
         print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
         bench_refused(
-            a.max_struts, a.parts, a.settings, a.budget, a.build_max_struts, a.cell_divisor,
-            a.out, a.cache, tuple(a.folders) if a.folders else None,
+            a.max_struts,
+            a.parts,
+            a.settings,
+            a.budget,
+            a.build_max_struts,
+            a.cell_divisor,
+            a.out,
+            a.cache,
+            tuple(a.folders) if a.folders else None,
         )
         return
     if a.ge or a.fuse_ab:
@@ -967,9 +1005,7 @@ def main() -> None:
     print(f"cpus {os.cpu_count()}, load {os.getloadavg()}\n")
     if a.volume_table:
         WINDOW_HUBS, WINDOW_SEED, WINDOW_AT = a.window, a.window_seed, a.window_at
-        name = a.volume_out or (
-            "bench_reference_volume" + ("_quick" if a.quick else "") + ".txt"
-        )
+        name = a.volume_out or ("bench_reference_volume" + ("_quick" if a.quick else "") + ".txt")
         which = tuple(a.volume_lattices) if a.volume_lattices else None
         bench_volume_table(a.quick, Path(__file__).resolve().parent / "results" / name, which)
         return

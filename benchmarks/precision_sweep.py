@@ -93,8 +93,10 @@ def absolute(trials: int, rng: np.random.Generator) -> None:
                     continue
                 ok = fast_stitch.check(m).valid
                 counts["valid" if ok else "invalid"] += 1
-            print(f"{k:>12} {counts['valid']:>6} {counts['invalid']:>8} {counts['error']:>6}",
-                  flush=True)
+            print(
+                f"{k:>12} {counts['valid']:>6} {counts['invalid']:>8} {counts['error']:>6}",
+                flush=True,
+            )
     finally:
         config.MIN_RADIUS, config.MAX_COORDINATE = saved
 
@@ -148,8 +150,10 @@ def main() -> None:
     saved = config.PRECISION_CONTRACT
     config.PRECISION_CONTRACT = False
     try:
-        print(f"{'log10 |x|/r':>12} {'family':>6} {'valid':>6} {'invalid':>8} {'error':>6} "
-              f"{'f32 ok':>7} {'f32 bad':>8}")
+        print(
+            f"{'log10 |x|/r':>12} {'family':>6} {'valid':>6} {'invalid':>8} {'error':>6} "
+            f"{'f32 ok':>7} {'f32 bad':>8}"
+        )
         for exp in np.arange(4.0, 16.5, 0.5):
             for fam, make in (("star", star), ("bcc", bcc)):
                 counts = {"valid": 0, "invalid": 0, "error": 0, "f32ok": 0, "f32bad": 0}
@@ -160,9 +164,11 @@ def main() -> None:
                     counts[out] += 1
                     if ok32 is not None:
                         counts["f32ok" if ok32 else "f32bad"] += 1
-                print(f"{exp:>12.1f} {fam:>6} {counts['valid']:>6} {counts['invalid']:>8} "
-                      f"{counts['error']:>6} {counts['f32ok']:>7} {counts['f32bad']:>8}",
-                      flush=True)
+                print(
+                    f"{exp:>12.1f} {fam:>6} {counts['valid']:>6} {counts['invalid']:>8} "
+                    f"{counts['error']:>6} {counts['f32ok']:>7} {counts['f32bad']:>8}",
+                    flush=True,
+                )
     finally:
         config.PRECISION_CONTRACT = saved
 

@@ -335,6 +335,3 @@ def _between_crossings(
         sds = part.signed_distance(pts.reshape(-1, 3)).reshape(tt.shape)
         inside[near[sds.max(axis=1) <= 0.5 * tol]] = True
     return e[inside], t0[inside], t1[inside], float(sd.max(initial=-np.inf))
-
-
-

@@ -170,9 +170,7 @@ class KeepReport:
         parts = []
         for z in self.zones:
             what = (
-                ", ".join(f"{n} {k}" for k, n in sorted(z.face_types.items()))
-                if z.faces
-                else "box"
+                ", ".join(f"{n} {k}" for k, n in sorted(z.face_types.items())) if z.faces else "box"
             )
             parts.append(f"{z.label} ({what}: {z.volume:.4g} mm^3)")
         detached = f", {self.detached} zone piece(s) not reached by struts" if self.detached else ""

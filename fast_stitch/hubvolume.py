@@ -172,8 +172,7 @@ def hub_scales(
     node_rep: NDArray[np.int64],
     P: int,
     *,
-    frames: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
-                  NDArray[np.float64]],
+    frames: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Per-node scale ``s_n`` that gives each hub the exact solid's volume (module docstring).
 

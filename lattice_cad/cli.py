@@ -941,7 +941,6 @@ def _entry() -> None:  # pragma: no cover - console script
     sys.exit(main())
 
 
-
 def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
     """``fill --shards N``: lattice_cad.distributed.fill_sharded, refusing what it cannot do."""
     from lattice_cad.core.errors import ShardingError

@@ -163,8 +163,7 @@ def resolve_keep(part: Any, keep: Any) -> tuple[Any, ...]:
             what, t = spec
         else:
             raise KeepError(
-                f"keep zone {k}: expected (faces, thickness) or 'SELECTOR:THICKNESS', "
-                f"got {spec!r}"
+                f"keep zone {k}: expected (faces, thickness) or 'SELECTOR:THICKNESS', got {spec!r}"
             )
         if not _is_number(t) or not math.isfinite(float(t)):
             raise KeepError(f"keep zone {k}: thickness must be a number, got {t!r}")

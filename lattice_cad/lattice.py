@@ -819,9 +819,7 @@ class Lattice:
 
         radius = float(self.graph.radii.max())
         cut_by = self._cutting_part
-        trimmed = trim_to_part(
-            self._lattice_mesh, cut_by, radius=radius, check=False, shift=shift
-        )
+        trimmed = trim_to_part(self._lattice_mesh, cut_by, radius=radius, check=False, shift=shift)
         result = build_keep(trimmed.solid, cut_by, self.keep)
         self.keep_report = result.report
         if not trimmed.report.trimmed:  # the lattice lies inside: the same as uncut
@@ -889,7 +887,7 @@ class Lattice:
 
         step = escape.grid_step(self.escape_holes, self.skin)
         pieces = res.solid.decompose()
-        keep = [p for p in pieces if not (-step**3 < p.volume() < 0.0)]
+        keep = [p for p in pieces if not (-(step**3) < p.volume() < 0.0)]
         self.escape_voids_filled = len(pieces) - len(keep)
         if self.escape_voids_filled:
             return m3.Manifold.compose(keep)
@@ -1122,9 +1120,7 @@ class Lattice:
 
         if self.skin is None:
             raise ValueError("this lattice has no skin: Lattice(..., skin=MM) builds one")
-        result = _skin.build_skin(
-            manifold3d.Manifold(), self._cutting_part, self.skin, check=False
-        )
+        result = _skin.build_skin(manifold3d.Manifold(), self._cutting_part, self.skin, check=False)
         v, f = _skin.to_arrays(result.solid)
         return _checked_single_precision(Mesh(vertices=v, faces=f), "the skin")
 
@@ -1247,8 +1243,10 @@ class Lattice:
         est = fast_stitch.estimate(g, self.segments, self.profile)
         # the relative density is a fraction of the part: from the printable solid itself
         # (a union, trimmed to the part), never from a sum of overlapping strut volumes
-        built = self.part is not None or "_printable_mesh" in self.__dict__ or (
-            self.skin is None and "_lattice_mesh" in self.__dict__
+        built = (
+            self.part is not None
+            or "_printable_mesh" in self.__dict__
+            or (self.skin is None and "_lattice_mesh" in self.__dict__)
         )
         volume = self.mesh().volume if built else self.strut_volume()
         out: dict[str, Any] = {

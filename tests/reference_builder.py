@@ -263,8 +263,6 @@ def old_validate(
             raise InvalidGraphError(f"nodes {a} and {b} coincide at {_fmt_point(nodes[a])}")
 
 
-
-
 # ------------------------------------------------ fast_stitch.fit.clashes before the slabs
 from numba import njit, prange  # noqa: E402
 from numpy.typing import ArrayLike  # noqa: E402
@@ -462,7 +460,11 @@ def old_fit_radii(
         elif clearance:
             # aim past the check's own margin so that one round usually clears a pair
             pairs, dist, reach = old_clashes(
-                nodes, edges, r, shrink=shrink, margin=2 * config.CLEARANCE_MARGIN,
+                nodes,
+                edges,
+                r,
+                shrink=shrink,
+                margin=2 * config.CLEARANCE_MARGIN,
                 profile=profile,
             )
             bad = _clash_struts(pairs, edges, m, n_nodes)
@@ -492,5 +494,3 @@ def _clash_struts(
     joint[el[el >= m] - m] = True
     at_joint = np.flatnonzero(joint[edges].any(axis=1))
     return np.union1d(el[el < m], at_joint).astype(np.int64)
-
-

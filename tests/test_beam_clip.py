@@ -75,9 +75,7 @@ def test_a_chord_leaving_and_reentering_is_split_and_outside_beams_dropped():
         cq.Workplane("XY").box(30, 10, 10, centered=False)
         - cq.Workplane("XY").box(10, 10, 6, centered=False).translate((10, 0, 4))
     )
-    g = LatticeGraph(
-        [[2, 5, 7], [28, 5, 7], [2, 5, 20], [28, 5, 20]], [[0, 1], [2, 3]], 0.5
-    )
+    g = LatticeGraph([[2, 5, 7], [28, 5, 7], [2, 5, 20], [28, 5, 20]], [[0, 1], [2, 3]], 0.5)
     out, rep = clip_beams(g, part, keep="axis")
     assert rep.removed == 1 and rep.cut == 1 and out.num_edges == 2
     xs = sorted(out.nodes[out.edges].reshape(-1, 3)[:, 0].tolist())

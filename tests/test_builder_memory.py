@@ -115,9 +115,7 @@ def _old_pipeline(part, cell, h, radius):
     node_ijk, edges = old_tile_int(c, ijk)
     nodes = vox.origin + (node_ijk / c.denominator) * np.full(3, h)
     rep = voxel.BuildReport()
-    nodes, edges = old_cleanup(
-        nodes, edges, np.zeros(len(nodes), bool), 0.1 * h, False, True, rep
-    )
+    nodes, edges = old_cleanup(nodes, edges, np.zeros(len(nodes), bool), 0.1 * h, False, True, rep)
     r = resolve_radii(radius, nodes, edges)
     new, _ = old_fit_radii(
         nodes, edges, r, min_radius=0.1 * float(r.min()), profile=config.DEFAULT_PROFILE

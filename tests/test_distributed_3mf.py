@@ -159,8 +159,9 @@ def test_peak_rss_reset_measures_one_phase():
     drops below the reset high-water mark and a new allocation does not raise it."""
     import subprocess
 
-    out = subprocess.run([sys.executable, "-c", _PEAK_PROBE], capture_output=True,
-                         text=True, check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", _PEAK_PROBE], capture_output=True, text=True, check=True
+    ).stdout.split()
     if out == ["noreset"]:
         pytest.skip("this kernel cannot reset the peak RSS (/proc/self/clear_refs)")
     before, after, later = map(int, out)

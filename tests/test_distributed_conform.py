@@ -44,8 +44,7 @@ def client():
         pytest.param("clip", "bunny_closed_odedstein.obj", 14, 387, marks=pytest.mark.slow),
     ],
 )
-def test_boundary_fill_same_triangles_as_one_process(client, tmp_path, fill, name, cells,
-                                                     merged):
+def test_boundary_fill_same_triangles_as_one_process(client, tmp_path, fill, name, cells, merged):
     src = MESHES / name
     part = conformal.load_part(src)
     h = float((part.bounds[1] - part.bounds[0]).max()) / cells

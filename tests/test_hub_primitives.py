@@ -43,14 +43,20 @@ def test_sphere_coverage_agrees_with_sampled_points():
     tetra = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=float)
     rng = np.random.default_rng(7)
     cases = {
-        "bcc node": (np.array([[x, y, z] for x in (1, -1) for y in (1, -1) for z in (1, -1)],
-                              dtype=float), 0.1),  # fmt: skip
+        "bcc node": (
+            np.array([[x, y, z] for x in (1, -1) for y in (1, -1) for z in (1, -1)], dtype=float),
+            0.1,
+        ),  # fmt: skip
         "tetrahedral, equal radii": (tetra, 0.1),
         "tetrahedral, thin struts beside one thick": (
-            np.vstack([tetra, [[1, 0, 0]]]), [0.03, 0.03, 0.03, 0.03, 0.1]),
+            np.vstack([tetra, [[1, 0, 0]]]),
+            [0.03, 0.03, 0.03, 0.03, 0.1],
+        ),
         "jittered degree 9": (rng.normal(size=(9, 3)), rng.uniform(0.05, 0.1, 9)),
-        "all in one half space": (np.array([[1, 0, 0], [1, 1, 0], [1, 0, 1], [1, -1, -1]],
-                                           dtype=float), 0.1),  # fmt: skip
+        "all in one half space": (
+            np.array([[1, 0, 0], [1, 1, 0], [1, 0, 1], [1, -1, -1]], dtype=float),
+            0.1,
+        ),  # fmt: skip
     }
     seen = set()
     for name, (dirs, radii) in cases.items():

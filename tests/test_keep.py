@@ -379,8 +379,18 @@ def test_cli_keep(capsys, hole_step, tmp_path):
 
     out = tmp_path / "kept.stl"
     code = main(
-        ["fill", str(hole_step), "-o", str(out), "--radius", "0.5", "--keep", "%CYLINDER:1.5",
-         "--keep", ">Z:1"]  # fmt: skip
+        [
+            "fill",
+            str(hole_step),
+            "-o",
+            str(out),
+            "--radius",
+            "0.5",
+            "--keep",
+            "%CYLINDER:1.5",
+            "--keep",
+            ">Z:1",
+        ]  # fmt: skip
     )
     text = capsys.readouterr().out
     assert code == 0

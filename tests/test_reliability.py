@@ -124,9 +124,12 @@ def test_tapered_struts_widening_into_a_neighbour_are_refused():
     nodes = np.vstack([np.zeros(3), 1.8 * d1, 0.32 * d2, [0, 0, -1.0], [0, -1.0, 0]])
     radii = [[0.05, 0.01], [0.02, 0.07], [0.05, 0.05], [0.05, 0.05]]
     g = LatticeGraph(nodes, [[0, 1], [0, 2], [0, 3], [0, 4]], radii)
-    assert independent_check(fast_stitch.stitch(g, 6, check_clearance=False))[
-        "self_intersecting_faces"
-    ] > 0  # the overlap is real
+    assert (
+        independent_check(fast_stitch.stitch(g, 6, check_clearance=False))[
+            "self_intersecting_faces"
+        ]
+        > 0
+    )  # the overlap is real
     with pytest.raises(StitchError, match="node 0: struts 0 and 1 meet at 14 degrees"):
         fast_stitch.stitch(g, 6)
 

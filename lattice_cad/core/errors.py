@@ -158,6 +158,8 @@ class ShardHaloError(ShardingError):
 
 class DistributedUnavailableError(LatticeError, ImportError):
     """The sharded path needs Dask distributed: ``pip install 'lattice-cad[distributed]'``."""
+
+
 class ToleranceError(LatticeError, ValueError):
     """An accuracy-report tolerance is not a valid number (the message names the option)."""
 

@@ -201,8 +201,7 @@ def assemble_parts(
         '<?xml version="1.0" encoding="utf-8"?>\n'
         '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">\n'
         + "".join(
-            f'  <Relationship Type="{_REL_MODEL}" Target="/{PART_NAME.format(k=k)}" '
-            f'Id="rel{k}"/>\n'
+            f'  <Relationship Type="{_REL_MODEL}" Target="/{PART_NAME.format(k=k)}" Id="rel{k}"/>\n'
             for k in range(len(parts))
         )
         + "</Relationships>\n"
@@ -222,9 +221,12 @@ def assemble_parts(
         'ContentType="application/vnd.openxmlformats-package.relationships+xml"/>\n'
         "</Types>\n"
     )
-    with atomic_write(out, "wb") as fh, zipfile.ZipFile(
-        fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=compresslevel
-    ) as z:
+    with (
+        atomic_write(out, "wb") as fh,
+        zipfile.ZipFile(
+            fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=compresslevel
+        ) as z,
+    ):
         z.writestr(_info("[Content_Types].xml"), types)
         z.writestr(_info("_rels/.rels"), pkg_rels)
         z.writestr(_info("3D/3dmodel.model"), root)
@@ -236,18 +238,17 @@ def assemble_parts(
                 except KeyError:
                     raise ExportError(f"{p}: not a shard part (no 3D/3dmodel.model)") from None
                 big = info.file_size >= 2**31
-                with src.open(info) as r, z.open(
-                    _info(PART_NAME.format(k=k)), "w", force_zip64=big
-                ) as w:
+                with (
+                    src.open(info) as r,
+                    z.open(_info(PART_NAME.format(k=k)), "w", force_zip64=big) as w,
+                ):
                     while chunk := r.read(1 << 22):
                         w.write(chunk)
     return out
 
 
 def _xml(s: str) -> str:
-    return (
-        s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")
-    )
+    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")
 
 
 def read_parts(path: str | Path) -> dict[str, Any]:
