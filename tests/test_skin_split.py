@@ -137,3 +137,47 @@ def test_pieces_equal_manifold_decompose_on_a_real_part():
     assert np.allclose(sorted(vols), expected, rtol=1e-9, atol=1e-12)
     assert (vlabel >= 0).all() and set(np.unique(vlabel)) == set(range(n))
     assert (vlabel[f] == vlabel[f[:, :1]]).all()  # a triangle's corners lie in one piece
+
+
+def _sphere(r: float, centre=(0.0, 0.0, 0.0)):
+    import manifold3d
+
+    return manifold3d.Manifold.sphere(r, 64).translate(centre)
+
+
+def test_outer_minus_a_cavity_clear_of_the_wall_is_composed_without_a_boolean():
+    """A cavity inside the inner surface, the wall at least half the thickness: the outer
+    surface's triangles and the cavity's reversed, the same set as manifold3d's boolean."""
+    from conformal import skin
+    from conformal.part import Part
+    from lattice_cad.core.mesh import Mesh
+
+    outer, inner = _sphere(10.0), _sphere(8.0)
+    cavity = inner - _sphere(3.0, (0.0, 0.0, 7.5))  # a "strut" reaching into the wall
+    surface = Part(*skin.to_arrays(outer), name="outer")
+    wall = skin.wall_thickness(inner, surface)
+    got = skin._outer_minus(outer, cavity, inner, surface, wall, 2.0)
+    assert isinstance(got, Mesh)
+    ref = outer - cavity
+    v, f = skin.to_arrays(ref)
+    np.testing.assert_array_equal(_triangles(got), _triangles(Mesh(vertices=v, faces=f)))
+    assert fast_stitch.check(got).valid
+    assert got.volume == pytest.approx(ref.volume(), rel=1e-9)
+
+
+def test_outer_minus_falls_back_to_the_boolean_when_the_wall_is_thin_or_crossed():
+    from conformal import skin
+    from conformal.part import Part
+
+    outer = _sphere(10.0)
+    surface = Part(*skin.to_arrays(outer), name="outer")
+    # wall 0.5 for a thickness 2: under COMPOSE_CLEARANCE
+    inner = _sphere(9.5)
+    got = skin._outer_minus(outer, inner, inner, surface, skin.wall_thickness(inner, surface), 2.0)
+    assert hasattr(got, "status")  # a manifold3d.Manifold: the boolean
+    # an "inner" surface partly outside the outer one: distances alone would pass
+    shifted = _sphere(8.0, (0.0, 0.0, 16.0))
+    wall = skin.wall_thickness(shifted, surface)
+    got = skin._outer_minus(outer, shifted, shifted, surface, np.full_like(wall, 2.0), 2.0)
+    assert hasattr(got, "status")  # a manifold3d.Manifold: the boolean
+    assert got.volume() == pytest.approx((outer - shifted).volume())
