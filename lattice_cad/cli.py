@@ -313,6 +313,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     if args.beam_lattice:  # refuse a wrong suffix before the work
         resolve(out, Kind.BEAM_LATTICE)
     _check_output(out)
+    _first_run_note(con)
     with con.step("load + lattice"):
         lat = Lattice.fill(
             args.part,
@@ -437,6 +438,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
     from lattice_cad.lattice import Lattice
 
     src = Path(args.input)
+    _first_run_note(con)
     if src.suffix.lower() in suffixes(Kind.GRAPH, action="read"):
         lat = Lattice(_load_graph(args.input), segments=args.segments, profile=args.profile)
         _graph_print_options(lat, args)
@@ -498,6 +500,45 @@ def _refuse_non_mesh(path: str) -> None:
             f"{path}: is a lattice graph, not a mesh; stitch it first "
             f"(`lattice-cad stitch {path} -o out.stl`)"
         )
+
+
+def _first_run_note(con: _Console) -> None:
+    """Say why a first run on a new install is slow (numba compiling, once)."""
+    from lattice_cad.warmup import kernels_cached
+
+    if not kernels_cached():
+        con.say(
+            "first run on this install: numba compiles the kernels for this machine "
+            "(a few minutes, once); `lattice-cad warmup` does it ahead, on all cores"
+        )
+
+
+def _cmd_warmup(args: argparse.Namespace, con: _Console) -> int:
+    from lattice_cad.warmup import warmup
+
+    con.say(
+        f"compiling lattice-cad's numerical kernels for this machine in {args.jobs} "
+        "process(es) (once per install: later runs load them from numba's cache)"
+    )
+    t0 = time.perf_counter()
+
+    def progress(r: Any) -> None:
+        state = "ok" if r.code == 0 else f"FAILED (exit {r.code})"
+        con.say(
+            f"  {r.name:<10} {state:<6} {r.seconds:6.1f} s  "
+            f"({r.compiled} compiled, {r.loaded} loaded from the cache)"
+        )
+        for e in r.errors:
+            print(f"  {e}", file=sys.stderr)
+
+    results = warmup(tasks=args.tasks, jobs=args.jobs, progress=progress)
+    compiled = sum(r.compiled for r in results)
+    failed = [r.name for r in results if r.code != 0]
+    con.say(f"{compiled} kernel signature(s) compiled in {time.perf_counter() - t0:.1f} s")
+    if failed:
+        print(f"error: warm-up task(s) failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _cmd_preview(args: argparse.Namespace, con: _Console) -> int:
@@ -898,6 +939,24 @@ def build_parser() -> argparse.ArgumentParser:
         help="shaded render (default) or the matplotlib wireframe",
     )
     p.set_defaults(func=_cmd_preview)
+
+    from lattice_cad.warmup import TASKS
+
+    p = sub.add_parser(
+        "warmup",
+        parents=[common],
+        help="compile the numerical kernels once, after installing (a few minutes)",
+        description="Compile (and cache) lattice-cad's numba kernels by running every "
+        "mode on a small part, in several processes at once. Run it once after installing: "
+        "otherwise the first real run compiles them (about 3 minutes for a skin on a "
+        "2-core machine).",
+    )
+    p.add_argument("--jobs", type=int, default=2, metavar="N", help="worker processes (default 2)")
+    p.add_argument(
+        "--tasks", nargs="+", choices=list(TASKS), metavar="TASK",
+        help=f"only these ({', '.join(TASKS)})",
+    )  # fmt: skip
+    p.set_defaults(func=_cmd_warmup)
     return parser
 
 
