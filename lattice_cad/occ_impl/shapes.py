@@ -194,6 +194,10 @@ def _as_one_solid(out: TopoDS_Shape, what: str) -> TopoDS_Shape:
 OFFSET_JOINS = (GeomAbs_Arc, GeomAbs_Intersection)
 
 
+#: Factors of the depth :func:`offset_solid` tries when OCCT's offset fails at the depth
+#: asked for (far inside the skin's wall tolerance of 2 %).
+OFFSET_NUDGES = (1.0001, 0.9999, 1.001, 0.999)
+
 #: :func:`offset_solid` removes the faces whose offset vanishes only when they are at most
 #: 8 or this fraction of the solid's faces (small features: chamfers, fillets).
 MAX_REMOVED_FRACTION = 0.1
@@ -208,7 +212,9 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
     (``BRepAlgoAPI_Defeaturing``, their neighbours extended: the offset is the same
     without them) and the defeatured solid is offset. Then, the part as it is: arc joins,
     then intersection joins (:data:`OFFSET_JOINS`); a result that is not one valid solid
-    is healed (ShapeFix, a solid made of its shell) before it is refused.
+    is healed (ShapeFix, a solid made of its shell) before it is refused. Last, the same
+    at depths nudged by :data:`OFFSET_NUDGES` (OCCT fails at some depths and not at their
+    neighbours).
     The caller checks that the result is the offset asked for (its wall thickness).
 
     Raises
@@ -263,6 +269,16 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
     got = _offset_ways(solid, distance, tol, why, "")
     if got is not None:
         return got
+    # OCCT's offset fails at some depths and not at their neighbours (the README's example
+    # bracket: null shape at 0.999 and 1.0 mm, one valid solid at 0.9999 and 1.001 mm, where
+    # offset faces meet exactly): the depth nudged, by far less than a wall's tolerance (the
+    # caller projects the inner surface onto the exact depth and measures it)
+    for factor in OFFSET_NUDGES:
+        got = _offset_ways(solid, distance * factor, tol, [], "")
+        if got is not None:
+            return got
+    nudges = ", ".join(f"{100 * (f - 1):+g} %" for f in OFFSET_NUDGES)
+    why.append(f"the same with the depth changed by {nudges}")
     raise OCCTFailure("; ".join(why))
 
 
