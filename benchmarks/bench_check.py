@@ -93,7 +93,8 @@ else:
     rep = fast_stitch.check(out)
     for f in dataclasses.fields(rep):
         x = getattr(rep, f.name)
-        h.update(np.ascontiguousarray(x).tobytes() if isinstance(x, np.ndarray) else repr(x).encode())
+        b = np.ascontiguousarray(x).tobytes() if isinstance(x, np.ndarray) else repr(x).encode()
+        h.update(b)
     h.update(str(rep).encode())
 print(json.dumps({"wall": t, "cpu": c, "load": load, "triangles": len(mesh.faces),
                   "digest": h.hexdigest()[:12], "valid": out is not None}))
