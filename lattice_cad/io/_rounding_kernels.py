@@ -195,3 +195,25 @@ def has_equal_rows(key: np.ndarray, bits: np.ndarray) -> bool:
                 return True
             slot = (slot + np.uint64(1)) & mask
     return False
+
+
+@njit(cache=True, nogil=True)
+def corners_by_vertex(corner_v: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """Corners grouped by vertex (a counting sort): ``order`` is
+    ``np.argsort(corner_v, kind="stable")`` and ``start`` (nv + 1,) the offsets,
+    ``np.searchsorted(corner_v[order], np.arange(nv + 1))``.
+
+    corner_v : (C,) int64 in ``[0, nv)``.
+    """
+    start = np.zeros(nv + 1, dtype=np.int64)
+    for c in range(len(corner_v)):
+        start[corner_v[c] + 1] += 1
+    for x in range(nv):
+        start[x + 1] += start[x]
+    pos = start[:nv].copy()
+    order = np.empty(len(corner_v), dtype=np.int64)
+    for c in range(len(corner_v)):
+        x = corner_v[c]
+        order[pos[x]] = c
+        pos[x] += 1
+    return order, start
