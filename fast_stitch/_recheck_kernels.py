@@ -14,16 +14,19 @@ import numpy as np
 
 @numba.njit(cache=True)
 def face_boxes(vertices, faces):
-    """Per-face bounding boxes and their largest extents.
+    """Per-face bounding boxes, their largest extents and the box of them all.
 
     vertices : (V, 3) float64, faces : (F, 3) int64. Returns ``lo, hi : (F, 3) float64``
-    (``vertices[faces].min(axis=1)``, ``.max(axis=1)``) and ``ext : (F,) float64``
-    (``(hi - lo).max(axis=1)``).
+    (``vertices[faces].min(axis=1)``, ``.max(axis=1)``), ``ext : (F,) float64``
+    (``(hi - lo).max(axis=1)``) and ``g0, top : (3,) float64`` (``lo.min(axis=0)``,
+    ``hi.max(axis=0)``).
     """
     n = faces.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
     ext = np.empty(n)
+    g0 = np.full(3, np.inf)
+    top = np.full(3, -np.inf)
     for f in range(n):
         e = -np.inf
         for k in range(3):
@@ -35,8 +38,10 @@ def face_boxes(vertices, faces):
             lo[f, k] = mn
             hi[f, k] = mx
             e = max(e, mx - mn)
+            g0[k] = min(g0[k], mn)
+            top[k] = max(top[k], mx)
         ext[f] = e
-    return lo, hi, ext
+    return lo, hi, ext, g0, top
 
 
 @numba.njit(cache=True)

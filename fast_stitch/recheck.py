@@ -68,22 +68,19 @@ def _scale(v: NDArray[np.float64], f: NDArray[np.int64]) -> float:
 
 
 def _near(
-    lo: NDArray[np.float64],
-    hi: NDArray[np.float64],
-    ext: NDArray[np.float64],
-    which: NDArray[np.int64],
-    eps: float,
+    boxes: tuple[NDArray[np.float64], ...], which: NDArray[np.int64], eps: float
 ) -> NDArray[np.int64]:
-    """(N,) int64, sorted: the faces whose box (lo, hi: (F, 3); ext: (F,) their largest
-    extents) meets a box of ``which``.
+    """(N,) int64, sorted: the faces whose box meets a box of ``which``.
+
+    ``boxes``: :func:`_recheck_kernels.face_boxes` of the faces (``lo, hi : (F, 3)``, the
+    largest extents ``ext : (F,)``, the lower and upper corners ``g0, top : (3,)`` of all).
 
     The changed boxes mark the cells of a coarse grid (cells as large as 99 % of the faces);
     a face that fits in a cell overlaps at most 2 cells per axis, so it can meet a changed
     box only if one of the 8 cells at its box corners is marked; the longer faces and those
     candidates are then tested box against box (:func:`_recheck_kernels.near_faces`).
     """
-    g0 = lo.min(axis=0)
-    top = hi.max(axis=0)
+    lo, hi, ext, g0, top = boxes
     span = float((top - g0).max())
     cell = max(float(np.quantile(ext, 0.99)), span / 256.0, 1e-300)
     dims = np.floor((top - g0) / cell).astype(np.int64) + 1
@@ -151,9 +148,8 @@ def recheck(
             n_self_intersecting_faces=0,
             self_intersection_pairs=np.zeros((0, 2), np.int64),
         )
-    lo, hi, ext = _rk.face_boxes(va, fa)
     scale = _scale(va, fa)
-    near = _near(lo, hi, ext, changed, 1e-9 * max(scale, 1.0))
+    near = _near(_rk.face_boxes(va, fa), changed, 1e-9 * max(scale, 1.0))
     if len(near) > MAX_LOCAL_FRACTION * len(fa):
         return whole()
     sub = fa[near]

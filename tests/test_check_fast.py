@@ -146,3 +146,61 @@ def test_weld_merges_edge_cases():
     assert not weld_merges(np.array([[np.nan, 1.0, 2.0], [np.nan, 1.0, 2.0]]), 0.0)
     assert weld_merges(np.array([[1.0, 1.0, 1.0], [1.0 + 4e-9, 1.0, 1.0]]), 1e-8)
     assert not weld_merges(np.array([[1.0, 1.0, 1.0], [1.0 + 1e-7, 1.0, 1.0]]), 1e-8)
+
+
+# ------------------------------------------------- recheck and collapse_faces kernels
+
+
+def _near_reference(lo, hi, which, eps):
+    """Plain numpy: the faces whose box meets an enlarged box of ``which``, and ``which``."""
+    qlo, qhi = lo[which] - eps, hi[which] + eps
+    hit = np.zeros(len(lo), dtype=bool)
+    for k in range(len(which)):
+        hit |= np.all(lo <= qhi[k], axis=1) & np.all(hi >= qlo[k], axis=1)
+    hit[which] = True
+    return np.flatnonzero(hit)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_recheck_near_faces_and_scale_match_numpy(seed):
+    from fast_stitch import _recheck_kernels as rk
+    from fast_stitch.recheck import _near, _scale
+
+    rng = np.random.default_rng(seed)
+    n_v = int(rng.integers(3, 3000))
+    v = rng.normal(size=(n_v, 3)) * rng.choice([1e-3, 1.0, 1e4])
+    if seed % 2:  # snapped to a coarse lattice: many touching and equal boxes
+        v = np.round(v * 4) / 4
+    f = rng.integers(0, n_v, size=(int(rng.integers(1, 5000)), 3))
+    if seed % 3 == 0:  # a few long faces (longer than most cells)
+        f[: len(f) // 50, 1] = int(np.argmax(v[:, 0]))
+    t = v[f]
+    lo, hi = t.min(axis=1), t.max(axis=1)
+    boxes = rk.face_boxes(v, f)
+    np.testing.assert_array_equal(boxes[0], lo)
+    np.testing.assert_array_equal(boxes[1], hi)
+    np.testing.assert_array_equal(boxes[2], (hi - lo).max(axis=1))
+    np.testing.assert_array_equal(boxes[3], lo.min(axis=0))
+    np.testing.assert_array_equal(boxes[4], hi.max(axis=0))
+    which = np.unique(rng.choice(len(f), int(rng.integers(1, min(len(f), 200) + 1))))
+    for eps in (0.0, 1e-9, 0.1):
+        np.testing.assert_array_equal(_near(boxes, which, eps), _near_reference(lo, hi, which, eps))
+    used = np.zeros(n_v, dtype=bool)
+    used[f.ravel()] = True
+    u = v[used]
+    expected = max(float(np.abs(u).max()), float(np.linalg.norm(u.max(axis=0) - u.min(axis=0))))
+    assert _scale(v, f) == expected
+    assert _scale(v, f[:0]) == 0.0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_corners_by_vertex_is_the_stable_argsort(seed):
+    from lattice_cad.io._rounding_kernels import corners_by_vertex
+
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(1, 500))
+    corner_v = rng.integers(0, nv, size=int(rng.integers(0, 3000)))
+    order, start = corners_by_vertex(corner_v, nv)
+    expected = np.argsort(corner_v, kind="stable")
+    np.testing.assert_array_equal(order, expected)
+    np.testing.assert_array_equal(start, np.searchsorted(corner_v[expected], np.arange(nv + 1)))
