@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fast_stitch import _recheck_kernels as _rk
 from fast_stitch.check import CheckReport, check
 
 __all__ = ["recheck"]
@@ -62,51 +63,28 @@ def _scale(v: NDArray[np.float64], f: NDArray[np.int64]) -> float:
     """The coordinate scale :func:`fast_stitch.check` uses (over the vertices faces use)."""
     if len(f) == 0:
         return 0.0
-    used = np.zeros(len(v), dtype=bool)
-    used[f.ravel()] = True
-    u = v[used]
-    lo, hi = u.min(axis=0), u.max(axis=0)
-    return max(float(np.abs(u).max()), float(np.linalg.norm(hi - lo)))
+    lo, hi, amax = _rk.used_extremes(v, f)
+    return max(float(amax), float(np.linalg.norm(hi - lo)))
 
 
 def _near(
-    lo: NDArray[np.float64], hi: NDArray[np.float64], which: NDArray[np.int64], eps: float
+    boxes: tuple[NDArray[np.float64], ...], which: NDArray[np.int64], eps: float
 ) -> NDArray[np.int64]:
-    """(N,) int64, sorted: the faces whose box (lo, hi: (F, 3)) meets a box of ``which``.
+    """(N,) int64, sorted: the faces whose box meets a box of ``which``.
+
+    ``boxes``: :func:`_recheck_kernels.face_boxes` of the faces (``lo, hi : (F, 3)``, the
+    largest extents ``ext : (F,)``, the lower and upper corners ``g0, top : (3,)`` of all).
 
     The changed boxes mark the cells of a coarse grid (cells as large as 99 % of the faces);
     a face that fits in a cell overlaps at most 2 cells per axis, so it can meet a changed
     box only if one of the 8 cells at its box corners is marked; the longer faces and those
-    candidates are then tested box against box.
+    candidates are then tested box against box (:func:`_recheck_kernels.near_faces`).
     """
-    qlo, qhi = lo[which] - eps, hi[which] + eps
-    ext = (hi - lo).max(axis=1)
-    g0 = lo.min(axis=0)
-    span = float((hi.max(axis=0) - g0).max())
+    lo, hi, ext, g0, top = boxes
+    span = float((top - g0).max())
     cell = max(float(np.quantile(ext, 0.99)), span / 256.0, 1e-300)
-    dims = np.floor((hi.max(axis=0) - g0) / cell).astype(np.int64) + 1
-    marked = np.zeros(tuple(dims), dtype=bool)
-    a = np.clip(np.floor((qlo - g0) / cell).astype(np.int64), 0, dims - 1)
-    b = np.clip(np.floor((qhi - g0) / cell).astype(np.int64), 0, dims - 1)
-    for k in range(len(which)):
-        marked[a[k, 0] : b[k, 0] + 1, a[k, 1] : b[k, 1] + 1, a[k, 2] : b[k, 2] + 1] = True
-    big = ext > cell
-    clo = np.clip(np.floor((lo - g0) / cell).astype(np.int64), 0, dims - 1)
-    chi = np.clip(np.floor((hi - g0) / cell).astype(np.int64), 0, dims - 1)
-    hit = big.copy()
-    for cx in (clo[:, 0], chi[:, 0]):
-        for cy in (clo[:, 1], chi[:, 1]):
-            for cz in (clo[:, 2], chi[:, 2]):
-                hit |= marked[cx, cy, cz]
-    cand = np.flatnonzero(hit)
-    clo_, chi_ = lo[cand], hi[cand]
-    mask = np.zeros(len(cand), dtype=bool)
-    for k in range(len(which)):
-        mask |= np.all(clo_ <= qhi[k], axis=1) & np.all(chi_ >= qlo[k], axis=1)
-    out = np.zeros(len(lo), dtype=bool)
-    out[cand[mask]] = True
-    out[which] = True
-    return np.flatnonzero(out)
+    dims = np.floor((top - g0) / cell).astype(np.int64) + 1
+    return _rk.near_faces(lo, hi, ext, which, float(eps), cell, g0, dims)
 
 
 def recheck(
@@ -170,10 +148,8 @@ def recheck(
             n_self_intersecting_faces=0,
             self_intersection_pairs=np.zeros((0, 2), np.int64),
         )
-    t = va[fa]
-    lo, hi = t.min(axis=1), t.max(axis=1)
     scale = _scale(va, fa)
-    near = _near(lo, hi, changed, 1e-9 * max(scale, 1.0))
+    near = _near(_rk.face_boxes(va, fa), changed, 1e-9 * max(scale, 1.0))
     if len(near) > MAX_LOCAL_FRACTION * len(fa):
         return whole()
     sub = fa[near]

@@ -219,15 +219,17 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
     from fast_stitch.recheck import recheck
     from lattice_cad import io
     from lattice_cad.core.mesh import Mesh, weld
+    from lattice_cad.io.rounding import weld_merges
 
     out, _ = io.single_precision(mesh, name=name)
     # readers that merge vertices closer than config.NEAR_VERTEX (trimesh, and the tools
     # built on it) must find the same closed solid: merged before the (costly) full check,
-    # so that a mesh needing no repair is checked once
-    v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
-    if len(v2) != len(out.vertices):
+    # so that a mesh needing no repair is checked once. A weld that merges nothing leaves
+    # the mesh as it is: weld_merges asks that without weld's sort.
+    if weld_merges(out.vertices, config.NEAR_VERTEX):
         from lattice_cad.io.rounding import pinched_vertices, repair_rounded
 
+        v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
         if len(pinched_vertices(f2, len(v2))):  # two sheets merged there: separated again
             v2, f2 = repair_rounded(v2, f2)
         out = Mesh(vertices=v2, faces=f2)
@@ -246,9 +248,9 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
             )
         # readers that merge vertices closer than config.NEAR_VERTEX (trimesh, and the
         # tools built on it) must find the same closed solid: merge them here, check again
-        v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
-        if len(v2) == len(out.vertices) or attempt == 1:
+        if attempt == 1 or not weld_merges(out.vertices, config.NEAR_VERTEX):
             break
+        v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
         out = Mesh(vertices=v2, faces=f2)
     return out
 

@@ -159,3 +159,61 @@ def pinched(f: np.ndarray, nv: int) -> np.ndarray:
                 k += 1
                 break
     return out[:k]
+
+
+@njit(cache=True, nogil=True)
+def has_equal_rows(key: np.ndarray, bits: np.ndarray) -> bool:
+    """Do two rows of ``key`` (R, 3) float64 compare equal (``==`` in every column)?
+
+    ``bits`` (R, 3) uint64 is ``key`` viewed as integers, with no ``-0.0`` in it (equal
+    values then have equal bits; a NaN equals nothing). An open-addressing hash table of
+    the rows, in one pass: the question :func:`lattice_cad.core.mesh.weld` answers by
+    sorting the rows, without the sort.
+    """
+    n = key.shape[0]
+    size = 64
+    while size < 2 * n:
+        size *= 2
+    mask = np.uint64(size - 1)
+    table = np.full(size, -1, dtype=np.int64)
+    for i in range(n):
+        h = (
+            bits[i, 0] * np.uint64(0x9E3779B97F4A7C15)
+            ^ bits[i, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+            ^ bits[i, 2] * np.uint64(0x165667B19E3779F9)
+        )
+        h ^= h >> np.uint64(31)
+        h *= np.uint64(0xBF58476D1CE4E5B9)
+        h ^= h >> np.uint64(29)
+        slot = h & mask
+        while True:
+            j = table[slot]
+            if j < 0:
+                table[slot] = i
+                break
+            if key[j, 0] == key[i, 0] and key[j, 1] == key[i, 1] and key[j, 2] == key[i, 2]:
+                return True
+            slot = (slot + np.uint64(1)) & mask
+    return False
+
+
+@njit(cache=True, nogil=True)
+def corners_by_vertex(corner_v: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """Corners grouped by vertex (a counting sort): ``order`` is
+    ``np.argsort(corner_v, kind="stable")`` and ``start`` (nv + 1,) the offsets,
+    ``np.searchsorted(corner_v[order], np.arange(nv + 1))``.
+
+    corner_v : (C,) int64 in ``[0, nv)``.
+    """
+    start = np.zeros(nv + 1, dtype=np.int64)
+    for c in range(len(corner_v)):
+        start[corner_v[c] + 1] += 1
+    for x in range(nv):
+        start[x + 1] += start[x]
+    pos = start[:nv].copy()
+    order = np.empty(len(corner_v), dtype=np.int64)
+    for c in range(len(corner_v)):
+        x = corner_v[c]
+        order[pos[x]] = c
+        pos[x] += 1
+    return order, start

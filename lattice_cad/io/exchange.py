@@ -177,9 +177,10 @@ def collapse_faces(
     lengths = np.stack([np.linalg.norm(t[:, (k + 1) % 3] - t[:, k], axis=1) for k in range(3)])
     order = np.argsort(lengths, axis=0, kind="stable")  # (3, K): edges shortest first
     # vertex -> faces (CSR) for the rings of the candidates only
-    corner_v = f.ravel()
-    by_vertex = np.argsort(corner_v, kind="stable")
-    start = np.searchsorted(corner_v[by_vertex], np.arange(len(v) + 1))
+    from lattice_cad.io._rounding_kernels import corners_by_vertex
+
+    # a counting sort: np.argsort(corner_v, kind="stable") and its group offsets
+    by_vertex, start = corners_by_vertex(np.ascontiguousarray(f.ravel(), dtype=np.int64), len(v))
 
     def ring_faces(x: int) -> NDArray[np.int64]:
         return by_vertex[start[x] : start[x + 1]] // 3

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from lattice_cad.core.arrays import unique_rows
 
-__all__ = ["repair_rounded", "pinched_vertices", "flat_triangles"]
+__all__ = ["repair_rounded", "pinched_vertices", "flat_triangles", "weld_merges"]
 
 #: How far (in float32 steps at the vertex's largest coordinate) the copies of a pinched
 #: vertex move toward the centres of their fans.
@@ -187,3 +187,18 @@ def repair_rounded(
             return v, f
         v, f = _separate_pinches(v, f, pinched)
     return v, f
+
+
+def weld_merges(v: NDArray[np.float64], tol: float) -> bool:
+    """Would :func:`lattice_cad.core.mesh.weld` ``(v, f, tol=tol)`` merge any vertices?
+
+    The same rows (``v`` itself, or ``np.round(v / tol)``) compared the same way (equal in
+    every coordinate, ``-0.0 == 0.0``), in one hashing pass instead of weld's sort.
+    v : (V, 3) float64.
+    """
+    from lattice_cad.io._rounding_kernels import has_equal_rows
+
+    v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+    key = v if tol == 0 else np.round(v / tol)
+    key = np.ascontiguousarray(key + 0.0)  # -0.0 + 0.0 is +0.0: equal rows, equal bits
+    return bool(has_equal_rows(key, key.view(np.uint64)))
