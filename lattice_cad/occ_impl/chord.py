@@ -43,6 +43,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 
 from lattice_cad.core.errors import OCCTFailure
+from lattice_cad.occ_impl.triangulation import triangulation_arrays
 
 __all__ = ["ChordReport", "face_deviations", "mesh_checked"]
 
@@ -131,8 +132,43 @@ _COORD = methodcaller("Coord")
 _Cache = dict[int, list[Any]]
 
 
+def _uv_triangulations(
+    faces: list[TopoDS_Face],
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None]:
+    """:func:`_uv_triangulation` of each of ``faces``, read in one go where possible
+    (:func:`~lattice_cad.occ_impl.triangulation.triangulation_arrays`: the same values)."""
+    out: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None]
+    out = [None] * len(faces)
+    tris, locs, at = [], [], []
+    for k, face in enumerate(faces):
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None or tri.NbTriangles() == 0 or not tri.HasUVNodes():
+            continue
+        tris.append(tri)
+        locs.append(loc)
+        at.append(k)
+    bulk = triangulation_arrays(tris) if len(tris) > 1 else None
+    if bulk is None:
+        for k in at:
+            out[k] = _uv_triangulation(faces[k])
+        return out
+    for k, loc, (pts, uv, t) in zip(at, locs, bulk, strict=True):
+        if uv is None:
+            continue
+        if not loc.IsIdentity():
+            m = loc.Transformation()
+            rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+            pts = pts @ rot.T + np.array([m.Value(r, 4) for r in (1, 2, 3)])
+        out[k] = (pts, uv, t - 1)
+    return out
+
+
 def _triangle_deviation(
-    face: TopoDS_Face, limit: float, cache: list[Any] | None = None
+    face: TopoDS_Face,
+    limit: float,
+    cache: list[Any] | None = None,
+    read: Any = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None:
     """Per triangle, the deviation from the exact surface over its centroid and edge midpoints.
 
@@ -146,11 +182,13 @@ def _triangle_deviation(
     uv nodes. ``cache``, if given, is ``[key, result]`` of the last measurement of this
     face (its surface unchanged since): the result is returned again when the nodes, uv
     nodes, triangles and ``limit`` are the same, and ``cache`` is updated otherwise.
+    ``read(face)``, if given, gives the triangulation (what :func:`_uv_triangulations`
+    read before) instead of :func:`_uv_triangulation`.
     """
     surf = BRepAdaptor_Surface(face)
     if surf.GetType() == GeomAbs_Plane:
         return None
-    got = _uv_triangulation(face)
+    got = _uv_triangulation(face) if read is None else read(face)
     if got is None:
         return None
     pts, uv, t = got
@@ -191,10 +229,15 @@ def _measured(
     face whose triangulation (nodes, uv nodes, triangles) and screen are the same as when it
     was measured: the same inputs, so the same result, without evaluating the surface."""
     out = {}
+    which = list(which)
+    curved = [i for i in which if BRepAdaptor_Surface(faces[i]).GetType() != GeomAbs_Plane]
+    read = dict(zip(curved, _uv_triangulations([faces[i] for i in curved]), strict=True))
     for i in which:
         face = faces[i]
         entry: list[Any] = [None, None] if i not in cache else cache[i]
-        got = _triangle_deviation(face, limit + _tolerance(face), entry)
+        got = _triangle_deviation(
+            face, limit + _tolerance(face), entry, lambda _f, i=i: read.get(i)
+        )
         cache[i] = entry
         out[i] = got
     return out
