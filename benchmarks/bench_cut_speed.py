@@ -99,8 +99,11 @@ def main() -> None:
             ["git", "-C", str(t), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
         ).stdout.strip()
         print(f"# {k} = {t} ({rev})", flush=True)
-    print(f"# {time.strftime('%Y-%m-%d %H:%M:%SZ', time.gmtime())}, {args.runs} runs each,"
-          " alternating A B A B in fresh processes", flush=True)
+    print(
+        f"# {time.strftime('%Y-%m-%d %H:%M:%SZ', time.gmtime())}, {args.runs} runs each,"
+        " alternating A B A B in fresh processes",
+        flush=True,
+    )
     summary = []
     for spec in args.parts or DEFAULT:
         name, _, rad = spec.partition(":")
@@ -116,8 +119,10 @@ def main() -> None:
                 print(f"#   {k} {Path(path).name[:40]:<40} {json.dumps(res)}", flush=True)
         summary.append((Path(path).name, got))
     print()
-    head = (f"{'part':<42} {'r':>8}  {'A cpu s':>8} {'B cpu s':>8} {'B/A':>5}  "
-            f"{'A wall s':>8} {'B wall s':>8}  {'load':>9}  {'tris':>8}  identical")
+    head = (
+        f"{'part':<42} {'r':>8}  {'A cpu s':>8} {'B cpu s':>8} {'B/A':>5}  "
+        f"{'A wall s':>8} {'B wall s':>8}  {'load':>9}  {'tris':>8}  identical"
+    )
     print(head)
     for name, got in summary:
         ok = all("error" not in r for k in got for r in got[k])

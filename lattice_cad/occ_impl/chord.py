@@ -216,9 +216,10 @@ def _triangle_deviation(
                     d[k] = min(d[k], float(np.sqrt(sq)))
     nt = len(t)
     dev = np.maximum(d[:nt], d[nt:][inv.reshape(-1)].reshape(3, nt).max(axis=0))
+    result = (dev, uv, t)
     if cache is not None:
-        cache[:] = [key, (dev, uv, t)]
-    return dev, uv, t
+        cache[:] = [key, result]
+    return result
 
 
 def _measured(
