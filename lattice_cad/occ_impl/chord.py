@@ -20,8 +20,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from itertools import starmap
-from operator import methodcaller
 from typing import Any
 
 import numpy as np
@@ -126,8 +124,6 @@ def _unique_edges(t: NDArray[np.int64], n: int) -> tuple[NDArray[np.int64], NDAr
     return np.stack([uk // max(n, 1), uk % max(n, 1)], axis=1), inv.reshape(-1)
 
 
-_COORD = methodcaller("Coord")
-
 #: per face: [key of the inputs measured, the result], see :func:`_measured`
 _Cache = dict[int, list[Any]]
 
@@ -198,8 +194,9 @@ def _triangle_deviation(
     uniq, inv = _unique_edges(t, len(pts))
     p3 = np.concatenate([pts[t].mean(axis=1), pts[uniq].mean(axis=1)])
     q = np.concatenate([uv[t].mean(axis=1), uv[uniq].mean(axis=1)])
-    coord = _COORD
-    s = np.array(list(map(coord, starmap(surf.Value, q.tolist()))), dtype=np.float64)
+    # one Python call per point, from 1-D lists (a list of pairs costs as much as the calls)
+    values = map(surf.Value, q[:, 0].tolist(), q[:, 1].tolist())
+    s = np.fromiter((x for p in values for x in p.Coord()), dtype=np.float64, count=3 * len(q))
     d = np.linalg.norm(s.reshape(-1, 3) - p3, axis=1)
     over = np.flatnonzero(d > limit)
     if len(over):
