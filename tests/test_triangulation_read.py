@@ -84,10 +84,10 @@ def test_unique_edges_is_numpy_unique_rows(meshed):
     for got in chord._uv_triangulations(chord._faces(meshed)):
         if got is None:
             continue
-        pts, _uv, t = got
+        _pts, _uv, t = got
         edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
         uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-        mine, mine_inv = chord._unique_edges(t, len(pts))
+        mine, mine_inv = chord._unique_edges(t)
         assert np.array_equal(mine, uniq) and np.array_equal(mine_inv, inv.reshape(-1))
 
 

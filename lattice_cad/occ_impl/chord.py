@@ -40,6 +40,7 @@ from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import OCCTFailure
 from lattice_cad.occ_impl.triangulation import triangulation_arrays
 
@@ -113,15 +114,13 @@ def _uv_triangulation(
     return pts, uv, t.reshape(-1, 3) - 1
 
 
-def _unique_edges(t: NDArray[np.int64], n: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """The distinct edges of the triangles ``t`` (nodes < ``n``), each as (low, high) node,
-    sorted, and for each of the 3T edges ``[t01, t12, t20]`` its row in them: what
-    ``np.unique(edges, axis=0, return_inverse=True)`` gives, from one int64 key per edge."""
-    a = np.concatenate([t[:, 0], t[:, 1], t[:, 2]])
-    b = np.concatenate([t[:, 1], t[:, 2], t[:, 0]])
-    key = np.minimum(a, b) * np.int64(max(n, 1)) + np.maximum(a, b)
-    uk, inv = np.unique(key, return_inverse=True)
-    return np.stack([uk // max(n, 1), uk % max(n, 1)], axis=1), inv.reshape(-1)
+def _unique_edges(t: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The distinct edges of the triangles ``t`` as sorted (low, high) rows, and for each of
+    the 3T edges ``[t01, t12, t20]`` its row in them: ``np.unique(edges, axis=0,
+    return_inverse=True)``, by one int64 key per edge (``core.arrays.unique_rows``)."""
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    uniq, inv = unique_rows(edges, return_inverse=True)
+    return uniq, inv
 
 
 #: per face: [key of the inputs measured, the result], see :func:`_measured`
@@ -191,7 +190,7 @@ def _triangle_deviation(
     key = (pts.tobytes(), uv.tobytes(), t.tobytes(), limit)
     if cache is not None and cache[0] == key:
         return cache[1]
-    uniq, inv = _unique_edges(t, len(pts))
+    uniq, inv = _unique_edges(t)
     p3 = np.concatenate([pts[t].mean(axis=1), pts[uniq].mean(axis=1)])
     q = np.concatenate([uv[t].mean(axis=1), uv[uniq].mean(axis=1)])
     # one Python call per point, from 1-D lists (a list of pairs costs as much as the calls)

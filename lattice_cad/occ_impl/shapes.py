@@ -780,7 +780,8 @@ def stored_triangulations(
         found.append((face, loc, None if tri is None or tri.NbTriangles() == 0 else tri))
     meshed = [tri for _face, _loc, tri in found if tri is not None]
     # all nodes and triangles in one read (the same values), else node by node
-    bulk = iter(triangulation_arrays(meshed) or [None] * len(meshed))
+    read: list[Any] = triangulation_arrays(meshed) or [None] * len(meshed)
+    bulk = iter(read)
     for face, loc, tri in found:
         if tri is None:
             fan = _speck_fan(shape, face, tiny, edge_faces) if tiny > 0.0 else None
