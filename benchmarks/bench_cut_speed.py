@@ -36,8 +36,8 @@ DEFAULT = [
     "dolfiny_ge_bracket_rotated_nonds.step:0.5",
     "build123d_M6-1x12-countersunk-screw.step:0.06667",
     "kcl_cycloidal-gear.step",
+    "nist_ctc_02_asme1_ap242-1.stp",
     "trimesh_featuretype.STEP",
-    "pythonocc_Ventilator.stp",
     "kcl_flange-with-patterns.step",
 ]
 
