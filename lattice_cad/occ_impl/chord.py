@@ -18,7 +18,9 @@ BRepMesh's own grid gets finer there; the shape stays one mesh with shared edge 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,7 +40,9 @@ from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 
+from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import OCCTFailure
+from lattice_cad.occ_impl.triangulation import triangulation_arrays
 
 __all__ = ["ChordReport", "face_deviations", "mesh_checked"]
 
@@ -110,8 +114,56 @@ def _uv_triangulation(
     return pts, uv, t.reshape(-1, 3) - 1
 
 
+def _unique_edges(t: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The distinct edges of the triangles ``t`` as sorted (low, high) rows, and for each of
+    the 3T edges ``[t01, t12, t20]`` its row in them: ``np.unique(edges, axis=0,
+    return_inverse=True)``, by one int64 key per edge (``core.arrays.unique_rows``)."""
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    uniq, inv = unique_rows(edges, return_inverse=True)
+    return uniq, inv
+
+
+#: per face: [key of the inputs measured, the result], see :func:`_measured`
+_Cache = dict[int, list[Any]]
+
+
+def _uv_triangulations(
+    faces: list[TopoDS_Face],
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None]:
+    """:func:`_uv_triangulation` of each of ``faces``, read in one go where possible
+    (:func:`~lattice_cad.occ_impl.triangulation.triangulation_arrays`: the same values)."""
+    out: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None]
+    out = [None] * len(faces)
+    tris, locs, at = [], [], []
+    for k, face in enumerate(faces):
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None or tri.NbTriangles() == 0 or not tri.HasUVNodes():
+            continue
+        tris.append(tri)
+        locs.append(loc)
+        at.append(k)
+    bulk = triangulation_arrays(tris) if len(tris) > 1 else None
+    if bulk is None:
+        for k in at:
+            out[k] = _uv_triangulation(faces[k])
+        return out
+    for k, loc, (pts, uv, t) in zip(at, locs, bulk, strict=True):
+        if uv is None:
+            continue
+        if not loc.IsIdentity():
+            m = loc.Transformation()
+            rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+            pts = pts @ rot.T + np.array([m.Value(r, 4) for r in (1, 2, 3)])
+        out[k] = (pts, uv, t - 1)
+    return out
+
+
 def _triangle_deviation(
-    face: TopoDS_Face, limit: float
+    face: TopoDS_Face,
+    limit: float,
+    cache: list[Any] | None = None,
+    read: Any = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None:
     """Per triangle, the deviation from the exact surface over its centroid and edge midpoints.
 
@@ -122,22 +174,29 @@ def _triangle_deviation(
     started at ``uv``: a local minimum, so still an upper bound on the distance).
 
     Returns (deviation (T,), uv nodes, triangles), or None for a plane or a face without
-    uv nodes.
+    uv nodes. ``cache``, if given, is ``[key, result]`` of the last measurement of this
+    face (its surface unchanged since): the result is returned again when the nodes, uv
+    nodes, triangles and ``limit`` are the same, and ``cache`` is updated otherwise.
+    ``read(face)``, if given, gives the triangulation (what :func:`_uv_triangulations`
+    read before) instead of :func:`_uv_triangulation`.
     """
     surf = BRepAdaptor_Surface(face)
     if surf.GetType() == GeomAbs_Plane:
         return None
-    got = _uv_triangulation(face)
+    got = _uv_triangulation(face) if read is None else read(face)
     if got is None:
         return None
     pts, uv, t = got
-    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
-    uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+    key = (pts.tobytes(), uv.tobytes(), t.tobytes(), limit)
+    if cache is not None and cache[0] == key:
+        return cache[1]
+    uniq, inv = _unique_edges(t)
     p3 = np.concatenate([pts[t].mean(axis=1), pts[uniq].mean(axis=1)])
     q = np.concatenate([uv[t].mean(axis=1), uv[uniq].mean(axis=1)])
-    value = surf.Value
-    s = np.array([value(u, v).Coord() for u, v in q.tolist()], dtype=np.float64).reshape(-1, 3)
-    d = np.linalg.norm(s - p3, axis=1)
+    # one Python call per point, from 1-D lists (a list of pairs costs as much as the calls)
+    values = map(surf.Value, q[:, 0].tolist(), q[:, 1].tolist())
+    s = np.fromiter((x for p in values for x in p.Coord()), dtype=np.float64, count=3 * len(q))
+    d = np.linalg.norm(s.reshape(-1, 3) - p3, axis=1)
     over = np.flatnonzero(d > limit)
     if len(over):
         loc = Extrema_GenLocateExtPS(surf, 1e-9, 1e-9)
@@ -153,7 +212,32 @@ def _triangle_deviation(
                     d[k] = min(d[k], float(np.sqrt(sq)))
     nt = len(t)
     dev = np.maximum(d[:nt], d[nt:][inv.reshape(-1)].reshape(3, nt).max(axis=0))
-    return dev, uv, t
+    result = (dev, uv, t)
+    if cache is not None:
+        cache[:] = [key, result]
+    return result
+
+
+def _measured(
+    faces: list[TopoDS_Face], which: Iterable[int], limit: float, cache: _Cache
+) -> dict[int, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None]:
+    """:func:`_triangle_deviation` of the faces ``which`` (screened at ``limit`` plus each
+    face's tolerance), reusing ``cache`` (face index: (key, result), updated in place) for a
+    face whose triangulation (nodes, uv nodes, triangles) and screen are the same as when it
+    was measured: the same inputs, so the same result, without evaluating the surface."""
+    out = {}
+    which = list(which)
+    curved = [i for i in which if BRepAdaptor_Surface(faces[i]).GetType() != GeomAbs_Plane]
+    read = dict(zip(curved, _uv_triangulations([faces[i] for i in curved]), strict=True))
+    for i in which:
+        face = faces[i]
+        entry: list[Any] = [None, None] if i not in cache else cache[i]
+        got = _triangle_deviation(
+            face, limit + _tolerance(face), entry, lambda _f, i=i: read.get(i)
+        )
+        cache[i] = entry
+        out[i] = got
+    return out
 
 
 def face_deviations(shape: TopoDS_Shape, screen: float = 0.0) -> NDArray[np.float64]:
@@ -374,6 +458,7 @@ def _mesh_faces_finer(
     parallel: bool,
     rounds: int,
     dev: NDArray[np.float64],
+    cache: _Cache | None = None,
 ) -> tuple[TopoDS_Shape, list[int], list[int]]:
     """Mesh the faces ``over`` (index: deviation, mm) alone with a finer deflection, then
     the whole ``shape`` around them; repeat for the faces still over ``limit``.
@@ -383,7 +468,8 @@ def _mesh_faces_finer(
     whole-shape BRepMesh run takes them as consistent and keeps them (with the edge nodes,
     which the neighbouring faces then share: the mesh stays closed). Every face is
     measured again after each run (``dev`` is updated in place), and any face over the
-    limit joins the next round.
+    limit joins the next round. ``cache``: measurements of ``shape``'s faces so far (see
+    :func:`_measured`), reused for faces BRepMesh gave the same triangulation again.
 
     Returns
     -------
@@ -395,6 +481,7 @@ def _mesh_faces_finer(
         Faces still over the limit.
     """
     scale: dict[int, float] = {}
+    cache = {} if cache is None else cache
     todo = dict(over)
     dev0 = dev.copy()
     for _ in range(rounds):
@@ -417,10 +504,9 @@ def _mesh_faces_finer(
             return shape, [], sorted(over)
         # BRepMesh ran on the whole shape again: measure every face, not only these
         todo = {}
-        for i, face in enumerate(faces):
-            got = _triangle_deviation(face, limit + _tolerance(face))
+        for i, got in _measured(faces, range(len(faces)), limit, cache).items():
             dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
-            if got is not None and _over(face, dev[i], limit):
+            if got is not None and _over(faces[i], dev[i], limit):
                 todo[i] = float(dev[i])
     return shape, sorted(i for i in scale if i not in todo), sorted(todo)
 
@@ -472,9 +558,14 @@ def mesh_checked(
     faces = _faces(shape)
     dev = np.zeros(len(faces))
     bad: dict[int, tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]] = {}
-    for i, face in enumerate(faces):
-        # points within the face's tolerance of the limit are not measured more exactly
-        got = _triangle_deviation(face, limit + _tolerance(face))
+    # each face's last measurement, for its triangulation and surface then: faces meshed
+    # the same again are not measured again (a deep copy's surfaces evaluate the same;
+    # a face's entry goes when knots are inserted into its surface)
+    cache: _Cache = {}
+    knotted: set[int] = set()
+    # points within the face's tolerance of the limit are not measured more exactly
+    for i, got in _measured(faces, range(len(faces)), limit, cache).items():
+        face = faces[i]
         if got is not None and len(got[0]):
             dev[i] = got[0].max()
             if _over(face, dev[i], limit):
@@ -499,6 +590,8 @@ def mesh_checked(
             bs = _bspline(faces[i])
             added = 0 if bs is None else _insert_knots(bs, uv, t[d > limit])
             if added:
+                cache.pop(i, None)
+                knotted.add(i)
                 inserted += added
                 if i not in report.refined:
                     report.refined.append(i)
@@ -515,12 +608,13 @@ def mesh_checked(
         if not all(_has_triangulation(f) for f in faces):
             # BRepMesh failed on the refined copy: keep the plain mesh, say which faces
             meshed, dev, bad = shape, dev0, {}
+            for i in knotted:  # measured on the copy's surfaces
+                cache.pop(i, None)
             report.unresolved = sorted(bad0)
             report.refined = []
             break
         bad = {}
-        for i in todo:
-            got = _triangle_deviation(faces[i], limit + _tolerance(faces[i]))
+        for i, got in _measured(faces, todo, limit, cache).items():
             dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
             if got is not None and _over(faces[i], dev[i], limit):
                 bad[i] = (got[1], got[2], got[0])
@@ -535,6 +629,7 @@ def mesh_checked(
             parallel,
             finer_rounds,
             dev,
+            cache,
         )
     report.unresolved = over
     if len(dev):

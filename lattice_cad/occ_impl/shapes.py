@@ -783,32 +783,46 @@ def stored_triangulations(
     OCCTFailure
         A face has no triangulation.
     """
+    from lattice_cad.occ_impl.triangulation import triangulation_arrays
+
     exp = TopExp_Explorer(shape, TopAbs_FACE)
     edge_faces: dict[str, Any] = {}
+    found = []
     while exp.More():
         face = TopoDS.Face_s(exp.Current())
         exp.Next()
         loc = TopLoc_Location()
         tri = BRep_Tool.Triangulation_s(face, loc)
-        if tri is None or tri.NbTriangles() == 0:
+        found.append((face, loc, None if tri is None or tri.NbTriangles() == 0 else tri))
+    meshed = [tri for _face, _loc, tri in found if tri is not None]
+    # all nodes and triangles in one read (the same values), else node by node
+    read: list[Any] = triangulation_arrays(meshed) or [None] * len(meshed)
+    bulk = iter(read)
+    for face, loc, tri in found:
+        if tri is None:
             fan = _speck_fan(shape, face, tiny, edge_faces) if tiny > 0.0 else None
             if fan is None:
                 raise OCCTFailure("BRepMesh left a face without triangulation")
             yield face, fan[0], fan[1]
             continue
-        nn = tri.NbNodes()
-        node = tri.Node
-        pts = np.array(
-            [(p.X(), p.Y(), p.Z()) for p in (node(i) for i in range(1, nn + 1))], dtype=np.float64
-        ).reshape(nn, 3)
+        got = next(bulk)
+        if got is not None:
+            pts, t = got[0], got[2]
+        else:
+            nn = tri.NbNodes()
+            node = tri.Node
+            pts = np.array(
+                [(p.X(), p.Y(), p.Z()) for p in (node(i) for i in range(1, nn + 1))],
+                dtype=np.float64,
+            ).reshape(nn, 3)
+            tri_at = tri.Triangle
+            t = np.array(
+                [tri_at(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
+            ).reshape(-1, 3)
         if not loc.IsIdentity():
             m = loc.Transformation()
             rot = np.array([[m.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
             pts = pts @ rot.T + np.array([m.Value(r, 4) for r in (1, 2, 3)])
-        tri_at = tri.Triangle
-        t = np.array(
-            [tri_at(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
-        ).reshape(-1, 3)
         t -= 1
         if face.Orientation() == TopAbs_REVERSED:
             t = t[:, ::-1]
