@@ -11,6 +11,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from fast_stitch._check_kernels import vertex_stats
+
 
 @numba.njit(cache=True)
 def face_boxes(vertices, faces):
@@ -131,14 +133,4 @@ def used_extremes(vertices, faces):
     for f in range(faces.shape[0]):
         for k in range(3):
             used[faces[f, k]] = True
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    amax = 0.0
-    for v in range(vertices.shape[0]):
-        if used[v]:
-            for k in range(3):
-                x = vertices[v, k]
-                lo[k] = min(lo[k], x)
-                hi[k] = max(hi[k], x)
-                amax = max(amax, abs(x))
-    return lo, hi, amax
+    return vertex_stats(vertices, used)
