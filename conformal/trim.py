@@ -176,6 +176,8 @@ def cutting_part(part: Any, radius: float) -> Any:
     defl = max(want, part.deflection * len(part.faces) / budget)  # the pessimistic guess
     angular = config.CUT_ANGULAR_DEFLECTION
     try:
+        if defl <= want * (1 + 1e-9):  # the budget does not bind: no trial to count
+            return part.refined(defl, angular=angular)
         # the trials only count triangles: BRepMesh's own, without the chord check, which
         # the chosen one gets at the end (reusing its meshing when it was the last trial)
         cut = part.refined(defl, angular=angular, checked=False)

@@ -547,45 +547,52 @@ class Lattice:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
         the_part = _load_part(part)
-        zones = None
-        if keep is not None:  # resolved before the lattice: a wrong selector fails fast
-            from lattice_cad.keep import resolve_keep
+        # the child offsets the part while this process builds and stitches the lattice
+        pending = _start_offsets(worker, the_part, skin)
+        try:
+            zones = None
+            if keep is not None:  # resolved before the lattice: a wrong selector fails fast
+                from lattice_cad.keep import resolve_keep
 
-            zones = resolve_keep(the_part, keep)
-        graph, report = _fill_graph(
-            the_part,
-            method=method,
-            cell=cell,
-            cell_size=cell_size,
-            radius=radius,
-            fill=fill,
-            origin=origin,
-            rotation=rotation,
-            segments=segments,
-            min_radius=min_radius,
-            profile=profile,
-        )
-        removal = None
-        if remove_overhangs:
-            graph, removal = _pr.remove_overhangs(
-                graph, build_direction=direction, critical_angle=crit, part=the_part
+                zones = resolve_keep(the_part, keep)
+            graph, report = _fill_graph(
+                the_part,
+                method=method,
+                cell=cell,
+                cell_size=cell_size,
+                radius=radius,
+                fill=fill,
+                origin=origin,
+                rotation=rotation,
+                segments=segments,
+                min_radius=min_radius,
+                profile=profile,
             )
-        lat = cls(
-            graph,
-            part=the_part,
-            skin=skin,
-            segments=segments,
-            profile=profile,
-            trim=trim,
-            escape_holes=escape_holes,
-            escape_at=escape_at,
-            build_direction=direction,
-        )
-        lat.keep = zones or ()
-        lat.build_report = report
-        lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
-        lat.overhang_removal = removal
-        lat._pending_offsets = _start_offsets(worker, the_part, skin)
+            removal = None
+            if remove_overhangs:
+                graph, removal = _pr.remove_overhangs(
+                    graph, build_direction=direction, critical_angle=crit, part=the_part
+                )
+            lat = cls(
+                graph,
+                part=the_part,
+                skin=skin,
+                segments=segments,
+                profile=profile,
+                trim=trim,
+                escape_holes=escape_holes,
+                escape_at=escape_at,
+                build_direction=direction,
+            )
+            lat.keep = zones or ()
+            lat.build_report = report
+            lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
+            lat.overhang_removal = removal
+        except BaseException:  # the child is not left running for a failed fill
+            if pending is not None:
+                pending.worker.close()
+            raise
+        lat._pending_offsets = pending
         return lat
 
     def printability(
