@@ -608,3 +608,196 @@ def component_labels(n, edges):
         else:
             labels[i] = labels[r]
     return count, labels
+
+
+# ------------------------------------------------- clearance of triangle soups
+@njit(cache=True, inline="always")
+def _clamp01(x):
+    return 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _seg_seg_dist2(px, py, pz, qx, qy, qz, rx, ry, rz, sx, sy, sz):
+    """Squared distance between segments pq and rs (Ericson 5.1.9)."""
+    d1x, d1y, d1z = qx - px, qy - py, qz - pz
+    d2x, d2y, d2z = sx - rx, sy - ry, sz - rz
+    wx, wy, wz = px - rx, py - ry, pz - rz
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * wx + d2y * wy + d2z * wz
+    if a <= 1e-300 and e <= 1e-300:
+        s = 0.0
+        t = 0.0
+    elif a <= 1e-300:
+        s = 0.0
+        t = _clamp01(f / e)
+    else:
+        c = d1x * wx + d1y * wy + d1z * wz
+        if e <= 1e-300:
+            t = 0.0
+            s = _clamp01(-c / a)
+        else:
+            b = d1x * d2x + d1y * d2y + d1z * d2z
+            den = a * e - b * b
+            s = _clamp01((b * f - c * e) / den) if den > 0.0 else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t = 0.0
+                s = _clamp01(-c / a)
+            elif t > 1.0:
+                t = 1.0
+                s = _clamp01((b - c) / a)
+    dx = px + d1x * s - (rx + d2x * t)
+    dy = py + d1y * s - (ry + d2y * t)
+    dz = pz + d1z * s - (rz + d2z * t)
+    return dx * dx + dy * dy + dz * dz
+
+
+@njit(cache=True, error_model="numpy")
+def triangles_within(a, i, b, j, eps):
+    """Whether triangles ``a[i]`` and ``b[j]`` ((3, 3) rows of (K, 3, 3) arrays) come within
+    ``eps`` of each other (touching and crossing included). A degenerate triangle (a
+    segment or a point) is measured by its edges (numpy's error model: a division by zero
+    in the other tests only makes them miss).
+
+    Disjoint triangles are closest at a vertex of one and the other triangle, or at two
+    edges; crossing ones have an edge of one through the other (Moller-Trumbore, with a
+    tolerance that only ever adds hits)."""
+    e2 = eps * eps
+    for u in range(3):
+        if _closest_on_tri(b, j, a[i, u, 0], a[i, u, 1], a[i, u, 2])[0] <= e2:
+            return True
+        if _closest_on_tri(a, i, b[j, u, 0], b[j, u, 1], b[j, u, 2])[0] <= e2:
+            return True
+    for u in range(3):
+        u2 = (u + 1) % 3
+        for w in range(3):
+            w2 = (w + 1) % 3
+            d2 = _seg_seg_dist2(
+                a[i, u, 0], a[i, u, 1], a[i, u, 2], a[i, u2, 0], a[i, u2, 1], a[i, u2, 2],
+                b[j, w, 0], b[j, w, 1], b[j, w, 2], b[j, w2, 0], b[j, w2, 1], b[j, w2, 2],
+            )  # fmt: skip
+            if d2 <= e2:
+                return True
+    for u in range(3):
+        u2 = (u + 1) % 3
+        ax, ay, az = a[i, u, 0], a[i, u, 1], a[i, u, 2]
+        if _seg_tri(b, j, ax, ay, az, a[i, u2, 0] - ax, a[i, u2, 1] - ay, a[i, u2, 2] - az) >= 0:
+            return True
+        bx, by, bz = b[j, u, 0], b[j, u, 1], b[j, u, 2]
+        if _seg_tri(a, i, bx, by, bz, b[j, u2, 0] - bx, b[j, u2, 1] - by, b[j, u2, 2] - bz) >= 0:
+            return True
+    return False
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def soups_within(tri, start, items, origin, h, dims, v, soup, soup_start, eps):
+    """Which triangle soups come within ``eps`` of a binned mesh.
+
+    tri (T, 3, 3), start, items, origin, h, dims: the mesh and its 3-D bins
+    (:func:`bin_triangles_3d`); v (V, 3): vertices; soup (K, 3): the soups' triangles
+    (rows of ``v``), soup ``s`` being rows ``soup_start[s]:soup_start[s + 1]``.
+    Returns (S,) bool.
+    """
+    n = soup_start.shape[0] - 1
+    out = np.zeros(n, dtype=np.bool_)
+    ny, nz = dims[1], dims[2]
+    nt = tri.shape[0]
+    tlo = np.empty((nt, 3))
+    thi = np.empty((nt, 3))
+    # unit normals and offsets of the mesh's triangles (0: degenerate, no plane test)
+    tn = np.zeros((nt, 4))
+    for t in range(nt):
+        for ax in range(3):
+            tlo[t, ax] = min(tri[t, 0, ax], min(tri[t, 1, ax], tri[t, 2, ax]))
+            thi[t, ax] = max(tri[t, 0, ax], max(tri[t, 1, ax], tri[t, 2, ax]))
+        ux, uy, uz = (
+            tri[t, 1, 0] - tri[t, 0, 0],
+            tri[t, 1, 1] - tri[t, 0, 1],
+            tri[t, 1, 2] - tri[t, 0, 2],
+        )
+        wx, wy, wz = (
+            tri[t, 2, 0] - tri[t, 0, 0],
+            tri[t, 2, 1] - tri[t, 0, 1],
+            tri[t, 2, 2] - tri[t, 0, 2],
+        )
+        cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        norm = np.sqrt(cx * cx + cy * cy + cz * cz)
+        if norm > 0.0:
+            tn[t, 0], tn[t, 1], tn[t, 2] = cx / norm, cy / norm, cz / norm
+            tn[t, 3] = -(
+                tn[t, 0] * tri[t, 0, 0] + tn[t, 1] * tri[t, 0, 1] + tn[t, 2] * tri[t, 0, 2]
+            )
+    for s in prange(n):
+        k0, k1 = soup_start[s], soup_start[s + 1]
+        if k1 == k0:
+            continue
+        a = np.empty((k1 - k0, 3, 3))
+        alo = np.empty((k1 - k0, 3))
+        ahi = np.empty((k1 - k0, 3))
+        slo = np.full(3, np.inf)
+        shi = np.full(3, -np.inf)
+        for k in range(k1 - k0):
+            for u in range(3):
+                for ax in range(3):
+                    a[k, u, ax] = v[soup[k0 + k, u], ax]
+            for ax in range(3):
+                alo[k, ax] = min(a[k, 0, ax], min(a[k, 1, ax], a[k, 2, ax]))
+                ahi[k, ax] = max(a[k, 0, ax], max(a[k, 1, ax], a[k, 2, ax]))
+                slo[ax] = min(slo[ax], alo[k, ax])
+                shi[ax] = max(shi[ax], ahi[k, ax])
+        lo = np.empty(3, dtype=np.int64)
+        hi = np.empty(3, dtype=np.int64)
+        for ax in range(3):
+            lo[ax] = max(0, min(dims[ax] - 1, int(np.floor((slo[ax] - eps - origin[ax]) / h))))
+            hi[ax] = max(0, min(dims[ax] - 1, int(np.floor((shi[ax] + eps - origin[ax]) / h))))
+        # the mesh's triangles near the soup's box, each once
+        m = 0
+        for i in range(lo[0], hi[0] + 1):
+            for j in range(lo[1], hi[1] + 1):
+                c0 = (i * ny + j) * nz
+                m += start[c0 + hi[2] + 1] - start[c0 + lo[2]]
+        if m == 0:
+            continue
+        cand = np.empty(m, dtype=np.int64)
+        m = 0
+        for i in range(lo[0], hi[0] + 1):
+            for j in range(lo[1], hi[1] + 1):
+                c0 = (i * ny + j) * nz
+                for q in range(start[c0 + lo[2]], start[c0 + hi[2] + 1]):
+                    t = items[q]
+                    if (
+                        tlo[t, 0] - shi[0] <= eps and slo[0] - thi[t, 0] <= eps
+                        and tlo[t, 1] - shi[1] <= eps and slo[1] - thi[t, 1] <= eps
+                        and tlo[t, 2] - shi[2] <= eps and slo[2] - thi[t, 2] <= eps
+                    ):  # fmt: skip
+                        cand[m] = t
+                        m += 1
+        if m == 0:
+            continue
+        cand = np.unique(cand[:m])
+        hit = False
+        for t in cand:
+            for k in range(k1 - k0):
+                if (
+                    tlo[t, 0] - ahi[k, 0] > eps or alo[k, 0] - thi[t, 0] > eps
+                    or tlo[t, 1] - ahi[k, 1] > eps or alo[k, 1] - thi[t, 1] > eps
+                    or tlo[t, 2] - ahi[k, 2] > eps or alo[k, 2] - thi[t, 2] > eps
+                ):  # fmt: skip
+                    continue
+                if tn[t, 0] != 0.0 or tn[t, 1] != 0.0 or tn[t, 2] != 0.0:
+                    # all of triangle k farther than eps on one side of t's plane: apart
+                    d0 = tn[t, 0] * a[k, 0, 0] + tn[t, 1] * a[k, 0, 1] + tn[t, 2] * a[k, 0, 2]
+                    d1 = tn[t, 0] * a[k, 1, 0] + tn[t, 1] * a[k, 1, 1] + tn[t, 2] * a[k, 1, 2]
+                    d2 = tn[t, 0] * a[k, 2, 0] + tn[t, 1] * a[k, 2, 1] + tn[t, 2] * a[k, 2, 2]
+                    lo_d = min(d0, min(d1, d2)) + tn[t, 3]
+                    hi_d = max(d0, max(d1, d2)) + tn[t, 3]
+                    if lo_d > eps or hi_d < -eps:
+                        continue
+                if triangles_within(a, k, tri, t, eps):
+                    hit = True
+                    break
+            if hit:
+                break
+        out[s] = hit
+    return out

@@ -290,6 +290,7 @@ def split_lattice(
         or when the float32 rounding touches a deep element.
     """
     from conformal._skin_kernels import any_flat_triangle
+    from lattice_cad.io._rounding_kernels import has_equal_rows
 
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
@@ -345,6 +346,9 @@ def split_lattice(
             low = 0.5 * (d[:, 1:] + d[:, :-1] - step[:, None])  # a bound between two samples
         ok = np.all(low > tube_r[cand, None] + margin, axis=1)
         ecls[cand[ok]] = ncls[edges[cand[ok], 0]]
+    # the near elements measured exactly: those clear of the inner surface by margin are
+    # deep or wall after all (the bounds above are balls and capsules about them)
+    _refine_near(v, f, P, fstart, fcount, bbase, edges, graph.degree, ncls, ecls, inner, margin)
     # every face's element
     fcls = np.empty(len(f), dtype=np.int64)
     fcls[: 2 * m * P] = np.repeat(ecls, 2 * P)
@@ -390,9 +394,8 @@ def split_lattice(
     used_d = np.flatnonzero(mask)
     if any_flat_triangle(v32, deep_f):
         return None
-    u = v32[used_d]
-    order = np.lexsort((u[:, 2], u[:, 1], u[:, 0]))
-    if np.any(np.all(u[order[1:]] == u[order[:-1]], axis=1)):
+    u = v32[used_d] + 0.0  # -0.0 + 0.0 is +0.0: equal rows, equal bits
+    if has_equal_rows(u, u.view(np.uint64)):
         return None  # two deep vertices became one
     near_f = np.vstack([f[fcls == _NEAR], caps])
     nv, nf = _compact(v32, near_f)
@@ -419,6 +422,109 @@ def split_lattice(
             "caps": int(len(caps)),
         },
     )
+
+
+def _refine_near(
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    P: int,
+    fstart: NDArray[np.int64],
+    fcount: NDArray[np.int64],
+    bbase: int,
+    edges: NDArray[np.int64],
+    degree: NDArray[np.int64],
+    ncls: NDArray[np.int64],
+    ecls: NDArray[np.int64],
+    inner: Any,
+    margin: float,
+) -> None:
+    """Reclassify, in place, the near hubs (``ncls``) and tubes (``ecls``) whose closed
+    surface (their triangles and the fans closing their rings) stays farther than
+    ``margin`` from the inner surface: deep when inside it, wall when outside.
+
+    Such an element's boundary lies wholly on one side of the inner surface (one vertex
+    tells which), clear of it by ``margin``; so does the element, unless a whole piece of
+    the inner surface fits inside it, which is ruled out when every piece of the inner
+    surface is larger (bounding box) than every element. The ball and capsule bounds that
+    classified the elements first hold them as near when they come within ``margin`` of
+    the surface; on a thin-walled part most are far clearer than that (GE bracket, octet
+    6 mm, r 0.5, skin 1.5: 988 K of 2.87 M triangles near by the bounds, 619 K exactly; the
+    booleans then take 0.45 s less and give the same triangles).
+    """
+    from conformal._kernels import soups_within
+
+    hubs = np.flatnonzero((ncls == _NEAR) & (degree > 0))
+    tubes = np.flatnonzero(ecls == _NEAR)
+    if len(hubs) + len(tubes) == 0:
+        return
+    # an element's extent: a hub lies within its ring vertices' bounding box, a tube
+    # within its two hub rings'
+    ring_v = v[: 2 * len(edges) * P].reshape(len(edges), 2, P, 3)
+    ring_lo, ring_hi = ring_v.min(axis=2), ring_v.max(axis=2)  # (m, 2, 3)
+    tube_ext = float((ring_hi[tubes].max(axis=1) - ring_lo[tubes].min(axis=1)).max(initial=0))
+    hub_ext = 0.0
+    if len(hubs):
+        lo = np.full((len(degree), 3), np.inf)
+        hi = np.full((len(degree), 3), -np.inf)
+        np.minimum.at(lo, edges.ravel(), ring_lo.reshape(-1, 3))
+        np.maximum.at(hi, edges.ravel(), ring_hi.reshape(-1, 3))
+        hub_ext = float((hi[hubs] - lo[hubs]).max())
+    iv, ifc = inner.vertices, inner.faces
+    n_pieces, vlabel, _ = pieces(iv, ifc)
+    used = vlabel >= 0
+    plo = np.full((n_pieces, 3), np.inf)
+    phi = np.full((n_pieces, 3), -np.inf)
+    np.minimum.at(plo, vlabel[used], iv[used])
+    np.maximum.at(phi, vlabel[used], iv[used])
+    if float((phi - plo).max(axis=1).min()) <= max(tube_ext, hub_ext) + 2 * margin:
+        return  # a piece of the inner surface could hide inside an element
+    # the soups: each near tube's triangles (its bands' too) and the fans closing its rings;
+    # each near hub's triangles; the fans closing each near hub's rings (a hub is clear
+    # when its soup and all its rings' are)
+    j = np.arange(1, P - 1)[None, :]
+
+    def fans(ring_ids: NDArray[np.int64]) -> NDArray[np.int64]:
+        """(R, P - 2, 3) vertex ids of the fan over each ring."""
+        rb = (ring_ids * P)[:, None]
+        return np.stack([np.broadcast_to(rb, (len(rb), P - 2)), rb + j, rb + j + 1], axis=2)
+
+    rows = (2 * P * tubes)[:, None] + np.arange(2 * P)[None, :]
+    if bbase >= 0:
+        rows = np.hstack([rows, bbase + (4 * P * tubes)[:, None] + np.arange(4 * P)[None, :]])
+    tube_soup = np.concatenate(
+        [f[rows], fans(2 * tubes), fans(2 * tubes + 1)], axis=1
+    )  # (T, 6 P + 2 (P - 2), 3)
+    hub_len = fcount[hubs]
+    hub_rows = np.repeat(fstart[hubs] - np.concatenate([[0], np.cumsum(hub_len)[:-1]]), hub_len)
+    hub_rows += np.arange(int(hub_len.sum()))
+    hub_mask = np.zeros(len(degree), dtype=bool)
+    hub_mask[hubs] = True
+    rings = np.flatnonzero(hub_mask[edges.ravel()])  # ring 2 e + s is at node edges[e, s]
+    soup = np.concatenate([tube_soup.reshape(-1, 3), f[hub_rows], fans(rings).reshape(-1, 3)])
+    sizes = np.concatenate(
+        [
+            np.full(len(tubes), tube_soup.shape[1]),
+            hub_len,
+            np.full(len(rings), P - 2),
+        ]
+    )
+    soup_start = np.concatenate([[0], np.cumsum(sizes)])
+    origin, h, dims, start, items = inner._bins3d
+    touch = soups_within(
+        inner.triangles, start, items, origin, h, dims, v, soup, soup_start, margin
+    )
+    n_t, n_h = len(tubes), len(hubs)
+    tube_touch = touch[:n_t]
+    hub_touch = touch[n_t : n_t + n_h].copy()
+    hub_pos = np.full(len(degree), -1, dtype=np.int64)
+    hub_pos[hubs] = np.arange(n_h)
+    np.logical_or.at(hub_touch, hub_pos[edges.ravel()[rings]], touch[n_t + n_h :])
+    # one vertex of each clear element tells its side
+    t_clear, h_clear = tubes[~tube_touch], hubs[~hub_touch]
+    first = np.concatenate([tube_soup[~tube_touch, 0, 0], f[fstart[h_clear], 0]])
+    side = np.where(inner.contains(v[first]), _DEEP, _WALL)
+    ecls[t_clear] = side[: len(t_clear)]
+    ncls[h_clear] = side[len(t_clear) :]
 
 
 def _deep_pieces(
