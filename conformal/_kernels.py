@@ -326,6 +326,12 @@ def closest_points(tri, start, items, origin, h, dims, pts, max_dist):
     face = np.full(n, -1, dtype=np.int64)
     nx, ny, nz = dims[0], dims[1], dims[2]
     rmax = max(nx, max(ny, nz))
+    nt = tri.shape[0]
+    box = np.empty((nt, 6))
+    for t in range(nt):
+        for a in range(3):
+            box[t, a] = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
+            box[t, 3 + a] = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
     for p in prange(n):
         px, py, pz = pts[p, 0], pts[p, 1], pts[p, 2]
         # distance from p to the grid box (rings are measured from the clamped cell)
@@ -361,6 +367,13 @@ def closest_points(tri, start, items, origin, h, dims, pts, max_dist):
                         c = (i * ny + j) * nz + k
                         for q in range(start[c], start[c + 1]):
                             t = items[q]
+                            # the triangle's box farther than the best: it cannot win (a
+                            # relative 1e-9 above rounding, so ties are measured as before)
+                            ex = max(box[t, 0] - px, max(0.0, px - box[t, 3]))
+                            ey = max(box[t, 1] - py, max(0.0, py - box[t, 4]))
+                            ez = max(box[t, 2] - pz, max(0.0, pz - box[t, 5]))
+                            if ex * ex + ey * ey + ez * ez > best * (1.0 + 1e-9):
+                                continue
                             d2, qx, qy, qz = _closest_on_tri(tri, t, px, py, pz)
                             if d2 < best:
                                 best = d2

@@ -314,3 +314,25 @@ def test_every_valid_step_solid_in_shared_data_loads():
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", LatticeWarning)  # solids united
                 load_part(path)
+
+
+@pytest.mark.parametrize("max_distance", [0.5, 3.0, np.inf])
+def test_closest_points_equal_trimesh_on_a_real_part(max_distance):
+    """Part.closest (grid rings, triangles skipped by their boxes) against trimesh's
+    closest points, on a real part and points from on the surface to far outside."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        part = load_part(DATA / "step" / "kcl_bracket.step")
+    rng = np.random.default_rng(3)
+    lo, hi = part.bounds
+    pts = rng.uniform(lo - 5.0, hi + 5.0, size=(1500, 3))
+    surf = part.vertices[rng.integers(0, len(part.vertices), 200)]  # on it
+    pts = np.vstack([pts, surf, surf + rng.normal(scale=0.3, size=surf.shape)])
+    d, c = part.closest(pts, max_distance=max_distance)
+    _, ref, _ = trimesh.proximity.closest_point(
+        trimesh.Trimesh(part.vertices, part.faces, process=False), pts
+    )
+    near = ref <= max_distance
+    np.testing.assert_allclose(d[near], ref[near], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(c[near] - pts[near], axis=1), ref[near], atol=1e-9)
+    assert np.all(np.isinf(d[ref > max_distance * (1 + 1e-9)]))
