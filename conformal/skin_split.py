@@ -10,7 +10,10 @@ triangles per strut, joined at the struts' profile rings (``P`` vertices each). 
 
 1. every hub and tube is classified against the inner surface, with its exact bounding
    ball (hub) or capsule (tube, sampled along its axis; the distance is 1-Lipschitz):
-   **deep** (inside, clear by ``margin``), **wall** (outside, clear) or **near**;
+   **deep** (inside, clear by ``margin``), **wall** (outside, clear) or **near**; then the
+   closed surface of each near element (its triangles and the fans over its rings) is
+   measured exactly against the inner surface (``conformal._kernels.soups_within``), and
+   those clear by ``margin`` are deep or wall after all (:func:`_refine_near`);
 2. the near elements, each ring they share with a deep or wall element closed by a fan of
    ``P - 2`` triangles (no new vertex), form a closed solid ``N``; the booleans run on
    ``N`` only: ``outer - (inner - N)``; the wall elements are dropped (they lie outside
