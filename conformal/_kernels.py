@@ -252,6 +252,18 @@ def bin_triangles_3d(tri, origin, h, dims):
     return start, items
 
 
+@njit(cache=True)
+def triangle_boxes(tri):
+    """(T, 6) float64: each triangle's box, min corner then max corner."""
+    nt = tri.shape[0]
+    box = np.empty((nt, 6))
+    for t in range(nt):
+        for a in range(3):
+            box[t, a] = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
+            box[t, 3 + a] = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
+    return box
+
+
 @njit(cache=True, inline="always")
 def _closest_on_tri(tri, t, px, py, pz):
     """Squared distance from p to triangle t and the closest point (Ericson 5.1.5)."""
@@ -309,8 +321,9 @@ def _closest_on_tri(tri, t, px, py, pz):
 
 
 @njit(cache=True, parallel=True)
-def closest_points(tri, start, items, origin, h, dims, pts, max_dist):
-    """Closest surface point of each query point (exact, grid ring search).
+def closest_points(tri, box, start, items, origin, h, dims, pts, max_dist):
+    """Closest surface point of each query point (exact, grid ring search; ``box`` (T, 6):
+    the triangles' boxes, :func:`triangle_boxes`).
 
     Returns
     -------
@@ -326,12 +339,6 @@ def closest_points(tri, start, items, origin, h, dims, pts, max_dist):
     face = np.full(n, -1, dtype=np.int64)
     nx, ny, nz = dims[0], dims[1], dims[2]
     rmax = max(nx, max(ny, nz))
-    nt = tri.shape[0]
-    box = np.empty((nt, 6))
-    for t in range(nt):
-        for a in range(3):
-            box[t, a] = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
-            box[t, 3 + a] = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
     for p in prange(n):
         px, py, pz = pts[p, 0], pts[p, 1], pts[p, 2]
         # distance from p to the grid box (rings are measured from the clamped cell)
@@ -704,26 +711,24 @@ def triangles_within(a, i, b, j, eps):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def soups_within(tri, start, items, origin, h, dims, v, soup, soup_start, eps):
+def soups_within(tri, box, start, items, origin, h, dims, v, soup, soup_start, eps):
     """Which triangle soups come within ``eps`` of a binned mesh.
 
-    tri (T, 3, 3), start, items, origin, h, dims: the mesh and its 3-D bins
-    (:func:`bin_triangles_3d`); v (V, 3): vertices; soup (K, 3): the soups' triangles
-    (rows of ``v``), soup ``s`` being rows ``soup_start[s]:soup_start[s + 1]``.
+    tri (T, 3, 3), box (T, 6), start, items, origin, h, dims: the mesh, its triangles' boxes
+    (:func:`triangle_boxes`) and its 3-D bins (:func:`bin_triangles_3d`); v (V, 3): vertices;
+    soup (K, 3): the soups' triangles (rows of ``v``), soup ``s`` being rows
+    ``soup_start[s]:soup_start[s + 1]``.
     Returns (S,) bool.
     """
     n = soup_start.shape[0] - 1
     out = np.zeros(n, dtype=np.bool_)
     ny, nz = dims[1], dims[2]
     nt = tri.shape[0]
-    tlo = np.empty((nt, 3))
-    thi = np.empty((nt, 3))
+    tlo = box[:, :3]
+    thi = box[:, 3:]
     # unit normals and offsets of the mesh's triangles (0: degenerate, no plane test)
     tn = np.zeros((nt, 4))
     for t in range(nt):
-        for ax in range(3):
-            tlo[t, ax] = min(tri[t, 0, ax], min(tri[t, 1, ax], tri[t, 2, ax]))
-            thi[t, ax] = max(tri[t, 0, ax], max(tri[t, 1, ax], tri[t, 2, ax]))
         ux, uy, uz = (
             tri[t, 1, 0] - tri[t, 0, 0],
             tri[t, 1, 1] - tri[t, 0, 1],

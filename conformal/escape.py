@@ -759,7 +759,15 @@ def drill(
         surf = Part(v, f, name="the solid")
         origin, hb, dims, start, items = surf._bins3d
         _, near, face = _kernels.closest_points(
-            surf.triangles, start, items, origin, hb, dims, np.ascontiguousarray(user), np.inf
+            surf.triangles,
+            surf.boxes,
+            start,
+            items,
+            origin,
+            hb,
+            dims,
+            np.ascontiguousarray(user),
+            np.inf,
         )
         tri = surf.triangles[face]
         normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])

@@ -108,6 +108,13 @@ class Part:
         t.flags.writeable = False
         return t
 
+    @cached_property
+    def boxes(self) -> NDArray[np.float64]:
+        """(F, 6) float64: each triangle's bounding box, min corner then max corner."""
+        b = _kernels.triangle_boxes(self.triangles)
+        b.flags.writeable = False
+        return b
+
     @property
     def bounds(self) -> NDArray[np.float64]:
         """(2, 3) float64: min and max corner of the bounding box."""
@@ -300,7 +307,7 @@ class Part:
         p = _as_points(points)
         origin, h, dims, start, items = self._bins3d
         dist, cp, _ = _kernels.closest_points(
-            self.triangles, start, items, origin, h, dims, p, float(max_distance)
+            self.triangles, self.boxes, start, items, origin, h, dims, p, float(max_distance)
         )
         return dist, cp
 

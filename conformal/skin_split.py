@@ -382,12 +382,7 @@ def split_lattice(
     # the cap closes the near element: opposite to the tube if the tube is near, else as
     # the tube (opposite to the hub)
     cap_plus = np.where(near_tube, ~tube_plus, tube_plus)
-    rb = ((2 * e_idx + s_idx) * P)[:, None]
-    j = np.arange(1, P - 1)[None, :]
-    c0 = np.broadcast_to(rb, (len(rb), P - 2))
-    c1 = np.where(cap_plus[:, None], rb + j, rb + j + 1)
-    c2 = np.where(cap_plus[:, None], rb + j + 1, rb + j)
-    caps = np.stack([c0, c1, c2], axis=2).reshape(-1, 3)
+    caps = _fans(2 * e_idx + s_idx, P, cap_plus).reshape(-1, 3)
     cap_deep = np.repeat(to_deep, P - 2)
     # the deep elements must survive the rounding to float32 as they are
     v32 = v.astype(np.float32).astype(np.float64)
@@ -484,18 +479,11 @@ def _refine_near(
     # the soups: each near tube's triangles (its bands' too) and the fans closing its rings;
     # each near hub's triangles; the fans closing each near hub's rings (a hub is clear
     # when its soup and all its rings' are)
-    j = np.arange(1, P - 1)[None, :]
-
-    def fans(ring_ids: NDArray[np.int64]) -> NDArray[np.int64]:
-        """(R, P - 2, 3) vertex ids of the fan over each ring."""
-        rb = (ring_ids * P)[:, None]
-        return np.stack([np.broadcast_to(rb, (len(rb), P - 2)), rb + j, rb + j + 1], axis=2)
-
     rows = (2 * P * tubes)[:, None] + np.arange(2 * P)[None, :]
     if bbase >= 0:
         rows = np.hstack([rows, bbase + (4 * P * tubes)[:, None] + np.arange(4 * P)[None, :]])
     tube_soup = np.concatenate(
-        [f[rows], fans(2 * tubes), fans(2 * tubes + 1)], axis=1
+        [f[rows], _fans(2 * tubes, P), _fans(2 * tubes + 1, P)], axis=1
     )  # (T, 6 P + 2 (P - 2), 3)
     hub_len = fcount[hubs]
     hub_rows = np.repeat(fstart[hubs] - np.concatenate([[0], np.cumsum(hub_len)[:-1]]), hub_len)
@@ -503,7 +491,7 @@ def _refine_near(
     hub_mask = np.zeros(len(degree), dtype=bool)
     hub_mask[hubs] = True
     rings = np.flatnonzero(hub_mask[edges.ravel()])  # ring 2 e + s is at node edges[e, s]
-    soup = np.concatenate([tube_soup.reshape(-1, 3), f[hub_rows], fans(rings).reshape(-1, 3)])
+    soup = np.concatenate([tube_soup.reshape(-1, 3), f[hub_rows], _fans(rings, P).reshape(-1, 3)])
     sizes = np.concatenate(
         [
             np.full(len(tubes), tube_soup.shape[1]),
@@ -514,7 +502,7 @@ def _refine_near(
     soup_start = np.concatenate([[0], np.cumsum(sizes)])
     origin, h, dims, start, items = inner._bins3d
     touch = soups_within(
-        inner.triangles, start, items, origin, h, dims, v, soup, soup_start, margin
+        inner.triangles, inner.boxes, start, items, origin, h, dims, v, soup, soup_start, margin
     )
     n_t, n_h = len(tubes), len(hubs)
     tube_touch = touch[:n_t]
@@ -528,6 +516,21 @@ def _refine_near(
     side = np.where(inner.contains(v[first]), _DEEP, _WALL)
     ecls[t_clear] = side[: len(t_clear)]
     ncls[h_clear] = side[len(t_clear) :]
+
+
+def _fans(
+    rings: NDArray[np.int64], P: int, plus: NDArray[np.bool_] | None = None
+) -> NDArray[np.int64]:
+    """(R, P - 2, 3) vertex ids of the fan closing each ring (ring ``r``: vertices
+    ``r P .. r P + P - 1``), in the ring's direction where ``plus`` (R,) is True (default),
+    against it elsewhere."""
+    rb = (np.asarray(rings, dtype=np.int64) * P)[:, None]
+    j = np.arange(1, P - 1)[None, :]
+    fwd = np.ones((len(rb), 1), dtype=bool) if plus is None else np.asarray(plus)[:, None]
+    c0 = np.broadcast_to(rb, (len(rb), P - 2))
+    return np.stack(
+        [c0, np.where(fwd, rb + j, rb + j + 1), np.where(fwd, rb + j + 1, rb + j)], axis=2
+    )
 
 
 def _deep_pieces(

@@ -10,7 +10,7 @@ import pytest
 from scipy.optimize import minimize
 
 from conformal import skin_split
-from conformal._kernels import bin_triangles_3d, soups_within, triangles_within
+from conformal._kernels import bin_triangles_3d, soups_within, triangle_boxes, triangles_within
 from lattice_cad.core.errors import LatticeWarning
 from tests.test_skin_split import _fill, _triangles
 
@@ -73,6 +73,7 @@ def test_soups_within_equals_testing_every_pair():
     dims = np.ceil((mesh.reshape(-1, 3).max(axis=0) - lo) / h).astype(np.int64) + 1
     origin = lo - 0.5 * h
     start, items = bin_triangles_3d(mesh, origin, h, dims)
+    box = triangle_boxes(mesh)
     # small triangles about random centres (soups of 1..9), one of them degenerate
     centres = rng.uniform(-8, 8, size=(240, 1, 3))
     v = (centres + rng.normal(scale=0.25, size=(240, 3, 3))).reshape(-1, 3)
@@ -83,7 +84,7 @@ def test_soups_within_equals_testing_every_pair():
     soup_start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     tri = v[soup]
     for eps in (0.0, 0.05, 0.3):
-        got = soups_within(mesh, start, items, origin, h, dims, v, soup, soup_start, eps)
+        got = soups_within(mesh, box, start, items, origin, h, dims, v, soup, soup_start, eps)
         want = [
             any(
                 triangles_within(tri, k, mesh, t, eps)
