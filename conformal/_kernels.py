@@ -69,7 +69,7 @@ def _tri_z(tri, t, px, py):
 # ------------------------------------------------------- column winding
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _col_range(lo, hi, o, h, n, off):
     a = int(np.ceil((lo - o) / h)) - off
     b = int(np.floor((hi - o) / h)) - off
@@ -432,7 +432,7 @@ def _seg_tri(tri, t, ax, ay, az, dx, dy, dz):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _segment_params(tri, start, items, origin, h, dims, a, b, buf):
     """Crossing parameters of segment a-b with the surface (unsorted, may repeat)."""
     ny, nz = dims[1], dims[2]

@@ -64,7 +64,7 @@ from fast_stitch._predicates import (
 # --------------------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _collinear(vertices, a, b, c):
     """True iff the three points are exactly collinear (or coincide)."""
     k = drop_axis(vertices, a, b, c)
@@ -80,7 +80,7 @@ def _collinear(vertices, a, b, c):
 # --------------------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _seg_tri_coplanar(vertices, p, q, a, b, c):
     k = drop_axis(vertices, a, b, c)
     i = (k + 1) % 3
@@ -110,7 +110,7 @@ def _seg_tri(vertices, p, q, a, b, c, op, oq):
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _fan_separated_2d(vertices, p, a, b, c, d):
     """Quick sufficient test that triangles ``pab`` and ``pcd`` meet only at ``p``.
 
@@ -161,7 +161,7 @@ def _shared_vertex_intersect(vertices, p, a, b, c, d):
     return _seg_tri(vertices, c, d, p, a, b, fc, fd) or _seg_tri(vertices, a, b, p, c, d, fa, fb)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _shared_edge_intersect(vertices, a, b, c, d, tol):
     """Triangles ``(a, b, c)`` and ``(a, b, d)`` sharing edge ``ab`` overlap (folded).
 
@@ -229,7 +229,7 @@ def _point_on_segment_2d(vertices, p, a, b, i, j):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _touching_boxes(vertices, faces, fi, fj, p):
     """Exact shortcut when the boxes of two faces only touch along a plane ``x_k = c``.
 
@@ -298,7 +298,7 @@ def _touching_boxes(vertices, faces, fi, fj, p):
     return -1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _faces_intersect(vertices, faces, fi, fj, tol):
     """Do faces ``fi`` and ``fj`` (both non-degenerate) intersect beyond their shared part?"""
     s0 = _match(faces, fj, faces[fi, 0])
@@ -895,14 +895,14 @@ def _cell_hash(ix, iy, iz, mask):
     return (np.int64(k << np.uint64(6)) | low) & mask
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _n_pieces(boxes, f, h, max_pieces):
     ext = max(boxes[f, 3] - boxes[f, 0], boxes[f, 4] - boxes[f, 1], boxes[f, 5] - boxes[f, 2])
     k = np.int64(np.ceil(ext / h)) if ext > 0.0 else 1
     return max(1, min(k, max_pieces))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _piece_box(vertices, faces, boxes, f, i, k, margin, out):
     """Box of the part of face ``f`` inside slab ``i`` of ``k`` along its box's longest
     axis, enlarged by ``margin`` across that axis (it covers the exact part).
@@ -952,7 +952,7 @@ def _piece_box(vertices, faces, boxes, f, i, k, margin, out):
             out[3 + kk] = min(out[3 + kk] + margin, boxes[f, 3 + kk])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _cell(x, o, h):
     return np.int64(np.floor((x - o) / h))
 
@@ -966,7 +966,7 @@ def _grow(buf):
     return bigger
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _sort_unique(buf, n):
     """Sort ``buf[:n]`` (int64) in place and drop duplicates; returns the new length."""
     gap = 1

@@ -216,7 +216,7 @@ def _exp_sign(e, n):
 # --------------------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _orient3d_exact(vertices, a, b, c, d):
     buf = np.empty((9, 2))
     ln = np.empty(9, np.int64)
@@ -543,7 +543,7 @@ def seg_seg_2d(vertices, p, q, a, b, i, j):
 # --------------------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _tri_tri_coplanar(vertices, a, b, c, d, e, f):
     k = drop_axis(vertices, a, b, c)
     i = (k + 1) % 3
@@ -584,7 +584,7 @@ def edge_separates_2d(vertices, u, v, w, x, y, z, i, j):
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _separated_2d(vertices, a, b, c, d, e, f):
     """Quick sufficient test: the projections of ``abc`` and ``def`` (dropping the dominant
     normal axis of ``abc``) are strictly separated by the line of one of their edges.

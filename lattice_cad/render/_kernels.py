@@ -42,7 +42,7 @@ def vertex_normals(vertices, faces):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _span(c, k, lo, hi):  # pragma: no cover - compiled
     """Narrow ``[lo, hi]`` to the x where ``c - k * x >= 0``."""
     if k > 0.0:
@@ -115,7 +115,7 @@ def rasterise(
     return counts.sum()
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _rasterise_rows(
     sx, sy, sz, faces, normals, scalars, cut, layer, cull, depth, nbuf, sbuf, ids, row0, row1, zs
 ):  # pragma: no cover - compiled
