@@ -10,6 +10,8 @@ Usage::
 
     PYTHONPATH=$PWD python benchmarks/bench_skin.py --trees ../main-before $PWD --repeat 3 \
         --out benchmarks/results/bench_skin.txt
+    # one tree with and without an environment variable
+    python benchmarks/bench_skin.py --trees "$PWD::NUMPY_MADVISE_HUGEPAGE=1" $PWD
 
 Times of nested stages are inclusive (``booleans`` is ``build_skin`` minus its surfaces,
 lattice conversion, island check and wall measurement).
@@ -131,8 +133,15 @@ def _reap(seconds: float = 10.0) -> None:
 
 
 def run_once(tree: str) -> dict:
+    """One fresh-process run of ``tree``: a repository path, optionally followed by
+    ``::VAR=VALUE[,VAR=VALUE]``, environment variables set for that run only (an A/B of
+    one tree with and without a setting)."""
     _subreaper()
-    env = dict(os.environ, PYTHONPATH=tree)
+    path, _, spec = tree.partition("::")
+    env = dict(os.environ, PYTHONPATH=path)
+    for item in filter(None, spec.split(",")):
+        key, _, value = item.partition("=")
+        env[key] = value
     out = f"/tmp/bench_skin_{os.getpid()}.json"
     load = os.getloadavg()[0]
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -149,6 +158,12 @@ def run_once(tree: str) -> dict:
     data["wall"], data["cpu"], data["load"] = wall, cpu, load
     data["load_after"] = os.getloadavg()[0]
     return data
+
+
+def _label(tree: str) -> str:
+    """A short column name: the tree's folder name, and its environment variables."""
+    path, _, spec = tree.partition("::")
+    return Path(path).name + (f" {spec}" if spec else "")
 
 
 def main() -> None:
@@ -182,7 +197,8 @@ def main() -> None:
             )
     say()
     labels = [s[0] for s in STAGES] + ["TOTAL (in process)"]
-    names = "".join(f" | {Path(t).name:>18s}" for t in args.trees)
+    width = max([18] + [len(_label(t)) for t in args.trees])
+    names = "".join(f" | {_label(t):>{width}s}" for t in args.trees)
     head = f"{'stage (median wall / CPU s)':28s}" + names
     say(head)
     say("-" * len(head))
@@ -196,18 +212,18 @@ def main() -> None:
         for t in args.trees:
             vals = [d["stages"].get(lab) for d in runs[t]]
             if any(v is None for v in vals):
-                cells.append(f"{'-':>18s}")
+                cells.append(f"{'-':>{width}s}")
             else:
                 w = med([v[0] for v in vals])
                 c = med([v[1] for v in vals])
                 n = vals[0][2]
-                cells.append(f"{w:7.2f} / {c:6.2f} x{n:<2d}")
+                cells.append(f"{f'{w:7.2f} / {c:6.2f} x{n:<2d}':>{width}s}")
         say(f"{lab:28s}" + "".join(f" | {c}" for c in cells))
     for t in args.trees:
         ws = [d["wall"] for d in runs[t]]
         cs = [d["cpu"] for d in runs[t]]
         say(
-            f"{Path(t).name}: process wall median {med(ws):.2f} s (min {min(ws):.2f}), "
+            f"{_label(t)}: process wall median {med(ws):.2f} s (min {min(ws):.2f}), "
             f"CPU median {med(cs):.2f} s (min {min(cs):.2f})"
         )
     if args.out:

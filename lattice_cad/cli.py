@@ -967,8 +967,44 @@ def _one_line(exc: BaseException) -> str:
     return f"error: {msg}"
 
 
+#: numpy's environment variable for its huge-page advice (read when numpy is imported).
+_HUGEPAGE_ENV = "NUMPY_MADVISE_HUGEPAGE"
+
+
+def _no_hugepage_advice() -> bool:
+    """Stop numpy advising the kernel to back its large arrays with transparent huge pages
+    (``madvise(MADV_HUGEPAGE)`` on every array of 4 MiB or more), in this process and in
+    the processes it starts (the OCCT offset worker, Dask workers), unless the user set
+    ``NUMPY_MADVISE_HUGEPAGE``; returns whether it did.
+
+    The first touch of a huge page costs the zeroing of 2 MiB at once, and far more where
+    the kernel must first compact memory for it (numpy issue 31590) or, in a virtual
+    machine, the host must back it: on the 2-core KVM guest of the benchmarks, copying a
+    fresh 67 MB array took 0.46 s with the advice and 0.03 s without, and the GE bracket's
+    skin spent 3-4 s of system time in such faults (0.8-1.1 s without; see CHANGES).
+    A fill allocates many fresh arrays of that size (a lattice of millions of triangles)
+    and uses each briefly, which is what huge pages do not pay off for. The library does
+    not change numpy's global state when imported; ``NUMPY_MADVISE_HUGEPAGE=1`` keeps the
+    advice for the command line too.
+    """
+    import os
+
+    if _HUGEPAGE_ENV in os.environ:
+        return False
+    os.environ[_HUGEPAGE_ENV] = "0"  # the child processes import numpy with it
+    import numpy as np
+
+    core = getattr(np, "_core", None) or getattr(np, "core", None)
+    setter = getattr(getattr(core, "multiarray", None), "_set_madvise_hugepage", None)
+    if setter is None:  # pragma: no cover - a numpy without the switch
+        return False
+    setter(False)
+    return True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``lattice-cad``; returns the exit code (also the console-script entry point)."""
+    _no_hugepage_advice()
     parser = build_parser()
     args = parser.parse_args(argv)
     args.quiet = getattr(args, "quiet", False)  # given before or after the command
