@@ -269,6 +269,30 @@ class Part:
         the longest side, refined by the exact distance at the deepest grid points; a lower
         bound, accurate to about one grid step.
         """
+        grid = self._depth_grid(resolution)
+        if grid is None:
+            return 0.0
+        origin, h, depth = grid
+        best = np.argsort(depth, axis=None)[-64:]
+        pts = origin + np.column_stack(np.unravel_index(best, depth.shape)) * h
+        return float(self.distance(pts).max())
+
+    def _depth_grid(
+        self, resolution: int
+    ) -> tuple[NDArray[np.float64], float, NDArray[np.float64]] | None:
+        """(origin (3,), spacing h, depth (nx, ny, nz) float64): the distance transform of
+        the grid points inside the part (0 outside), or None when no grid point is inside.
+
+        ``depth`` at a point inside is its distance to the nearest grid point outside, so
+        at least its distance to the surface (the segment between them crosses it)."""
+        cache = self.__dict__.setdefault("_depth_grids", {})
+        if resolution not in cache:
+            cache[resolution] = self._depth_grid_uncached(resolution)
+        return cache[resolution]  # type: ignore[no-any-return]
+
+    def _depth_grid_uncached(
+        self, resolution: int
+    ) -> tuple[NDArray[np.float64], float, NDArray[np.float64]] | None:
         from scipy.ndimage import distance_transform_edt
 
         # fine enough for thin walls: a few points across the mean thickness 2 V / A
@@ -282,11 +306,61 @@ class Part:
         dims = np.ceil(self.size / h).astype(np.int64) + 3
         inside = self.grid_contains(origin, np.full(3, h), dims)
         if not inside.any():
-            return 0.0
-        depth = distance_transform_edt(inside, sampling=h)
-        best = np.argsort(depth, axis=None)[-64:]
-        pts = origin + np.column_stack(np.unravel_index(best, depth.shape)) * h
-        return float(self.distance(pts).max())
+            return None
+        return origin, h, distance_transform_edt(inside, sampling=h)
+
+    def thinner_than(
+        self, depth: float, *, resolution: int = 96, levels: int = 4, budget: int = 2_000_000
+    ) -> bool:
+        """Whether no point of the part lies ``depth`` (mm) or more from its surface (so an
+        inset by ``depth`` is empty), proven; False when not proven.
+
+        A branch and bound on the grid of :meth:`inscribed_radius`: every point of the part
+        lies in the cube of half-diagonal ``rho = sqrt(3) / 2 * h`` about its nearest grid
+        point ``g``, and the distance to the surface is 1-Lipschitz, so its depth is at most
+        ``d(g) + rho``, where ``d(g)`` is the grid's distance transform (inside points; an
+        upper bound of their exact distance) or 0 (outside points). The cubes whose bound
+        reaches ``depth`` are measured exactly at their centre and split in eight, for up
+        to ``levels`` levels and ``budget`` distance queries; the answer is True when no
+        cube is left. The grid's inside test is exact for the mesh (winding numbers);
+        what the mesh is to the exact surface is the caller's tolerance.
+        """
+        depth = float(depth)
+        grid = self._depth_grid(resolution)
+        if grid is None:
+            return True
+        origin, h, field = grid
+        rho = 0.5 * np.sqrt(3.0) * h
+        if rho >= depth:  # an outside grid point bounds nothing below depth
+            return False
+        deep = field.ravel() + rho >= depth
+        if np.count_nonzero(deep) > budget:
+            return False
+        cand = np.flatnonzero(deep)
+        centres = origin + np.column_stack(np.unravel_index(cand, field.shape)) * h
+        side, spent = h, 0
+        for _ in range(levels + 1):
+            if not len(centres):
+                return True
+            spent += len(centres)
+            if spent > budget:
+                return False
+            exact = self.distance(centres, max_distance=depth + rho)
+            keep = exact + rho >= depth
+            centres = centres[keep]
+            if not len(centres):
+                return True
+            side *= 0.5  # each cube in eight
+            rho *= 0.5
+            offsets = (
+                0.5
+                * side
+                * np.array(
+                    [[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=np.float64
+                )
+            )
+            centres = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 3)
+        return False
 
     def closest(
         self, points: ArrayLike, *, max_distance: float = np.inf

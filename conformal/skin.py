@@ -69,6 +69,10 @@ __all__ = [
 #: this many mm of it, whichever is larger.
 WALL_RTOL = 0.02
 WALL_ATOL = 0.02
+#: Exact distance queries :func:`_no_room` may spend proving that a part has no room for
+#: a skin's inset (trimesh_box_sides at 2.05 mm: 0.65 M; more gives up, and the offsets
+#: are waited for as before).
+NO_ROOM_BUDGET = 1_000_000
 #: The voxel method's surfaces are simplified to this fraction of the wall's accuracy bound.
 SIMPLIFY_FRACTION = 0.25
 #: Fractions of that tolerance tried in turn while the simplified surface has folds that
@@ -701,6 +705,17 @@ def _check_thickness(thickness: Any) -> None:
         raise ValueError(f"skin thickness must be a positive number, got {thickness!r}")
 
 
+def _no_room(part: Any, thickness: float) -> bool:
+    """Whether no point of ``part`` (a :class:`conformal.Part`) lies ``thickness`` deep,
+    proven (:meth:`conformal.Part.thinner_than`) with the skin's tolerance
+    (``WALL_RTOL * thickness``) and twice the tessellation's chord error to spare: then
+    the exact inset is empty too, and OCCT's offset cannot give a wall (nor room for a
+    lattice)."""
+    chord = float(getattr(part, "chord_error", None) or getattr(part, "deflection", 0.0) or 0.0)
+    depth = (1.0 - WALL_RTOL) * thickness - 2.0 * chord
+    return depth > 0 and bool(part.thinner_than(depth, budget=NO_ROOM_BUDGET))
+
+
 def _surfaces(
     part: Any,
     thickness: float,
@@ -733,6 +748,11 @@ def _surfaces(
                 next(steps)
         except StopIteration as stop:
             voxel_done = stop.value
+        if voxel_done is not None and voxel_done[1].is_empty() and _no_room(part, thickness):
+            # no room for the inset, proven: the offsets, which cannot succeed, are not
+            # waited for (trimesh_box_sides: OCCT tried its ways for 30 s before failing)
+            pending.worker.close()
+            return voxel_done, "voxel", "the part is thinner than twice the skin", h
     if method in ("auto", "occt") and part.shape is not None:
         try:
             occt = _occt_surfaces(part, thickness, mid_wall, pending)
