@@ -40,9 +40,18 @@ from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 
+from lattice_cad.core import config
 from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import OCCTFailure
 from lattice_cad.occ_impl.triangulation import triangulation_arrays
+
+#: The meshing of faces alone with a finer deflection (:func:`_mesh_faces_finer`) stops
+#: where the whole mesh would hold more triangles than this (the cutting tessellation's
+#: budget, ``config.CUT_MAX_TRIANGLES``, with the 1.5 margin ``conformal.trim.cutting_part``
+#: allows its trials): the faces left are reported unresolved. Without it a face BRepMesh
+#: cannot follow was meshed finer and finer (kcl exhaust manifold: 290 K, then 610 K
+#: triangles for one face, minutes per solid).
+FINER_MAX_TRIANGLES = int(1.5 * config.CUT_MAX_TRIANGLES)
 
 __all__ = ["ChordReport", "face_deviations", "mesh_checked"]
 
@@ -274,6 +283,15 @@ def _over(face: TopoDS_Face, deviation: float, limit: float) -> bool:
     return deviation > limit and deviation > limit + _tolerance(face)
 
 
+def _triangle_counts(faces: list[TopoDS_Face]) -> NDArray[np.int64]:
+    """(n,) int64: the triangles of each face's stored triangulation (0 without one)."""
+    out = np.zeros(len(faces), dtype=np.int64)
+    for i, face in enumerate(faces):
+        tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
+        out[i] = 0 if tri is None else tri.NbTriangles()
+    return out
+
+
 def _has_triangulation(face: TopoDS_Face) -> bool:
     tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
     return tri is not None and tri.NbTriangles() > 0
@@ -487,8 +505,21 @@ def _mesh_faces_finer(
     for _ in range(rounds):
         if not todo:
             break
-        for i, d in todo.items():
-            scale[i] = scale.get(i, 1.0) * min(0.5, 0.8 * limit / d)
+        # triangles grow about as 1 / chord error: a face whose finer mesh would take the
+        # whole mesh over FINER_MAX_TRIANGLES stays as it is (still over the limit)
+        counts = _triangle_counts(_faces(shape))
+        total = float(counts.sum())
+        now: dict[int, float] = {}
+        for i, d in sorted(todo.items(), key=lambda item: (item[1], item[0])):
+            step = min(0.5, 0.8 * limit / d)
+            grown = float(counts[i]) * (1.0 / step - 1.0)
+            if total + grown <= FINER_MAX_TRIANGLES:
+                total += grown
+                now[i] = step
+        if not now:
+            break
+        for i, step in now.items():
+            scale[i] = scale.get(i, 1.0) * step
         BRepTools.Clean_s(shape)
         _mesh_alone(shape, {i: deflection * s for i, s in scale.items()}, deflection, angular)
         _mesh(shape, deflection, angular, parallel)
@@ -615,9 +646,12 @@ def mesh_checked(
             break
         bad = {}
         for i, got in _measured(faces, todo, limit, cache).items():
+            before = float(dev[i])
             dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
             if got is not None and _over(faces[i], dev[i], limit):
                 bad[i] = (got[1], got[2], got[0])
+                if dev[i] > before:  # the knots made it worse: no more knots for it
+                    report.unresolved.append(i)  # (kcl exhaust manifold: 11.8 -> 14.9 x)
     over = sorted(set(report.unresolved) | set(bad))
     if over and finer_rounds > 0:
         meshed, report.finer, over = _mesh_faces_finer(
