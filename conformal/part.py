@@ -288,7 +288,7 @@ class Part:
         cache = self.__dict__.setdefault("_depth_grids", {})
         if resolution not in cache:
             cache[resolution] = self._depth_grid_uncached(resolution)
-        return cache[resolution]  # type: ignore[no-any-return]
+        return cache[resolution]
 
     def _depth_grid_uncached(
         self, resolution: int
