@@ -24,7 +24,7 @@ def _compiled_functions() -> dict[str, list[tuple[str, ast.FunctionDef, str]]]:
     found: dict[str, list[tuple[str, ast.FunctionDef, str]]] = {}
     for package in PACKAGES:
         for path in sorted((ROOT / package).rglob("*.py")):
-            source = path.read_text()
+            source = path.read_text(encoding="utf-8")
             if "numba" not in source:
                 continue
             for node in ast.parse(source).body:
