@@ -646,12 +646,9 @@ def mesh_checked(
             break
         bad = {}
         for i, got in _measured(faces, todo, limit, cache).items():
-            before = float(dev[i])
             dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
             if got is not None and _over(faces[i], dev[i], limit):
                 bad[i] = (got[1], got[2], got[0])
-                if dev[i] > before:  # the knots made it worse: no more knots for it
-                    report.unresolved.append(i)  # (kcl exhaust manifold: 11.8 -> 14.9 x)
     over = sorted(set(report.unresolved) | set(bad))
     if over and finer_rounds > 0:
         meshed, report.finer, over = _mesh_faces_finer(
