@@ -46,7 +46,8 @@ from lattice_cad.core.errors import OCCTFailure
 from lattice_cad.occ_impl.triangulation import triangulation_arrays
 
 #: The meshing of faces alone with a finer deflection (:func:`_mesh_faces_finer`) stops
-#: where the whole mesh would hold more triangles than this (the cutting tessellation's
+#: where the whole mesh would hold more triangles than this, or than twice what it held
+#: before (the larger; the cutting tessellation's
 #: budget, ``config.CUT_MAX_TRIANGLES``, with the 1.5 margin ``conformal.trim.cutting_part``
 #: allows its trials): the faces left are reported unresolved. Without it a face BRepMesh
 #: cannot follow was meshed finer and finer (kcl exhaust manifold: 290 K, then 610 K
@@ -502,18 +503,21 @@ def _mesh_faces_finer(
     cache = {} if cache is None else cache
     todo = dict(over)
     dev0 = dev.copy()
+    # the whole mesh may grow to FINER_MAX_TRIANGLES, or to twice what it holds now (a
+    # caller asking for a finer mesh, e.g. a reference tessellation, gets room in proportion)
+    cap = max(float(FINER_MAX_TRIANGLES), 2.0 * float(_triangle_counts(_faces(shape)).sum()))
     for _ in range(rounds):
         if not todo:
             break
         # triangles grow about as 1 / chord error: a face whose finer mesh would take the
-        # whole mesh over FINER_MAX_TRIANGLES stays as it is (still over the limit)
+        # whole mesh over the cap stays as it is (still over the limit)
         counts = _triangle_counts(_faces(shape))
         total = float(counts.sum())
         now: dict[int, float] = {}
         for i, d in sorted(todo.items(), key=lambda item: (item[1], item[0])):
             step = min(0.5, 0.8 * limit / d)
             grown = float(counts[i]) * (1.0 / step - 1.0)
-            if total + grown <= FINER_MAX_TRIANGLES:
+            if total + grown <= cap:
                 total += grown
                 now[i] = step
         if not now:
