@@ -46,10 +46,10 @@ from lattice_cad.core.errors import OCCTFailure
 from lattice_cad.occ_impl.triangulation import triangulation_arrays
 
 #: The meshing of faces alone with a finer deflection (:func:`_mesh_faces_finer`) stops
-#: where the whole mesh would hold more triangles than this, or than twice what it held
-#: before (the larger; the cutting tessellation's
-#: budget, ``config.CUT_MAX_TRIANGLES``, with the 1.5 margin ``conformal.trim.cutting_part``
-#: allows its trials): the faces left are reported unresolved. Without it a face BRepMesh
+#: where the whole mesh would hold more triangles than the larger of this (the cutting
+#: tessellation's budget, ``config.CUT_MAX_TRIANGLES``, with the 1.5 margin
+#: ``conformal.trim.cutting_part`` allows its trials) and twice what it held before the
+#: stage: the faces left are reported unresolved. Without it a face BRepMesh
 #: cannot follow was meshed finer and finer (kcl exhaust manifold: 290 K, then 610 K
 #: triangles for one face, minutes per solid).
 FINER_MAX_TRIANGLES = int(1.5 * config.CUT_MAX_TRIANGLES)
@@ -482,7 +482,9 @@ def _mesh_faces_finer(
     """Mesh the faces ``over`` (index: deviation, mm) alone with a finer deflection, then
     the whole ``shape`` around them; repeat for the faces still over ``limit``.
 
-    Each face's deflection is scaled by ``min(0.5, 0.8 * limit / deviation)`` per round.
+    Each face's deflection is scaled by ``min(0.5, 0.8 * limit / deviation)`` per round,
+    while the whole mesh is predicted (triangles ~ 1 / deflection) to stay under the cap of
+    :data:`FINER_MAX_TRIANGLES`; a face that would exceed it is left as it is.
     The finer triangulation and its edge polygons are stamped with ``deflection``, so the
     whole-shape BRepMesh run takes them as consistent and keeps them (with the edge nodes,
     which the neighbouring faces then share: the mesh stays closed). Every face is
