@@ -137,9 +137,18 @@ def tet_mesh(
 
 
 class _GmshFailure(Exception):
+    """gmsh failed at ``stage`` ("surface" or "volume"). Raised in the child process of
+    :func:`run_isolated` and pickled back: its ``args`` are both (an exception whose
+    ``__init__`` takes more than its ``args`` cannot be unpickled, and the pool then reports
+    the child as crashed, losing the message and the stage)."""
+
     def __init__(self, message: str, stage: str) -> None:
-        super().__init__(message)
+        super().__init__(message, stage)
+        self.message = message
         self.stage = stage
+
+    def __str__(self) -> str:
+        return self.message
 
 
 def _gmsh_input(part: Part, tmp: Path, how: str, size: float) -> Path | None:
