@@ -9,53 +9,49 @@ same failing surface was tried with every algorithm). Found on teapot_closed_rai
 
 from __future__ import annotations
 
-import importlib
-import inspect
 import pickle
-import pkgutil
 
 import pytest
 
 from conformal.tet import _GmshFailure
 from lattice_cad.core.isolate import run_isolated
 
-
-def _our_exceptions() -> list[type[BaseException]]:
-    found: dict[str, type[BaseException]] = {}
-    for pkg in ("lattice_cad", "conformal", "fast_stitch", "reference_boolean"):
-        root = importlib.import_module(pkg)
-        for info in pkgutil.walk_packages(root.__path__, pkg + "."):
-            mod = importlib.import_module(info.name)
-            for obj in vars(mod).values():
-                if (
-                    inspect.isclass(obj)
-                    and issubclass(obj, BaseException)
-                    and obj.__module__.split(".")[0] == pkg
-                ):
-                    found[f"{obj.__module__}.{obj.__qualname__}"] = obj
-    return [found[k] for k in sorted(found)]
-
-
-EXCEPTIONS = _our_exceptions()
-
-
-def _example(cls: type[BaseException]) -> BaseException:
-    if cls is _GmshFailure:
-        return cls("Wrong topology of boundary mesh for parametrization", "surface")
-    return cls("what went wrong, at node 7")
+_PICKLE_ALL = r"""
+import importlib, inspect, pickle, pkgutil, sys
+from conformal.tet import _GmshFailure
+bad, n = [], 0
+for pkg in ("lattice_cad", "conformal", "fast_stitch", "reference_boolean"):
+    root = importlib.import_module(pkg)
+    for info in pkgutil.walk_packages(root.__path__, pkg + "."):
+        mod = importlib.import_module(info.name)
+        for obj in vars(mod).values():
+            if (inspect.isclass(obj) and issubclass(obj, BaseException)
+                    and obj.__module__.split(".")[0] == pkg):
+                n += 1
+                exc = obj("gmsh failed", "surface") if obj is _GmshFailure else obj("node 7")
+                back = pickle.loads(pickle.dumps(exc))
+                if type(back) is not obj or str(back) != str(exc):
+                    bad.append(obj.__name__)
+print(n, bad)
+"""
 
 
-def test_the_package_exceptions_are_found():
-    names = {c.__name__ for c in EXCEPTIONS}
-    assert {"LatticeError", "PartError", "ExternalCrash", "_GmshFailure"} <= names
+def test_every_exception_of_the_packages_survives_pickling():
+    # in a fresh interpreter: a library another test imported (dask's tblib support)
+    # changes how exceptions pickle in this one
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-c", _PICKLE_ALL], capture_output=True, text=True, check=True
+    ).stdout.split(maxsplit=1)
+    assert int(out[0]) >= 30 and out[1].strip() == "[]", out
 
 
-@pytest.mark.parametrize("cls", EXCEPTIONS, ids=lambda c: c.__name__)
-def test_every_exception_survives_pickling(cls):
-    exc = _example(cls)
+def test_a_gmsh_failure_survives_pickling():
+    exc = _GmshFailure("Wrong topology of boundary mesh for parametrization", "surface")
     back = pickle.loads(pickle.dumps(exc))
-    assert type(back) is cls and str(back) == str(exc)
-    assert getattr(back, "stage", None) == getattr(exc, "stage", None)
+    assert type(back) is _GmshFailure and str(back) == str(exc) and back.stage == "surface"
 
 
 def _raise_gmsh_failure(stage: str) -> None:
