@@ -209,3 +209,40 @@ def test_ventilator_clip_within_one_percent_of_r_of_the_exact_brep():
     pick = np.unique(np.concatenate([np.argsort(d_cut)[::-1][:250], rng.choice(on_cut, 150)]))
     exact = signed_distance(lat.part.shape, v[pick])
     assert exact.max() <= 0.01 * R_VENT, exact.max() / R_VENT
+
+
+def test_knots_that_make_a_face_far_worse_are_given_up(part, monkeypatch):
+    """A face that knots leave more than KNOT_GIVE_UP times over the limit, worse than before,
+    gets no more knots, and when that is so of every knotted face the plain mesh is kept
+    (the exhaust manifold's faces, simulated here on face 78: its measure after knots is
+    made 30 times the limit; see test_chord_bounded for the real part)."""
+    from lattice_cad.core import config
+    from lattice_cad.occ_impl import chord, shapes
+
+    defl = 0.005 * R
+    limit = config.CHORD_CONTROL * defl
+    measured = chord._measured
+    rounds = []
+
+    def worse_after_knots(faces, which, lim, cache):
+        got = measured(faces, which, lim, cache)
+        if isinstance(which, dict) and 78 in got and got[78] is not None:  # a knot round
+            rounds.append(sorted(which))
+            d, uv, t = got[78]
+            got[78] = (np.maximum(d, 30.0 * limit), uv, t)
+        return got
+
+    monkeypatch.setattr(chord, "_measured", worse_after_knots)
+    plain = shapes.copied(part.shape[0])
+    meshed, report = chord.mesh_checked(plain, defl, 0.3, factor=config.CHORD_CONTROL, finer_rounds=0)
+    assert rounds == [[78]]  # one knot round, then no more knots for it
+    assert report.refined == [] and report.unresolved == [78]
+    assert meshed is plain  # the plain mesh, not the copy with the knots
+    assert report.max_deviation > 20 * defl  # face 78 as BRepMesh meshed it (so measured)
+    # a face knots leave over the limit but not far over goes on getting them
+    monkeypatch.setattr(chord, "KNOT_GIVE_UP", 40.0)
+    rounds.clear()
+    _, report = chord.mesh_checked(
+        shapes.copied(part.shape[0]), defl, 0.3, factor=config.CHORD_CONTROL, finer_rounds=0, rounds=3
+    )
+    assert len(rounds) == 3 and report.refined == [78] and report.unresolved == [78]
