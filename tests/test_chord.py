@@ -234,7 +234,9 @@ def test_knots_that_make_a_face_far_worse_are_given_up(part, monkeypatch):
 
     monkeypatch.setattr(chord, "_measured", worse_after_knots)
     plain = shapes.copied(part.shape[0])
-    meshed, report = chord.mesh_checked(plain, defl, 0.3, factor=config.CHORD_CONTROL, finer_rounds=0)
+    meshed, report = chord.mesh_checked(
+        plain, defl, 0.3, factor=config.CHORD_CONTROL, finer_rounds=0
+    )
     assert rounds == [[78]]  # one knot round, then no more knots for it
     assert report.refined == [] and report.unresolved == [78]
     assert meshed is plain  # the plain mesh, not the copy with the knots
@@ -243,6 +245,11 @@ def test_knots_that_make_a_face_far_worse_are_given_up(part, monkeypatch):
     monkeypatch.setattr(chord, "KNOT_GIVE_UP", 40.0)
     rounds.clear()
     _, report = chord.mesh_checked(
-        shapes.copied(part.shape[0]), defl, 0.3, factor=config.CHORD_CONTROL, finer_rounds=0, rounds=3
+        shapes.copied(part.shape[0]),
+        defl,
+        0.3,
+        factor=config.CHORD_CONTROL,
+        finer_rounds=0,
+        rounds=3,
     )
     assert len(rounds) == 3 and report.refined == [78] and report.unresolved == [78]
