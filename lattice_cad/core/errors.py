@@ -212,8 +212,9 @@ class ExportWarning(LatticeWarning):
 
 class CutBudgetWarning(LatticeWarning):
     """The tessellation a lattice is cut by is coarser than asked (its triangle budget,
-    ``config.CUT_MAX_TRIANGLES``, binds): the message names the part and the chord error
-    reached in % of the strut radius (``conformal.trim.cutting_part``)."""
+    ``config.CUT_MAX_TRIANGLES``, binds, or faces OpenCascade's mesher does not follow stay
+    over the chord error): the message names the part and the chord error reached (measured
+    on those faces) in % of the strut radius (``conformal.trim.cutting_part``)."""
 
 
 class BeamOnlyWarning(LatticeWarning):
