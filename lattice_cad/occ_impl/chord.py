@@ -55,7 +55,8 @@ from lattice_cad.occ_impl.triangulation import triangulation_arrays
 FINER_MAX_TRIANGLES = int(1.5 * config.CUT_MAX_TRIANGLES)
 #: A face whose knots left it more than this many times over the limit, and worse than
 #: before the round, gets no more knots (BRepMesh does not follow them). On the shared
-#: parts every knot round ends at most 2.6 times over (Ventilator); the exhaust manifold's
+#: parts every knot round ends at most 2.9 times over (the gear's protrusion reference in
+#: bench_parts; its cutting tessellation 1.25, the Ventilator's 2.6); the exhaust manifold's
 #: B-spline faces go 11.8 -> 2.2 -> 13.1 and 11.7 -> 5.7 -> 22.1 and on for all 8 rounds
 #: (10-25 s each) without ever coming under it.
 KNOT_GIVE_UP = 6.0
