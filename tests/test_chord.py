@@ -207,8 +207,27 @@ def test_ventilator_clip_within_one_percent_of_r_of_the_exact_brep():
     rng = np.random.default_rng(0)
     on_cut = np.flatnonzero(np.abs(d_cut) <= 0.02 * R_VENT)
     pick = np.unique(np.concatenate([np.argsort(d_cut)[::-1][:250], rng.choice(on_cut, 150)]))
-    exact = signed_distance(lat.part.shape, v[pick])
+    exact = signed_distance(lat.part.shape, v[pick], beyond_tolerance=True)
     assert exact.max() <= 0.01 * R_VENT, exact.max() / R_VENT
+
+
+def test_ventilator_plane_face_19_is_off_its_plane_by_its_tolerance():
+    """Regression: the test above failed on another machine (3.14 % r) by one vertex on the
+    cut, in the interior of plane face 19, whose edges lie 0.0140 mm off its plane (the
+    STEP file's tolerance there, 3.1 % r): BRepMesh's two triangles follow the edges, so a
+    vertex on them stands out of the exact plane by up to that tolerance. The vertex
+    sampled depends on the lattice's floating point; the exact distance beyond the B-rep
+    tolerance does not."""
+    from conformal import load_part
+    from lattice_cad.occ_impl.distance import signed_distance
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        part = load_part(VENTILATOR)
+    p = [[3.44694853, -8.41106415, 6.81988859]]  # the vertex that stood out
+    plain = signed_distance(part.shape, p)[0]
+    beyond = signed_distance(part.shape, p, beyond_tolerance=True)[0]
+    assert 0.03 * R_VENT < plain < 0.032 * R_VENT and beyond == 0.0
 
 
 def test_knots_that_make_a_face_far_worse_are_given_up(part, monkeypatch):

@@ -51,6 +51,34 @@ def test_exact_distance_closed_form():
     np.testing.assert_allclose(d, [-1.0, 2.0, -1.0, 2.0, np.sqrt(2.0)], atol=1e-7)
 
 
+def test_exact_distance_beyond_the_brep_tolerance_closed_form():
+    """``beyond_tolerance`` takes the nearest face's largest tolerance (its edges' and
+    vertices' too) off a distance outside: a box whose top face's edges are given a
+    tolerance of 0.05 mm; points inside and on other faces are unchanged."""
+    import cadquery as cq
+    from OCP.BRep import BRep_Builder
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    from lattice_cad.occ_impl.distance import signed_distance
+
+    box = cq.Workplane().box(10, 10, 10)
+    top = box.faces(">Z").val().wrapped
+    exp = TopExp_Explorer(top, TopAbs_EDGE)
+    while exp.More():
+        BRep_Builder().UpdateEdge(TopoDS.Edge_s(exp.Current()), 0.05)
+        exp.Next()
+    solid = box.val().wrapped
+    pts = [[0, 0, 5.03], [0, 0, 5.08], [0, 0, 4.0], [0, 0, -5.08], [5.2, 0, 0]]
+    plain = signed_distance([solid], pts)
+    beyond = signed_distance([solid], pts, beyond_tolerance=True)
+    np.testing.assert_allclose(plain, [0.03, 0.08, -1.0, 0.08, 0.2], atol=1e-7)
+    # the bottom face shares no edge with the top (its tolerance stays OCCT's 1e-7); the
+    # side +X face has one of the top's edges, so 0.05 comes off there too
+    np.testing.assert_allclose(beyond, [0.0, 0.03, -1.0, 0.08, 0.15], atol=1e-6)
+
+
 def test_refined_part_follows_the_exact_surface():
     from lattice_cad.occ_impl.distance import signed_distance
 

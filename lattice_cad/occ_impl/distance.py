@@ -19,6 +19,7 @@ from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.BRepExtrema import BRepExtrema_DistShapeShape
 from OCP.gp import gp_Pnt
+from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
 from OCP.TopAbs import TopAbs_FACE, TopAbs_IN, TopAbs_ON
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Compound
@@ -42,7 +43,11 @@ def _boundary(solid: Any) -> TopoDS_Compound:
 
 
 def signed_distance(
-    solids: Sequence[Any], points: ArrayLike, *, tol: float = 1e-7
+    solids: Sequence[Any],
+    points: ArrayLike,
+    *,
+    tol: float = 1e-7,
+    beyond_tolerance: bool = False,
 ) -> NDArray[np.float64]:
     """Signed distance of points to the union of B-rep solids, positive outside.
 
@@ -54,6 +59,14 @@ def signed_distance(
     tol : float
         Classification tolerance (mm): points closer to the boundary count as on it
         (distance 0 or their exact distance, signed positive only when outside).
+    beyond_tolerance : bool
+        Count a point outside as far outside as it is *beyond the B-rep's own tolerance*
+        there: its distance less the largest tolerance of the nearest face (with its edges
+        and vertices, or of the nearest edge or vertex), 0 if within it. A STEP file's
+        edges may lie off their faces' surfaces by up to their tolerance (the
+        Ventilator's plane face 19: 0.014 mm), and any tessellation that follows the
+        edges lies that far off the surface inside the face: that is the file's accuracy,
+        not the tessellation's.
 
     Returns
     -------
@@ -92,6 +105,9 @@ def signed_distance(
             elif state == TopAbs_ON:
                 best_in = max(best_in, 0.0)
             else:
+                if beyond_tolerance:
+                    support = dist.SupportOnShape1(1)
+                    d = max(0.0, d - float(ShapeAnalysis_ShapeTolerance().Tolerance(support, 1)))
                 best_out = min(best_out, d)
         out[i] = -best_in if np.isfinite(best_in) else best_out
     return out
