@@ -29,7 +29,9 @@ with status ``NoError``. Outcomes: ``ok``, ``fail`` (non-zero exit, no file, or 
 could not be loaded here), ``invalid`` (a file was written but a check rejects it),
 ``timeout``. For every run the table gives the wall time of the fill command, the number
 of struts (parsed from the "N struts, M nodes" line the CLI prints; ``--quiet`` would
-suppress it, so it is not passed), the triangles of the written file, the bodies
+suppress it, so it is not passed) and how many of them had to be made thinner than 0.7 x
+the radius asked ("thin", from the CLI's "N below 0.7 x the radius asked"), the
+triangles of the written file, the bodies
 (connected components over shared edges that enclose positive volume: a cavity's wall is
 not a body), the protrusion (the largest distance of a vertex of the file outside the
 part, exact winding numbers against the part's tessellation (for B-rep parts one with a
@@ -123,6 +125,7 @@ def setting_args(setting: str, cell: float) -> list[str]:
 
 
 STRUTS_RE = re.compile(r"^\s*([\d,]+) struts\b", re.MULTILINE)
+THIN_RE = re.compile(r"\b([\d,]+) below [\d.]+ x the radius asked")
 ANSI_RE = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
 
@@ -173,6 +176,7 @@ class Row:
     outcome: str  # ok / fail / invalid / timeout
     seconds: float | None = None
     struts: int | None = None
+    thin: int | None = None  # struts the CLI says are below 0.7 x the radius asked
     triangles: int | None = None
     bodies: int | None = None
     protrusion: float | None = None  # % of the strut radius outside the part
@@ -404,6 +408,8 @@ def run_one(
         code, stdout, stderr, row.seconds = runner.run(cmd, timeout)
         if m := STRUTS_RE.search(stdout):
             row.struts = int(m.group(1).replace(",", ""))
+            t = THIN_RE.search(stdout)
+            row.thin = int(t.group(1).replace(",", "")) if t else 0
         if code is None:
             row.outcome, row.error = "timeout", f"timed out after {timeout:g} s"
             return row
@@ -476,6 +482,7 @@ COLUMNS = (
     ("outcome", "<", 7),
     ("seconds", ">", 8),
     ("struts", ">", 9),
+    ("thin", ">", 6),
     ("triangles", ">", 10),
     ("bodies", ">", 6),
     ("protrusion", ">", 14),
