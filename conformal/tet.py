@@ -156,8 +156,8 @@ def tet_mesh(
                     LatticeWarning,
                     stacklevel=2,
                 )
-            if source == "resampled" and inputs.dropped:
-                n, vol = inputs.dropped
+            n, vol = inputs.dropped
+            if source == "resampled" and n:
                 warnings.warn(
                     f"{part.name}: the tetrahedra come from its surface resampled at "
                     f"{inputs.spacing:.3g} mm; {n} piece(s) of it with {vol:.3g} mm^3 in all "
@@ -200,7 +200,7 @@ class _GmshInputs:
         self.part = part
         self.size = size
         self.spacing = size / 1.5
-        self.dropped: tuple[int, float] | None = None
+        self.dropped: tuple[int, float] = (0, 0.0)
         self._made: dict[str, list[Path] | None] = {}
 
     def files(self, source: str, tmp: Path) -> list[Path] | None:
