@@ -425,7 +425,7 @@ def tet_lattice(
     min_radius: float | None = None,
     fit: FitMode = "shrink",
     repair: bool = True,
-    tolerance: float = 0.7,
+    tolerance: float = config.THIN_TOLERANCE,
     return_report: bool = False,
     segments: int = config.DEFAULT_SEGMENTS,
     profile: Profile = config.DEFAULT_PROFILE,
@@ -498,8 +498,8 @@ def tet_lattice(
             warnings.warn(
                 f"{fix.unfit} strut(s) of the tet lattice of {part.name} had to be made thinner "
                 f"than {tolerance:g} x the radius asked even after the graph repair "
-                f"({fix.merged} struts collapsed, {fix.dropped} dropped), e.g. at {where}; "
-                "a larger size or a thinner radius avoids it",
+                f"({fix.merged} struts collapsed, {fix.dropped} dropped), e.g. at {where}"
+                + _thin_advice(part, nodes, edges, fitted, r, size, tolerance),
                 LatticeWarning,
                 stacklevel=2,
             )
@@ -512,6 +512,44 @@ def tet_lattice(
         rep.radii_reduced = max(rep.radii_reduced, fix.thinned)
     rep.seconds["fit"] = time.perf_counter() - t0
     return (graph, rep) if return_report else graph
+
+
+def _thin_advice(
+    part: Part,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    fitted: NDArray[np.float64],
+    asked: NDArray[np.float64],
+    size: float,
+    tolerance: float,
+) -> str:
+    """The end of the warning about struts thinned beyond ``tolerance``: how thin (for one
+    radius asked), and what helps. Where most of their ends lie on the part's surface, the
+    part is thin for tetrahedra of ``size``: they lie flat between its faces, their struts
+    meet at small angles, and a larger size makes that worse, not better."""
+    r = np.asarray(asked, dtype=np.float64)
+    if not r.size or float(np.ptp(r)) > 1e-9 * float(r.max()):
+        return "; a larger size or a thinner radius avoids it"
+    r0 = float(r.max())
+    ratio = fitted.min(axis=1) / r0
+    thin = ratio < tolerance * (1 - 1e-9)
+    if not thin.any():
+        return "; a larger size or a thinner radius avoids it"
+    ends = np.unique(edges[thin])
+    near = 0.05 * size
+    on = float(np.mean(part.distance(nodes[ends], max_distance=near) <= near))
+    out = (
+        f" (median {float(np.median(ratio[thin])):.2g} x, thinnest {float(ratio.min()):.2g} x); "
+        f"{100 * on:.0f} % of their ends lie on the part's surface"
+    )
+    if on >= 0.8:
+        return out + (
+            f": the part is thin for tetrahedra of size {size:.3g}, which lie flat between "
+            "its faces with struts meeting at small angles (a larger size makes that worse, a "
+            "thinner radius helps less than it seems); the voxel method's conform fill "
+            "(--fill conform) thins far fewer struts there"
+        )
+    return out + "; a larger size or a thinner radius avoids it"
 
 
 def boundary_nodes(tets: NDArray[np.int64], n_nodes: int) -> NDArray[np.bool_]:

@@ -547,6 +547,10 @@ def _finish(
                 stacklevel=3,
             )
         rep.radii_reduced = changed
+        # against the radius given here (for a tet lattice, the repair's fitted radii, whose
+        # count against the radius asked the tet builder set before)
+        beyond = int((new < config.THIN_TOLERANCE * r * (1 - 1e-9)).any(axis=1).sum())
+        rep.thinned_beyond_tolerance = max(rep.thinned_beyond_tolerance, beyond)
         r = new
     elif fit == "raise":
         from conformal.radius import fit_problems

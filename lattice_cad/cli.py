@@ -343,7 +343,9 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         if rep.radii_reduced:
             notes.append(f"{rep.radii_reduced} strut(s) thinned (min radius {rep.min_radius:.4g})")
         if rep.thinned_beyond_tolerance:
-            notes.append(f"{rep.thinned_beyond_tolerance} below 0.7 x the radius asked")
+            notes.append(
+                f"{rep.thinned_beyond_tolerance} below {config.THIN_TOLERANCE:g} x the radius asked"
+            )
         if notes:
             con.say("; ".join(notes))
     _say_printability(con, lat)

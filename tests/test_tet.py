@@ -161,3 +161,46 @@ def test_tet_face_recognition_part_stitches_with_grown_hubs():
             fast_stitch.stitch(g)
         free = fast_stitch.stitch(g, check_clearance=False)
     assert 0 < 1 - mesh.volume / free.volume < 1e-3
+
+
+def test_voxel_fills_count_struts_thinned_beyond_the_tolerance():
+    """``BuildReport.thinned_beyond_tolerance`` is counted by every builder, not only the
+    tet lattice's repair: two 10 mm struts at a small angle and a third at 90 degrees,
+    radius 1. The fit thins the struts at the crowded node: at 10 degrees to 0.729 (above
+    0.7: reduced, not beyond), at 5 degrees to 0.364 (beyond)."""
+    from conformal.voxel import BuildReport, _finish
+    from lattice_cad.core import config
+
+    for deg, beyond in ((10.0, 0), (5.0, 3)):
+        a = np.radians(deg)
+        nodes = np.array([[0, 0, 0], [10, 0, 0], [10 * np.cos(a), 10 * np.sin(a), 0], [0, 0, 10]])
+        edges = np.array([[0, 1], [0, 2], [0, 3]])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LatticeWarning)  # "struts were thinned"
+            rep = BuildReport()
+            g = _finish(nodes.astype(np.float64), edges, 1.0, None, "shrink", rep)
+        below = int((g.radii < config.THIN_TOLERANCE).any(axis=1).sum())
+        assert rep.radii_reduced == 3 and rep.thinned_beyond_tolerance == below == beyond
+
+
+def test_tet_lattice_of_a_thin_part_says_it_is_thin():
+    """The spanner (a plate thinner than the tet size of the parts benchmark): nearly every
+    strut thinned beyond 0.7 r, all their ends on the surface; the warning says the part is
+    thin for that size (a larger size, as it used to suggest, makes it worse) and that the
+    conform fill thins far fewer, which it does (2 of 316 struts)."""
+    from lattice_cad import Lattice
+
+    part = load_part(DATA / "step" / "dolfiny_spanner25_lo.step")
+    h = float(part.size.max()) / 15
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LatticeWarning)
+        g, rep = tet_lattice(part, size=h, radius=h / 12, return_report=True)
+    said = [str(w.message) for w in caught if "had to be made thinner" in str(w.message)]
+    assert len(said) == 1 and rep.thinned_beyond_tolerance > 0.5 * g.num_edges
+    assert "100 % of their ends lie on the part's surface" in said[0], said[0]
+    assert "the part is thin for tetrahedra" in said[0] and "larger size makes" in said[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(part, "kelvin", h, h / 12, fill="conform")
+    rep_c = lat.build_report
+    assert rep_c.thinned_beyond_tolerance <= 0.05 * lat.graph.num_edges < rep_c.radii_reduced

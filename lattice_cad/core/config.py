@@ -345,6 +345,12 @@ CUT_MAX_TRIANGLES = 700_000
 #: direction of a twisted ruled face: 25x the chord error on trimesh_featuretype.STEP).
 CHORD_CONTROL = 1.5
 
+#: A strut fitted thinner than this fraction of the radius asked is counted apart
+#: (``BuildReport.thinned_beyond_tolerance``, the CLI's "N below 0.7 x the radius asked"):
+#: the tet lattice's graph repair aims to keep every strut above it (issue 11: thinning a
+#: strut to a tenth is not a fix), and the voxel fills count theirs the same way.
+THIN_TOLERANCE = 0.7
+
 #: Before several solids of a part are united, their tessellations are rounded to a common
 #: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):
 #: solids that touch come out of their separate tessellations a float64 ulp or two apart, and
