@@ -101,7 +101,7 @@ def test_gmsh_failure_is_parterror(cyl, monkeypatch):
     monkeypatch.setattr(conformal.tet, "run_isolated", lambda fn, *a, **kw: fn(*a))
     monkeypatch.setattr(gmsh.model.mesh, "generate", boom)
     with pytest.raises(
-        PartError, match=r"gmsh could not mesh the part: brep surface, hxt: No elements"
+        PartError, match=r"gmsh could not mesh the part: B-rep, hxt: No elements"
     ) as info:
         tet_lattice(cyl, 5.0)
     assert "delaunay: No elements" in str(info.value)  # every 3-D algorithm was tried
