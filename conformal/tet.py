@@ -238,8 +238,8 @@ def _shell_groups(part: Part, *, min_volume: float = 0.0) -> tuple[list[Part], t
     vols = np.array([signed_volume(v, f[c]) for c in comps])
     keep = np.abs(vols) >= min_volume
     dropped = (int((~keep).sum()), float(np.abs(vols[~keep]).sum()))
-    outer = [i for i in np.flatnonzero(keep) if vols[i] > 0]
-    inner = [i for i in np.flatnonzero(keep) if vols[i] < 0]
+    outer = [i for i in np.flatnonzero(keep).tolist() if vols[i] > 0]
+    inner = [i for i in np.flatnonzero(keep).tolist() if vols[i] < 0]
     faces: dict[int, list[NDArray[np.int64]]] = {i: [f[comps[i]]] for i in outer}
     for i in inner:  # a cavity goes with the smallest outer shell holding a vertex of it
         p = v[f[comps[i][0], 0]][None]
