@@ -112,13 +112,13 @@ def tet_mesh(
         surfaces = [("brep", "brep", 0.0), *surfaces]
     failures: list[str] = []
     inputs = _GmshInputs(part, size)
+    label = {"brep": "B-rep", "surface": "surface", "resampled": "resampled surface"}
     with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
         for source, how, angle in surfaces:
             sources = inputs.files(source, Path(tmp))
             if sources is None:
                 failures.append("the solids could not be fused into one B-rep")
                 continue
-            label = {"brep": "B-rep", "surface": "surface", "resampled": "resampled surface"}
             what = f"{label[source]}{', ' + how if source != 'brep' else ''}"
             what += f" {angle:g} deg" if angle else ""
             got = []
@@ -136,7 +136,7 @@ def tet_mesh(
                                 algo,
                                 timeout=timeout,
                                 what=f"gmsh ({what}{piece}, {algo})",
-                            )  # fmt: skip
+                            )
                         )
                         break
                     except ExternalCrash as exc:  # gmsh itself died or hung: the next way

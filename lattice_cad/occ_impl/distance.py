@@ -19,12 +19,12 @@ from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.BRepExtrema import BRepExtrema_DistShapeShape
 from OCP.gp import gp_Pnt
-from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
 from OCP.TopAbs import TopAbs_FACE, TopAbs_IN, TopAbs_ON
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Compound
 
 from lattice_cad.core.errors import OCCTFailure
+from lattice_cad.occ_impl.shapes import max_tolerance
 
 __all__ = ["signed_distance"]
 
@@ -106,8 +106,7 @@ def signed_distance(
                 best_in = max(best_in, 0.0)
             else:
                 if beyond_tolerance:
-                    support = dist.SupportOnShape1(1)
-                    d = max(0.0, d - float(ShapeAnalysis_ShapeTolerance().Tolerance(support, 1)))
+                    d = max(0.0, d - max_tolerance(dist.SupportOnShape1(1)))
                 best_out = min(best_out, d)
         out[i] = -best_in if np.isfinite(best_in) else best_out
     return out
