@@ -136,14 +136,22 @@ def protrusion(part: Any, vertices: NDArray[np.float64]) -> float:
 CUT_DEFLECTION_FLOOR = 2e-6
 
 
-def cutting_part(part: Any, radius: float) -> Any:
+def _wanted(part: Any, radius: float, chord: float | None) -> float:
+    """The chord error :func:`cutting_part` asks for (mm)."""
+    asked = config.CUT_DEFLECTION_RTOL * float(radius) if chord is None else float(chord)
+    return max(asked, CUT_DEFLECTION_FLOOR * part.diagonal)
+
+
+def cutting_part(part: Any, radius: float, *, chord: float | None = None) -> Any:
     """The part tessellated finely enough to cut struts of ``radius`` by it.
 
     A B-rep part (STEP, CadQuery, build123d) is tessellated again with a chord error of
-    ``config.CUT_DEFLECTION_RTOL * radius`` (but not below ``CUT_DEFLECTION_FLOOR`` of its
-    diagonal), so that a lattice cut by that mesh lies outside the *exact* surface by less
-    than ``config.TRIM_RTOL * radius``; a mesh part, or one already tessellated that
-    finely, is returned unchanged.
+    ``config.CUT_DEFLECTION_RTOL * radius``, or ``chord`` when given (but not below
+    ``CUT_DEFLECTION_FLOOR`` of its diagonal), so that a lattice cut by that mesh lies
+    outside the *exact* surface by less than ``config.TRIM_RTOL * radius``; a mesh part, or
+    one already tessellated that finely, is returned unchanged. A skin asks its own
+    ``chord`` (``conformal.skin.outer_chord``): there the struts are cut by the skin's
+    inner wall, and the part's surface is the wall's outside.
 
     The tessellation holds at most about ``config.CUT_MAX_TRIANGLES`` triangles. Where the
     chord error asked for would need more (threads, gear teeth, many small fillets), the
@@ -160,6 +168,8 @@ def cutting_part(part: Any, radius: float) -> Any:
     part : conformal.Part
     radius : float
         The largest strut radius (mm).
+    chord : float, optional
+        The chord error asked (mm), instead of ``config.CUT_DEFLECTION_RTOL * radius``.
 
     Returns
     -------
@@ -171,7 +181,7 @@ def cutting_part(part: Any, radius: float) -> Any:
 
     if getattr(part, "shape", None) is None or not radius > 0:
         return part
-    want = max(config.CUT_DEFLECTION_RTOL * float(radius), CUT_DEFLECTION_FLOOR * part.diagonal)
+    want = _wanted(part, radius, chord)
     budget = config.CUT_MAX_TRIANGLES
     defl = max(want, part.deflection * len(part.faces) / budget)  # the pessimistic guess
     angular = config.CUT_ANGULAR_DEFLECTION
@@ -188,12 +198,12 @@ def cutting_part(part: Any, radius: float) -> Any:
             stacklevel=2,
         )
         return part
-    short = cut_shortfall(part, cut, radius)
+    short = cut_shortfall(part, cut, radius, chord=chord)
     if short is not None:
         warnings.warn(
             f"{part.name}: the lattice is cut by a tessellation with chord error "
             f"{cut.deflection:.3g} mm = {short:.2f} % of the strut radius (asked "
-            f"{100 * config.CUT_DEFLECTION_RTOL:.2g} %): {len(cut.faces):,} triangles, the "
+            f"{want:.3g} mm): {len(cut.faces):,} triangles, the "
             f"budget (config.CUT_MAX_TRIANGLES = {budget:,}) binds; the cut may stand out of "
             f"the exact surface by about that much",
             CutBudgetWarning,
@@ -237,7 +247,9 @@ def _budgeted(part: Any, defl: float, want: float, budget: int, angular: float) 
     return cut
 
 
-def cut_shortfall(part: Any, cut: Any, radius: float) -> float | None:
+def cut_shortfall(
+    part: Any, cut: Any, radius: float, *, chord: float | None = None
+) -> float | None:
     """The chord error of ``cut`` in % of ``radius`` when the triangle budget made it coarser
     than :func:`cutting_part` asks for, else None.
 
@@ -248,6 +260,8 @@ def cut_shortfall(part: Any, cut: Any, radius: float) -> float | None:
     cut : conformal.Part
         What :func:`cutting_part` returned for it.
     radius : float
+    chord : float, optional
+        The chord error :func:`cutting_part` was asked for, if not the radius's.
 
     Returns
     -------
@@ -255,7 +269,7 @@ def cut_shortfall(part: Any, cut: Any, radius: float) -> float | None:
     """
     if getattr(part, "shape", None) is None or not radius > 0:
         return None
-    want = max(config.CUT_DEFLECTION_RTOL * float(radius), CUT_DEFLECTION_FLOOR * part.diagonal)
+    want = _wanted(part, radius, chord)
     if cut.deflection <= want * (1 + 1e-9):
         return None
     return 100.0 * float(cut.deflection) / float(radius)

@@ -844,12 +844,22 @@ class Lattice:
         """The part the lattice is cut by (trim, skin, beam clipping): a B-rep part
         tessellated again for the largest strut radius (``conformal.trim.cutting_part``),
         so the cut lies within ``config.TRIM_RTOL`` r of the exact surface (keep zones are
-        built inside it too; see ``_cut_then_keep``)."""
+        built inside it too; see ``_cut_then_keep``); with a skin, for the wall's
+        tolerance (``conformal.skin.outer_chord``)."""
         if self.part is None or self.graph.num_edges == 0:
             return self.part
         from conformal.trim import cutting_part
 
-        return cutting_part(self.part, float(self.graph.radii.max()))
+        return cutting_part(self.part, float(self.graph.radii.max()), chord=self._cut_chord)
+
+    @property
+    def _cut_chord(self) -> float | None:
+        """The chord error the cutting part is asked for when it is not the radius's."""
+        if self.skin is None:
+            return None
+        from conformal.skin import outer_chord
+
+        return outer_chord(self.skin)
 
     def _stitched_single_precision(self) -> Mesh:
         """The stitched lattice in single precision: the stitch keeps its clearances through
@@ -1296,4 +1306,6 @@ class Lattice:
             return None
         from conformal.trim import cut_shortfall
 
-        return cut_shortfall(self.part, self._cutting_part, float(self.graph.radii.max()))
+        return cut_shortfall(
+            self.part, self._cutting_part, float(self.graph.radii.max()), chord=self._cut_chord
+        )

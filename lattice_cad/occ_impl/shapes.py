@@ -606,18 +606,18 @@ def _fused_offset_meshes(
     angular: float,
     merge_tol: float,
 ) -> list[tuple[list[float], list[tuple[NDArray[np.float64], NDArray[np.int64]]] | None]]:
-    """In a child: :func:`_fused_offsets`, then each fused solid's and offset's volume and
-    mesh (:func:`tessellate`, :func:`merge_close`); the meshes are None when an offset is
-    not inside its solid by volume (the caller says so)."""
+    """In a child: :func:`_fused_offsets`, then the volumes of each fused solid and its
+    offsets, and the offsets' meshes (:func:`tessellate`, :func:`merge_close`); the meshes
+    are None when an offset is not inside its solid by volume (the caller says so). The
+    fused solid is not meshed: the caller has the part's own mesh."""
     out: list[Any] = []
     for solid, offsets in _fused_offsets(breps, distances):
-        shapes = [solid, *offsets]
-        vols = [volume(s) for s in shapes]
+        vols = [volume(s) for s in (solid, *offsets)]
         if not all(0.0 < v < vols[0] for v in vols[1:]):
             out.append((vols, None))
             continue
         meshes = []
-        for shape in shapes:
+        for shape in offsets:
             v, f = tessellate(shape, deflection, angular)
             v, f, _ = merge_close(v, f, merge_tol)
             meshes.append((v, f))
@@ -654,8 +654,8 @@ def fused_offsets_result(
     worker: Any, *, timeout: float = 120.0
 ) -> list[tuple[list[float], list[tuple[NDArray[np.float64], NDArray[np.int64]]] | None]]:
     """Per fused solid of :func:`start_fused_offsets`: the volumes of the solid and of its
-    offsets, and their meshes (vertices (V, 3) float64, faces (F, 3) int64; None when an
-    offset's volume is not between 0 and its solid's).
+    offsets, and the offsets' meshes (vertices (V, 3) float64, faces (F, 3) int64; None
+    when an offset's volume is not between 0 and its solid's).
 
     Raises
     ------

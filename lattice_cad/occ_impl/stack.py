@@ -52,8 +52,8 @@ def ocp_distributions() -> list[str]:
         top = dist.read_text("top_level.txt")
         if top is not None:
             provides = "OCP" in top.split()
-        else:
-            provides = any(str(f).split("/")[0] == "OCP" for f in dist.files or ())
+        else:  # the RECORD's text searched: its parse (``dist.files``) took 0.1-0.2 s in all
+            provides = re.search(r"^OCP/", dist.read_text("RECORD") or "", re.M) is not None
         if provides:
             names.append(dist.metadata["Name"])
     return sorted(set(names))
