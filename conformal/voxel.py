@@ -390,7 +390,8 @@ def voxel_lattice(
     if prune or fill != "inside":
         nodes, edges = _cleanup(nodes, edges, on_surface, min_len, fill != "inside", prune, rep)
     if len(edges):
-        nodes, edges = keep_main_components(local, nodes, edges, rep)
+        advice = JOINED_ADVICE.get(fill, "")
+        nodes, edges = keep_main_components(local, nodes, edges, rep, advice=advice)
     rep.seconds["clip"] = time.perf_counter() - t0
     if not len(edges):
         raise _nothing_fits(part, h, radius, f"no strut of {_mm(h)} cells is left inside")
@@ -484,7 +485,8 @@ def _nothing_fits(part: Part, h: NDArray[np.float64], radius: RadiusSpec, what: 
     r = float(np.min(radius)) if isinstance(radius, (int, float, np.ndarray)) else float("nan")
     hint = (
         f"its greatest thickness is about {thick:.3g} mm: cells up to about {cube:.3g} mm fit "
-        "whole, and fill='clip' or 'conform' fills it with any cell size"
+        "whole, and fill='conform' fills it with any cell size (fill='clip' too, but cells "
+        "much thicker than the part fall apart into pieces, of which it keeps the largest)"
     )
     if r == r and 2 * r >= thick:
         hint = (
@@ -889,14 +891,27 @@ def main_components(
     return keep[elab], len(present), int(keep.sum())
 
 
+#: When the loose pieces removed hold more than this fraction of the struts, the warning
+#: says that most of the lattice is gone, and what keeps it (``keep_main_components``).
+MOST_REMOVED = 0.5
+
+
 def keep_main_components(
-    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], rep: BuildReport
+    part: Part,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    rep: BuildReport,
+    *,
+    advice: str = "",
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Keep, in each separate solid of the part, only the largest connected piece.
 
     Smaller pieces would print as loose islands (inside a skin they would rattle in the
     cavity). ``rep.removed_islands`` counts the struts removed, ``rep.bodies`` the pieces
-    kept (at most one per solid). See :func:`main_components`.
+    kept (at most one per solid). See :func:`main_components`. The warning gives the
+    share of the struts removed, and ``advice`` (what keeps the lattice joined) when that
+    is more than ``MOST_REMOVED``: a clip fill of a part thinner than its cells falls
+    apart into pieces of a few struts (the spanner at 18.6 mm cells: 8 of 236 kept).
 
     nodes : (N, 3) float64, edges : (M, 2) int64. Returns the kept nodes and edges
     (renumbered).
@@ -907,18 +922,40 @@ def keep_main_components(
     if pieces <= 1:
         return nodes, edges
     rep.removed_islands = int((~ok).sum())
+    total = len(edges)
     edges = edges[ok]
     used = np.zeros(n, dtype=bool)
     used[edges.ravel()] = True
     if rep.removed_islands:
         warnings.warn(
-            f"{rep.removed_islands} strut(s) in {pieces - rep.bodies} loose piece(s) "
-            f"were removed: they touched neither the main lattice nor another piece "
-            f"({rep.bodies} body(ies) left, one per separate solid at most)",
+            islands_message(rep.removed_islands, total, pieces - rep.bodies, rep.bodies, advice),
             LatticeWarning,
             stacklevel=3,
         )
     return _renumber(nodes, edges, used)
+
+
+def islands_message(removed: int, total: int, pieces: int, bodies: int, advice: str = "") -> str:
+    """The warning of :func:`keep_main_components` (also the sharded fill's): ``removed``
+    of ``total`` struts in ``pieces`` loose pieces, ``bodies`` kept; ``advice`` is added
+    when that is more than ``MOST_REMOVED`` of the struts."""
+    share = removed / total if total else 0.0
+    most = f"; that is most of the lattice: {advice}" if advice and share > MOST_REMOVED else ""
+    return (
+        f"{removed} of {total} strut(s) ({100 * share:.3g} %) in {pieces} loose piece(s) were "
+        f"removed: they touched neither the main lattice nor another piece ({bodies} "
+        f"body(ies) left, one per separate solid at most){most}"
+    )
+
+
+#: What keeps a fill's lattice joined when most of it fell into loose pieces.
+JOINED_ADVICE = {
+    "inside": "the part's narrow parts hold no whole cell; fill='conform' joins the cells "
+    "along the surface, or use smaller cells",
+    "clip": "the part is thin for cells of this size, which the clip cuts into separate "
+    "pieces; fill='conform' joins them along the surface, or use smaller cells",
+    "conform": "use smaller cells",
+}
 
 
 def _find(parent: NDArray[np.int64], i: int) -> int:

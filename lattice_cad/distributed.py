@@ -1667,7 +1667,7 @@ def fill_sharded(
         if not live:
             raise _nothing_fits(the_part, h, radius if not callable(radius) else 0.0,
                                 f"no cell of size {h[0]:.4g} mm fits inside")  # fmt: skip
-        keep = _select_pieces(the_part, live, result)
+        keep = _select_pieces(the_part, live, result, spec.fill)
         fitted = None
         if fit == "shrink":
             t0 = time.perf_counter()
@@ -1733,14 +1733,16 @@ def fill_sharded(
     return result
 
 
-def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult) -> dict[int, Any]:
+def _select_pieces(
+    part: Any, live: list[dict[str, Any]], result: ShardedResult, fill: str
+) -> dict[int, Any]:
     """Union-find of the shards' component labels: keep the largest connected piece of each
     separate solid (as ``conformal.voxel.keep_main_components``); per shard, which of its
     labels to keep."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from conformal.voxel import _solid_shells, shell_owner
+    from conformal.voxel import JOINED_ADVICE, _solid_shells, islands_message, shell_owner
 
     base = np.cumsum([0] + [len(b["owned_count"]) for b in live])
     total = int(base[-1])
@@ -1779,10 +1781,10 @@ def _select_pieces(part: Any, live: list[dict[str, Any]], result: ShardedResult)
     result.removed_islands = removed
     if removed:
         bodies = int(keep_root.sum())
+        advice = JOINED_ADVICE.get(fill, "")
+        total = int(size.sum())
         warnings.warn(
-            f"{removed} strut(s) in {len(present) - bodies} loose piece(s) were removed: they "
-            f"touched neither the main lattice nor another piece ({bodies} body(ies) left, "
-            "one per separate solid at most)",
+            islands_message(removed, total, len(present) - bodies, bodies, advice),
             LatticeWarning,
             stacklevel=3,
         )

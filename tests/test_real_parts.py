@@ -313,3 +313,29 @@ def test_conforming_octet_drops_the_struts_no_radius_can_stitch(name):
     assert fast_stitch.check(mesh).valid
     independent_check(mesh)
     assert _bodies(mesh) == rep.bodies == 1
+
+
+def test_clip_fill_of_a_thin_part_says_most_of_it_fell_apart():
+    """The spanner (a 10 mm plate) with the parts benchmark's bcc cells (18.6 mm) and
+    fill='clip': the cut cells fall apart into 32 pieces and only the largest (8 struts)
+    is kept. The warning says so in numbers, that it is most of the lattice, and that
+    fill='conform' keeps it joined, which it does (far more struts, one body)."""
+    from conformal.voxel import voxel_lattice
+
+    part = _part("step/dolfiny_spanner25_lo.step")
+    h = float(f"{float(part.size.max()) / 15:.6g}")
+    r = float(f"{h / 12:.6g}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LatticeWarning)
+        g, rep = voxel_lattice(part, "bcc", h, r, fill="clip", return_report=True)
+    said = [str(w.message) for w in caught if "loose piece" in str(w.message)]
+    assert len(said) == 1, said
+    total = rep.removed_islands + g.num_edges
+    assert rep.removed_islands > 0.9 * total and rep.bodies == 1
+    assert f"{rep.removed_islands} of {total} strut(s)" in said[0], said[0]
+    assert "most of the lattice" in said[0] and "fill='conform' joins them" in said[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        gc, rep_c = voxel_lattice(part, "bcc", h, r, fill="conform", return_report=True)
+    assert rep_c.bodies == 1 and gc.num_edges > 10 * g.num_edges
+    assert rep_c.removed_islands < 0.5 * (rep_c.removed_islands + gc.num_edges)
