@@ -911,7 +911,7 @@ def keep_main_components(
     kept (at most one per solid). See :func:`main_components`. The warning gives the
     share of the struts removed, and ``advice`` (what keeps the lattice joined) when that
     is more than ``MOST_REMOVED``: a clip fill of a part thinner than its cells falls
-    apart into pieces of a few struts (the spanner at 18.6 mm cells: 8 of 236 kept).
+    apart into pieces of a few struts (the spanner at 18.6 mm cells: 8 of 116 kept).
 
     nodes : (N, 3) float64, edges : (M, 2) int64. Returns the kept nodes and edges
     (renumbered).

@@ -317,8 +317,8 @@ def test_conforming_octet_drops_the_struts_no_radius_can_stitch(name):
 
 def test_clip_fill_of_a_thin_part_says_most_of_it_fell_apart():
     """The spanner (a 10 mm plate) with the parts benchmark's bcc cells (18.6 mm) and
-    fill='clip': the cut cells fall apart into 32 pieces and only the largest (8 struts)
-    is kept. The warning says so in numbers, that it is most of the lattice, and that
+    fill='clip': the cut cells fall apart into 15 pieces and only the largest (8 of 116
+    struts) is kept. The warning says so in numbers, that it is most of the lattice, and that
     fill='conform' keeps it joined, which it does (far more struts, one body)."""
     from conformal.voxel import voxel_lattice
 
