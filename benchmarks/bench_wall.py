@@ -89,6 +89,10 @@ def main() -> None:
         cell = float(np.max(part.size)) / 15
         t, r = float(f"{cell / 6:.6g}"), cell / 12
         solids = list(part.shape or [])
+        if len(solids) > 1:  # measured against the solids fused (touching faces inside)
+            from lattice_cad.occ_impl import shapes as occ
+
+            solids = occ.solids(occ.fuse(solids, simplify=True)) or solids
         if not args.default_mesh:  # the part as Lattice skins it (cutting_part, outer_chord)
             part = cutting_part(part, r, chord=S.outer_chord(t))
         tol = 100 * max(0.02 * t, 0.02) / t
