@@ -231,9 +231,10 @@ def test_real_part_every_cavity_opens():
         mesh = lat.mesh()
     rep = lat.escape_report
     assert len(rep.cavities) >= 1 and rep.failed == []
-    # one pocket of 0.02 mm^3 between struts and the wall, below the flood fill's cell,
-    # is filled rather than left as a powder trap (the manifold3d check below sees none)
-    assert lat.escape_voids_filled == 1
+    # pockets between struts and the wall below the flood fill's cell (one of 0.02 mm^3
+    # on the radius's tessellation, two on the wall's: skin.outer_chord) are filled rather
+    # than left as powder traps (the manifold3d check below sees none)
+    assert 1 <= lat.escape_voids_filled <= 3
     assert {h.cavity for h in rep.holes} == set(range(len(rep.cavities)))
     assert rep.all_connected, rep.summary()
     assert_valid(mesh, self_intersections=False)

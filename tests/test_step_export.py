@@ -210,7 +210,7 @@ def test_overlapping_hubs_are_fused(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.filterwarnings("ignore:24 strut:lattice_cad.core.errors.LatticeWarning")
+@pytest.mark.filterwarnings("ignore:24 of 48 strut:lattice_cad.core.errors.LatticeWarning")
 def test_example_bracket_step(tmp_path):
     """The README's bracket: one solid, trimmed to the part, PrusaSlicer: manifold."""
     import cadquery as cq
@@ -240,7 +240,7 @@ def test_example_bracket_step(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.filterwarnings("ignore:24 strut:lattice_cad.core.errors.LatticeWarning")
+@pytest.mark.filterwarnings("ignore:24 of 48 strut:lattice_cad.core.errors.LatticeWarning")
 def test_cli_step(tmp_path, capsys):
     from lattice_cad.cli import main
 
