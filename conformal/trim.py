@@ -104,10 +104,14 @@ class TrimReport:
 
 @dataclass(frozen=True)
 class TrimResult:
-    """``solid``: the trimmed lattice (``manifold3d.Manifold``); ``report``: a TrimReport."""
+    """``solid``: the trimmed lattice (``manifold3d.Manifold``, or the lattice as given when
+    it was not cut); ``report``: a TrimReport; ``split``: with ``trim_to_part(graph=)``, a
+    ``conformal.skin_split.SplitLattice`` whose deep struts ``split.glue`` puts back into
+    ``solid`` (then only the struts near the part's surface), else None."""
 
     solid: Any
     report: TrimReport
+    split: Any = None
 
 
 def protrusion(part: Any, vertices: NDArray[np.float64]) -> float:
@@ -286,8 +290,20 @@ _S = np.array([0.5317, -0.3183, 0.7854])
 SHIFT_DIRECTION = _S / np.linalg.norm(_S)
 
 
+#: Clearance from the part's surface of the struts :func:`trim_to_part` leaves out of its
+#: boolean (``graph=``), in strut radii (at least ``NEAR_MARGIN_ULPS`` float32 steps).
+NEAR_MARGIN_RTOL = 0.02
+NEAR_MARGIN_ULPS = 16
+
+
 def trim_to_part(
-    lattice: Any, part: Any, *, radius: float, check: bool = True, shift: float = 0.0
+    lattice: Any,
+    part: Any,
+    *,
+    radius: float,
+    check: bool = True,
+    shift: float = 0.0,
+    graph: Any = None,
 ) -> TrimResult:
     """Intersect a stitched lattice with its part.
 
@@ -306,6 +322,14 @@ def trim_to_part(
     check : bool
         Check the result in full (``conformal.skin.checked``: a ``SkinError`` names where
         it fails). ``Lattice`` passes False: it checks after rounding to float32.
+    graph : LatticeGraph, optional
+        The graph ``lattice`` was stitched from (``fast_stitch.stitch``), with
+        ``check=False`` and no ``shift``: the boolean then runs on the struts near the
+        part's surface only (``conformal.skin_split.split_lattice`` against the part, with
+        a clearance of ``NEAR_MARGIN_RTOL`` r); the struts deep inside are left out and
+        ``TrimResult.split.glue`` puts them back after the caller's float32 check, and
+        those clear outside the part are dropped. Falls back to the whole lattice when the
+        split does not apply (too little deep, not the stitcher's mesh, a cap not kept).
 
     Returns
     -------
@@ -315,13 +339,16 @@ def trim_to_part(
         piece.
     """
     from conformal.skin import as_manifold, part_solid, to_arrays
-    from conformal.voxel import _solid_shells, shell_owner
 
     t0 = time.perf_counter()
-    lat = as_manifold(lattice, name="the lattice mesh")
-    v0, _ = to_arrays(lat)
     extent = float(np.abs(part.bounds).max()) if len(part.vertices) else 1.0
     tol = _tolerance(radius, extent)
+    if graph is not None and not check and not shift:
+        near = _trim_near(lattice, part, graph, radius=radius, tol=tol, extent=extent, t0=t0)
+        if near is not None:
+            return near
+    lat = as_manifold(lattice, name="the lattice mesh")
+    v0, _ = to_arrays(lat)
     before = protrusion(part, v0)
     shape = part_solid(part)
     if shift:
@@ -343,18 +370,8 @@ def trim_to_part(
     pieces = cut.decompose()
     removed = 0
     if len(pieces) > 1:
-        shells = _solid_shells(part)
         vols = np.array([p.volume() for p in pieces])
-        owner = np.zeros(len(pieces), dtype=np.int64)
-        if len(shells) > 1:
-            for i, p in enumerate(pieces):
-                pv, _ = to_arrays(p)
-                votes = shell_owner(shells, pv[:64])
-                owner[i] = int(np.argmax(np.bincount(votes, minlength=len(shells))))
-        keep = []
-        for o in np.unique(owner):
-            mine = np.flatnonzero(owner == o)
-            keep.append(int(mine[np.argmax(vols[mine])]))
+        keep = _largest_per_solid(part, vols, [to_arrays(p)[0][:64] for p in pieces])
         removed = len(pieces) - len(keep)
         if removed:
             import manifold3d
@@ -377,3 +394,114 @@ def trim_to_part(
         seconds=time.perf_counter() - t0,
     )
     return TrimResult(solid=cut, report=report)
+
+
+def _largest_per_solid(
+    part: Any, vols: NDArray[np.float64], samples: list[NDArray[np.float64]]
+) -> list[int]:
+    """The bodies kept: in each solid of the part its largest, by ``vols`` (B,) float64; a
+    body's solid is the one most of its ``samples[i]`` (K, 3) float64 vertices lie in."""
+    from conformal.voxel import _solid_shells, shell_owner
+
+    owner = np.zeros(len(vols), dtype=np.int64)
+    shells = _solid_shells(part)
+    if len(shells) > 1:
+        for i, pts in enumerate(samples):
+            votes = shell_owner(shells, pts)
+            owner[i] = int(np.argmax(np.bincount(votes, minlength=len(shells))))
+    keep = []
+    for o in np.unique(owner):
+        mine = np.flatnonzero(owner == o)
+        keep.append(int(mine[np.argmax(vols[mine])]))
+    return sorted(keep)
+
+
+def _volume(v: NDArray[np.float64], f: NDArray[np.int64]) -> float:
+    """The signed volume of a closed triangle mesh (V, 3) float64, (F, 3) int64."""
+    total = 0.0
+    for start in range(0, len(f), 1 << 16):
+        tri = v[f[start : start + (1 << 16)]]
+        total += float(np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))
+    return total / 6.0
+
+
+def _trim_near(
+    lattice: Any, part: Any, graph: Any, *, radius: float, tol: float, extent: float, t0: float
+) -> TrimResult | None:
+    """:func:`trim_to_part` on the struts near the part's surface only, or None when the
+    split does not apply (see ``trim_to_part(graph=)``)."""
+    from conformal.skin import _manifold, part_solid, to_arrays
+    from conformal.skin_split import pieces, split_lattice
+    from lattice_cad.core.mesh import Mesh, mesh_arrays
+
+    arrays = mesh_arrays(lattice)
+    if arrays is None:
+        return None
+    v, f = arrays
+    ulp = float(np.spacing(np.float32(max(extent, 1.0))))
+    margin = max(NEAR_MARGIN_RTOL * float(radius), NEAR_MARGIN_ULPS * ulp)
+    split = split_lattice(graph, v, f, part, margin=margin)
+    if split is None or split.deep_index is None:
+        return None
+    # the deep vertices lie inside the part, clear of it: the protrusion is the others'
+    outer = np.ones(len(v), dtype=bool)
+    outer[split.deep_index] = False
+    before = protrusion(part, v[outer])
+    near = _manifold(split.near_vertices, split.near_faces, "the lattice near the part")
+    shape = part_solid(part)
+    if split.counts["wall"] == 0 and before == 0.0 and (near - shape).is_empty():
+        # nothing outside the part: the lattice as given, no boolean on all of it
+        report = TrimReport(
+            trimmed=False,
+            protrusion_before=before,
+            protrusion_after=before,
+            tolerance=tol,
+            volume_removed=0.0,
+            bodies=pieces(v, f)[0],
+            pieces_removed=0,
+            seconds=time.perf_counter() - t0,
+        )
+        return TrimResult(solid=lattice, report=report)
+    cut = near ^ shape
+    vc, fc = to_arrays(cut)
+    joined = split._joined(vc, fc)
+    if joined is None:
+        return None  # a cap was cut: the boolean on the whole lattice
+    n_pieces, vlabel, vols, group, n_groups = joined
+    deep_vols = split.deep_volumes()
+    gvol = np.bincount(group, np.concatenate([vols, deep_vols]), minlength=n_groups)
+    removed = 0
+    if n_groups > 1:
+        # a group's solid from the vertices of its first piece of the cut
+        by_piece = np.argsort(vlabel, kind="stable")
+        starts = np.searchsorted(vlabel[by_piece], np.arange(n_pieces + 1))
+        first = np.full(n_groups, -1, dtype=np.int64)
+        first[group[:n_pieces][::-1]] = np.arange(n_pieces)[::-1]
+        if np.any(first < 0):
+            return None  # a deep piece joins no piece of the cut (cannot be: caps found)
+        samples = [vc[by_piece[starts[k] : starts[k] + 64]] for k in first]
+        keep = _largest_per_solid(part, gvol, samples)
+        removed = n_groups - len(keep)
+        if removed:
+            kept = np.zeros(n_groups, dtype=bool)
+            kept[keep] = True
+            face_ok = kept[group[vlabel[fc[:, 0]]]]
+            used = np.zeros(len(vc), dtype=bool)
+            used[fc[face_ok].ravel()] = True
+            new_id = np.cumsum(used) - 1
+            vc, fc = vc[used], new_id[fc[face_ok]]
+            split = split.without(np.flatnonzero(~kept[group[n_pieces:]]))
+            gvol = gvol[kept]
+            cut = Mesh(vertices=vc, faces=fc)
+    total = _volume(v, f)
+    report = TrimReport(
+        trimmed=True,
+        protrusion_before=before,
+        protrusion_after=protrusion(part, vc),
+        tolerance=tol,
+        volume_removed=float(total - gvol.sum()),
+        bodies=n_groups - removed,
+        pieces_removed=removed,
+        seconds=time.perf_counter() - t0,
+    )
+    return TrimResult(solid=cut, report=report, split=split)

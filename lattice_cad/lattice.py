@@ -660,6 +660,7 @@ class Lattice:
                 return self._kept_mesh
             trimmed = self._cut()  # checked below, after rounding to float32
             self.trim_report = trimmed.report
+            self._split = trimmed.split
             if not trimmed.report.trimmed:
                 return self._kept_mesh
             v, f = _skin.to_arrays(trimmed.solid)
@@ -701,7 +702,7 @@ class Lattice:
             offsets=pending,
             graph=self.graph if local else None,
         )
-        self._skin_split = result.split
+        self._split = result.split
         self.skin_report = result.report
         solid = result.solid
         if self.escape_holes is not None:
@@ -736,6 +737,7 @@ class Lattice:
                                 self._skinned(shift=shift, mid_wall=mid_wall, coarse=coarse),
                                 "the lattice",
                             )
+                            mesh = self._glue_deep(mesh)  # a split skin (the coarse one)
                         except ExportError:
                             continue
                         self.skin_retry = (
@@ -755,6 +757,7 @@ class Lattice:
                             self._verify_escape(mesh)
                         return mesh
                     raise
+                self.__dict__.pop("_split", None)
                 if self.keep or self.trim_report is None:
                     raise
                 # the cut by the part's surface left slivers that float32 cannot hold (tiny
@@ -774,18 +777,24 @@ class Lattice:
         return mesh
 
     def _glue_deep(self, mesh: Mesh) -> Mesh:
-        """The checked skin of the struts near the wall with the deep struts glued back
-        (``conformal.skin_split``); if a cap of the split did not come out of the booleans
-        as it went in, the skin with the whole lattice, checked."""
+        """The checked skin or trim of the struts near the wall or the part's surface with
+        the deep struts glued back (``conformal.skin_split``); if a cap of the split did not
+        come out of the booleans as it went in, the booleans on the whole lattice, checked."""
+        from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
-        split = self.__dict__.pop("_skin_split", None)
+        split = self.__dict__.pop("_split", None)
         if split is None:
             return mesh
         glued = split.glue(mesh.vertices, mesh.faces)
-        if glued is None:
+        if glued is not None:
+            return Mesh(vertices=glued[0], faces=glued[1])
+        if self.skin is not None:
             return _checked_single_precision(self._skinned(split=False), "the lattice")
-        return Mesh(vertices=glued[0], faces=glued[1])
+        trimmed = self._cut(split=False)
+        self.trim_report = trimmed.report
+        v, f = _skin.to_arrays(trimmed.solid)
+        return _checked_single_precision(Mesh(vertices=v, faces=f), "the lattice")
 
     def _retrim(self) -> Mesh | None:
         """The trim cut with the part moved off its surface by a quarter of the tolerance
@@ -802,16 +811,22 @@ class Lattice:
         self.trim_report = trimmed.report
         return mesh
 
-    def _cut(self, *, shift: float = 0.0) -> Any:
+    def _cut(self, *, shift: float = 0.0, split: bool = True) -> Any:
         """The lattice (with its keep zones) cut by the part's surface, not yet checked
-        (``conformal.trim.trim_to_part``; ``shift``: see there)."""
+        (``conformal.trim.trim_to_part``; ``shift``: see there); ``split``: the boolean on
+        the struts near the surface only, the deep ones in ``TrimResult.split``."""
         from conformal.trim import trim_to_part
 
         radius = float(self.graph.radii.max())
         if self.keep:
             return self._cut_then_keep(shift=shift)
         return trim_to_part(
-            self._kept_mesh, self._cutting_part, radius=radius, check=False, shift=shift
+            self._kept_mesh,
+            self._cutting_part,
+            radius=radius,
+            check=False,
+            shift=shift,
+            graph=self.graph if split and not shift else None,
         )
 
     def _cut_then_keep(self, *, shift: float = 0.0) -> Any:
