@@ -1008,7 +1008,10 @@ def _split(lattice: Any, graph: Any, inner: Any, thickness: float) -> Any:
     if arrays is None:
         return None
     margin = max(WALL_ATOL, 0.01 * thickness)
-    return split_lattice(graph, *arrays, Part(*to_arrays(inner), name="inner"), margin=margin)
+    split = split_lattice(graph, *arrays, Part(*to_arrays(inner), name="inner"), margin=margin)
+    if split is None or split.counts["near"] == 0:
+        return None  # (all of it deep: an island in the cavity, for the whole booleans)
+    return split
 
 
 def add_skin(lattice: Any, part: Any, thickness: float, *, voxel: float | None = None) -> Any:

@@ -197,8 +197,8 @@ class SplitLattice:
         vertices : (V, 3) float64 (float32-exact), faces : (F, 3) int64.
         Returns vertices (V', 3) float64 and faces (F', 3) int64.
         """
-        if len(self.caps) == 0:
-            return vertices, faces
+        if len(self.caps) == 0:  # deep elements join the result at their caps only
+            return (vertices, faces) if len(self.deep_faces) == 0 else None
         if len(vertices) + len(self.deep_vertices) >= 1 << 21:
             return None
         ring = np.unique(self.caps.ravel())
@@ -417,6 +417,17 @@ def split_lattice(
     n_deep = int((fcls == _DEEP).sum())
     if n_deep < MIN_DEEP_FRACTION * len(f):
         return None
+    if n_deep == len(f):  # all of it clear inside: nothing for the booleans
+        return SplitLattice(
+            near_vertices=np.zeros((0, 3)),
+            near_faces=np.zeros((0, 3), dtype=np.int64),
+            deep_vertices=v,
+            deep_faces=f,
+            caps=np.zeros((0, 3), dtype=np.int64),
+            cap_piece=np.zeros(0, dtype=np.int64),
+            counts={"deep": n_deep, "near": 0, "wall": 0, "caps": 0},
+            deep_index=np.arange(len(v), dtype=np.int64),
+        )
     # rings between a tube and its hub of different classes
     hub_cls = ncls[edges]  # (m, 2)
     tube_cls = np.repeat(ecls[:, None], 2, axis=1)
@@ -600,8 +611,8 @@ def _deep_pieces(
     to_deep: NDArray[np.bool_],
 ) -> NDArray[np.int64] | None:
     """The connected piece of deep elements (hubs and tubes joined at shared rings) at each
-    ring toward a near element ((K,) int64, K = to_deep.sum()), or None when a piece has
-    no such ring."""
+    ring toward a near element ((K,) int64 in ``0 .. D - 1``, K = to_deep.sum(), D the
+    number of deep pieces), or None when a piece has no such ring."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -622,7 +633,8 @@ def _deep_pieces(
     joined[ring_piece] = True
     if not np.all(joined[label[deep]]):
         return None
-    return ring_piece.astype(np.int64)
+    # the pieces numbered 0 .. D - 1
+    return np.unique(ring_piece, return_inverse=True)[1].astype(np.int64).ravel()
 
 
 def _compact(

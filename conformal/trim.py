@@ -425,13 +425,38 @@ def _volume(v: NDArray[np.float64], f: NDArray[np.int64]) -> float:
     return total / 6.0
 
 
+def _untouched(
+    lattice: Any,
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    *,
+    tol: float,
+    before: float,
+    t0: float,
+) -> TrimResult:
+    """The lattice (V, 3) float64, (F, 3) int64 as given, reported not cut."""
+    from conformal.skin_split import pieces
+
+    report = TrimReport(
+        trimmed=False,
+        protrusion_before=before,
+        protrusion_after=before,
+        tolerance=tol,
+        volume_removed=0.0,
+        bodies=pieces(v, f)[0],
+        pieces_removed=0,
+        seconds=time.perf_counter() - t0,
+    )
+    return TrimResult(solid=lattice, report=report)
+
+
 def _trim_near(
     lattice: Any, part: Any, graph: Any, *, radius: float, tol: float, extent: float, t0: float
 ) -> TrimResult | None:
     """:func:`trim_to_part` on the struts near the part's surface only, or None when the
     split does not apply (see ``trim_to_part(graph=)``)."""
     from conformal.skin import _manifold, part_solid, to_arrays
-    from conformal.skin_split import pieces, split_lattice
+    from conformal.skin_split import split_lattice
     from lattice_cad.core.mesh import Mesh, mesh_arrays
 
     arrays = mesh_arrays(lattice)
@@ -443,6 +468,8 @@ def _trim_near(
     split = split_lattice(graph, v, f, part, margin=margin)
     if split is None or split.deep_index is None:
         return None
+    if split.counts["near"] == 0:  # all of it clear inside the part
+        return _untouched(lattice, v, f, tol=tol, before=0.0, t0=t0)
     # the deep vertices lie inside the part, clear of it: the protrusion is the others'
     outer = np.ones(len(v), dtype=bool)
     outer[split.deep_index] = False
@@ -451,17 +478,7 @@ def _trim_near(
     shape = part_solid(part)
     if split.counts["wall"] == 0 and before == 0.0 and (near - shape).is_empty():
         # nothing outside the part: the lattice as given, no boolean on all of it
-        report = TrimReport(
-            trimmed=False,
-            protrusion_before=before,
-            protrusion_after=before,
-            tolerance=tol,
-            volume_removed=0.0,
-            bodies=pieces(v, f)[0],
-            pieces_removed=0,
-            seconds=time.perf_counter() - t0,
-        )
-        return TrimResult(solid=lattice, report=report)
+        return _untouched(lattice, v, f, tol=tol, before=before, t0=t0)
     cut = near ^ shape
     vc, fc = to_arrays(cut)
     joined = split._joined(vc, fc)
@@ -493,7 +510,7 @@ def _trim_near(
             split = split.without(np.flatnonzero(~kept[group[n_pieces:]]))
             gvol = gvol[kept]
             cut = Mesh(vertices=vc, faces=fc)
-    total = _volume(v, f)
+    total = _volume(v.astype(np.float32).astype(np.float64), f)  # as manifold3d has it
     report = TrimReport(
         trimmed=True,
         protrusion_before=before,
