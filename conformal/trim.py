@@ -486,7 +486,8 @@ def _trim_near(
         return None  # a cap was cut: the boolean on the whole lattice
     n_pieces, vlabel, vols, group, n_groups = joined
     deep_vols = split.deep_volumes()
-    gvol = np.bincount(group, np.concatenate([vols, deep_vols]), minlength=n_groups)
+    weights = np.concatenate([vols, deep_vols])
+    gvol = np.bincount(group, weights, minlength=n_groups).astype(np.float64)
     removed = 0
     if n_groups > 1:
         # a group's solid from the vertices of its first piece of the cut
@@ -496,7 +497,7 @@ def _trim_near(
         first[group[:n_pieces][::-1]] = np.arange(n_pieces)[::-1]
         if np.any(first < 0):
             return None  # a deep piece joins no piece of the cut (cannot be: caps found)
-        samples = [vc[by_piece[starts[k] : starts[k] + 64]] for k in first]
+        samples = [vc[by_piece[starts[k] : min(starts[k] + 64, starts[k + 1])]] for k in first]
         keep = _largest_per_solid(part, gvol, samples)
         removed = n_groups - len(keep)
         if removed:
