@@ -12,6 +12,8 @@ Usage::
         --out benchmarks/results/bench_skin.txt
     # one tree with and without an environment variable
     python benchmarks/bench_skin.py --trees "$PWD::NUMPY_MADVISE_HUGEPAGE=1" $PWD
+    # the same fill without the skin (the lattice trimmed to the part instead)
+    PYTHONPATH=$PWD python benchmarks/bench_skin.py --no-skin --trees ../main-before $PWD
 
 Times of nested stages are inclusive (``booleans`` is ``build_skin`` minus its surfaces,
 lattice conversion, island check and wall measurement).
@@ -54,6 +56,9 @@ STAGES = [
     ("skin: part_solid", "conformal.skin", "part_solid"),
     ("skin: islands", "conformal.skin", "_keep_attached"),
     ("skin: wall measure", "conformal.skin", "wall_thickness"),
+    ("trim: trim_to_part", "conformal.trim", "trim_to_part"),
+    ("trim: near struts", "conformal.trim", "_trim_near"),
+    ("split_lattice (any)", "conformal.skin_split", "split_lattice"),
     ("escape drill", "lattice_cad.lattice", "Lattice._drill"),
     ("escape verify", "lattice_cad.lattice", "Lattice._verify_escape"),
     ("printability report", "lattice_cad.cli", "_say_printability"),
@@ -80,7 +85,15 @@ def _wrap(acc: dict, label: str, fn):
     return timed
 
 
-def child(out: str) -> None:
+def _args(no_skin: bool) -> list[str]:
+    """The fill's options: ``ARGS``, without ``--skin`` when ``no_skin``."""
+    if not no_skin:
+        return ARGS
+    i = ARGS.index("--skin")
+    return ARGS[:i] + ARGS[i + 2 :]
+
+
+def child(out: str, no_skin: bool = False) -> None:
     """Run the CLI command in this process with the stages timed; write JSON to ``out``."""
     w0, c0 = time.perf_counter(), time.process_time()
     acc: dict = {}
@@ -100,7 +113,7 @@ def child(out: str) -> None:
             continue
         setattr(owner, name, _wrap(acc, label, fn))
     target = "/tmp/bench_skin_out.stl"
-    rc = cli.main(["--quiet", "fill", PART, *ARGS, "-o", target])
+    rc = cli.main(["--quiet", "fill", PART, *_args(no_skin), "-o", target])
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     acc["TOTAL (in process)"] = [wall, cpu + ru.ru_utime + ru.ru_stime, 1]
@@ -132,7 +145,7 @@ def _reap(seconds: float = 10.0) -> None:
             time.sleep(0.05)
 
 
-def run_once(tree: str) -> dict:
+def run_once(tree: str, no_skin: bool = False) -> dict:
     """One fresh-process run of ``tree``: a repository path, optionally followed by
     ``::VAR=VALUE[,VAR=VALUE]``, environment variables set for that run only (an A/B of
     one tree with and without a setting)."""
@@ -147,7 +160,8 @@ def run_once(tree: str) -> dict:
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     w0 = time.perf_counter()
     subprocess.run(
-        [sys.executable, __file__, "--child", out], env=env, check=True, cwd="/tmp",
+        [sys.executable, __file__, "--child", out, *(["--no-skin"] if no_skin else [])],
+        env=env, check=True, cwd="/tmp",
         stdout=subprocess.DEVNULL,
     )  # fmt: skip
     wall = time.perf_counter() - w0
@@ -171,12 +185,13 @@ def main() -> None:
     ap.add_argument("--trees", nargs="+", default=[str(Path(__file__).resolve().parents[1])])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", default=None, help="also write the tables to this file")
+    ap.add_argument("--no-skin", action="store_true", help="the same fill without --skin")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if not Path(PART).is_file():
         sys.exit(f"bench_skin: {PART} is missing: the shared data must lie beside the repository")
     if args.child:
-        child(args.child)
+        child(args.child, args.no_skin)
         return
     lines: list[str] = []
 
@@ -184,12 +199,12 @@ def main() -> None:
         print(s, flush=True)
         lines.append(s)
 
-    say(f"bench_skin: lattice-cad fill {Path(PART).name} {' '.join(ARGS)} -o x.stl")
+    say(f"bench_skin: lattice-cad fill {Path(PART).name} {' '.join(_args(args.no_skin))} -o x.stl")
     say(f"machine: {os.cpu_count()} cores; {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())}")
     runs: dict[str, list[dict]] = {t: [] for t in args.trees}
     for i in range(args.repeat):
         for t in args.trees:  # alternating A/B
-            d = run_once(t)
+            d = run_once(t, args.no_skin)
             runs[t].append(d)
             say(
                 f"run {i + 1} {t}: wall {d['wall']:.2f} s, CPU {d['cpu']:.2f} s "
