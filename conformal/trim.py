@@ -348,24 +348,14 @@ def trim_to_part(
         if near is not None:
             return near
     lat = as_manifold(lattice, name="the lattice mesh")
-    v0, _ = to_arrays(lat)
+    v0, f0 = to_arrays(lat)
     before = protrusion(part, v0)
     shape = part_solid(part)
     if shift:
         shape = shape.translate(tuple(float(c) for c in SHIFT_DIRECTION * (shift * tol)))
     outside = lat - shape
     if outside.is_empty():
-        report = TrimReport(
-            trimmed=False,
-            protrusion_before=before,
-            protrusion_after=before,
-            tolerance=tol,
-            volume_removed=0.0,
-            bodies=len(lat.decompose()),
-            pieces_removed=0,
-            seconds=time.perf_counter() - t0,
-        )
-        return TrimResult(solid=lat, report=report)
+        return _untouched(lat, v0, f0, tol=tol, before=before, t0=t0)
     cut = lat ^ shape
     pieces = cut.decompose()
     removed = 0
@@ -416,15 +406,6 @@ def _largest_per_solid(
     return sorted(keep)
 
 
-def _volume(v: NDArray[np.float64], f: NDArray[np.int64]) -> float:
-    """The signed volume of a closed triangle mesh (V, 3) float64, (F, 3) int64."""
-    total = 0.0
-    for start in range(0, len(f), 1 << 16):
-        tri = v[f[start : start + (1 << 16)]]
-        total += float(np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))
-    return total / 6.0
-
-
 def _untouched(
     lattice: Any,
     v: NDArray[np.float64],
@@ -434,7 +415,8 @@ def _untouched(
     before: float,
     t0: float,
 ) -> TrimResult:
-    """The lattice (V, 3) float64, (F, 3) int64 as given, reported not cut."""
+    """The lattice as given (its arrays ``v`` (V, 3) float64, ``f`` (F, 3) int64, one vertex
+    per position in each body, as manifold3d's and the stitcher's), reported not cut."""
     from conformal.skin_split import pieces
 
     report = TrimReport(
@@ -457,7 +439,7 @@ def _trim_near(
     split does not apply (see ``trim_to_part(graph=)``)."""
     from conformal.skin import _manifold, part_solid, to_arrays
     from conformal.skin_split import split_lattice
-    from lattice_cad.core.mesh import Mesh, mesh_arrays
+    from lattice_cad.core.mesh import Mesh, mesh_arrays, signed_volume
 
     arrays = mesh_arrays(lattice)
     if arrays is None:
@@ -511,7 +493,7 @@ def _trim_near(
             split = split.without(np.flatnonzero(~kept[group[n_pieces:]]))
             gvol = gvol[kept]
             cut = Mesh(vertices=vc, faces=fc)
-    total = _volume(v.astype(np.float32).astype(np.float64), f)  # as manifold3d has it
+    total = signed_volume(v.astype(np.float32).astype(np.float64), f)  # as manifold3d has it
     report = TrimReport(
         trimmed=True,
         protrusion_before=before,
