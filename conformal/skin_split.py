@@ -1,4 +1,7 @@
-"""The skin's booleans on the part of the lattice near the wall only.
+"""The skin's booleans on the part of the lattice near the wall only (and the trim's, near
+the part's surface: ``conformal.trim.trim_to_part(graph=)`` passes the cutting part as
+``inner``; there the wall elements are the struts clear outside the part, which the cut
+removes).
 
 A skin is ``outer - (inner - lattice)`` (:mod:`conformal.skin`). The lattice is by far the
 largest operand (the GE bracket's octet: 1.5 M triangles against the inner surface's
