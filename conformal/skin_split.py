@@ -38,6 +38,7 @@ the boolean's result (the near part, caps included), before :meth:`glue`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -73,8 +74,12 @@ class SplitLattice:
     caps : (C, 3) int64
         The caps toward deep elements, indices into ``deep_vertices`` (the rings' vertices
         are deep vertices too), oriented as in the near part.
+    cap_piece : (C,) int64
+        The deep piece (``0 .. D - 1``) each cap closes.
     counts : dict
         Triangles of the lattice that are deep, near and in the wall.
+    deep_index : (Vd,) int64
+        The row of each deep vertex in the stitched lattice's vertices.
     """
 
     near_vertices: NDArray[np.float64]
@@ -84,7 +89,15 @@ class SplitLattice:
     caps: NDArray[np.int64]
     cap_piece: NDArray[np.int64]
     counts: dict[str, int]
-    deep_index: NDArray[np.int64] | None = None
+    deep_index: NDArray[np.int64]
+
+    @cached_property
+    def _deep_closed(self) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """:func:`pieces` of the deep elements closed by their (reversed) caps: each deep
+        vertex's label (Vd,) int64 and each label's volume."""
+        closed = np.vstack([self.deep_faces, self.caps[:, ::-1]])
+        _, vlabel, vols = pieces(self.deep_vertices, closed)
+        return vlabel, vols
 
     def _joined(self, vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> Any:
         """The connected pieces of the boolean's result joined by the deep pieces at their
@@ -123,15 +136,13 @@ class SplitLattice:
         out = np.zeros(n_deep)
         if n_deep == 0:
             return out
-        closed = np.vstack([self.deep_faces, self.caps[:, ::-1]])
-        _, vlabel, vols = pieces(self.deep_vertices, closed)
+        vlabel, vols = self._deep_closed
         out[self.cap_piece] = vols[vlabel[self.caps[:, 0]]]
         return out
 
     def without(self, drop: NDArray[np.int64]) -> SplitLattice:
         """The split with the deep pieces ``drop`` (``cap_piece`` numbering) left out."""
-        closed = np.vstack([self.deep_faces, self.caps[:, ::-1]])
-        _, vlabel, _ = pieces(self.deep_vertices, closed)
+        vlabel, _ = self._deep_closed
         piece_of_label = np.full(int(vlabel.max(initial=-1)) + 1, -1, dtype=np.int64)
         piece_of_label[vlabel[self.caps[:, 0]]] = self.cap_piece
         gone = np.zeros(int(self.cap_piece.max(initial=-1)) + 1, dtype=bool)
@@ -151,7 +162,7 @@ class SplitLattice:
             caps=new_id[self.caps[keep_c]],
             cap_piece=self.cap_piece[keep_c],
             counts=dict(self.counts),
-            deep_index=None if self.deep_index is None else self.deep_index[used],
+            deep_index=self.deep_index[used],
         )
 
     def bodies(

@@ -448,7 +448,7 @@ def _trim_near(
     ulp = float(np.spacing(np.float32(max(extent, 1.0))))
     margin = max(NEAR_MARGIN_RTOL * float(radius), NEAR_MARGIN_ULPS * ulp)
     split = split_lattice(graph, v, f, part, margin=margin)
-    if split is None or split.deep_index is None:
+    if split is None:
         return None
     if split.counts["near"] == 0:  # all of it clear inside the part
         return _untouched(lattice, v, f, tol=tol, before=0.0, t0=t0)
