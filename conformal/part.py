@@ -95,6 +95,11 @@ class Part:
         #: deflection``. None / 0 when not measured.
         self.chord_error: float | None = None
         self.chord_unresolved = 0
+        #: For B-rep parts as loaded (``load_part``): an upper bound (mm) on the distance
+        #: of their triangle centroids and edge midpoints from the exact surface
+        #: (``|S(u, v) - p|`` at the triangles' parameters, no projection), measured right
+        #: after tessellating. None when not measured.
+        self.chord_bound: float | None = None
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -503,7 +508,7 @@ def load_part(
                     f"{path}: not a readable STEP file (OCCT could not read it"
                     + (f": {why})" if why else ")")
                 )
-            return _from_shape(shape, str(path), deflection, angular_deflection)
+            return _from_shape(shape, str(path), deflection, angular_deflection, measure=True)
         if suffix in _MESH_SUFFIXES:
             return _from_mesh_file(path, _unit_scale(units))
         raise PartError(
@@ -520,7 +525,9 @@ def load_part(
             "source must be a file path, a cadquery Workplane or Shape, a build123d shape or a "
             f"TopoDS_Shape; got {type(source).__name__}"
         )
-    return _from_shape(shape, f"<{type(source).__name__}>", deflection, angular_deflection)
+    return _from_shape(
+        shape, f"<{type(source).__name__}>", deflection, angular_deflection, measure=True
+    )
 
 
 def _unit_scale(units: str | float | None) -> float:
@@ -545,7 +552,10 @@ def _from_shape(
     *,
     checked: bool = False,
     reuse: bool = False,
+    measure: bool = False,
 ) -> Part:
+    """The part of a B-rep ``shape``; ``measure`` (an unchecked tessellation): also bound its
+    chord error (``Part.chord_bound``)."""
     from lattice_cad.occ_impl import shapes as _occ
 
     solids = _occ.solids(shape)
@@ -568,8 +578,13 @@ def _from_shape(
         raise ValueError(f"deflection must be > 0, got {deflection!r}")
     pieces = []
     chord_error, unresolved = 0.0, 0
+    bound: float | None = 0.0 if measure and not checked else None
     for k, solid in enumerate(solids):
-        v, f, report = _closed_tessellation(solid, k, name, defl, angular, diag, checked, reuse)
+        v, f, report, dev = _closed_tessellation(
+            solid, k, name, defl, angular, diag, checked, reuse, measure=bound is not None
+        )
+        if bound is not None and dev is not None:
+            bound = max(bound, dev)
         if report is not None:
             chord_error = max(chord_error, report.max_deviation)
             unresolved += len(report.unresolved)
@@ -590,6 +605,7 @@ def _from_shape(
             stacklevel=3,
         )
     part = Part(v, f, name=name, shape=solids, deflection=defl)
+    part.chord_bound = bound
     if checked and config.CHORD_CONTROL > 0:
         part.chord_error = chord_error
         part.chord_unresolved = unresolved
@@ -609,12 +625,17 @@ def _closed_tessellation(
     diag: float,
     checked: bool,
     reuse: bool = False,
-) -> tuple[NDArray[np.float64], NDArray[np.int64], Any]:
+    *,
+    measure: bool = False,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], Any, float | None]:
     """A closed, 2-manifold triangulation of one B-rep solid, healing it if needed.
 
     With ``checked``, every face is checked against its exact surface and the faces that
     BRepMesh meshed coarser than ``defl`` are refined (``occ_impl.chord``); the
-    ``ChordReport`` is returned third (None without ``checked``). With ``reuse``, the
+    ``ChordReport`` is returned third (None without ``checked``). With ``measure``, the
+    fourth is an upper bound on the deviation of its triangle centroids and edge midpoints
+    from the exact surface (``occ_impl.chord.face_deviations``, no projection: 0.07 s for
+    the M6 screw's 7,602 triangles, 0.4 s for NIST CTC-02's 37,192), else None. With ``reuse``, the
     triangulation ``solid`` carries was made with the same ``defl`` and ``angular`` and is
     kept (not meshed again).
 
@@ -644,13 +665,23 @@ def _closed_tessellation(
                 vv, ff, kept = _occ.merge_close(v, f, tol)
             problem = _closed_problem(ff)
             if not problem:
-                return vv, ff, report
+                dev = _deviation_bound(shape) if measure else None
+                return vv, ff, report, dev
         faces_at = np.unique(owner[kept][_open_triangles(ff)])
     listed = ", ".join(str(int(i)) for i in faces_at[:10]) + (" ..." if len(faces_at) > 10 else "")
     raise PartError(
         f"{name}: solid {k} is not closed after triangulation and healing ({problem}); "
         f"the holes border B-rep face(s) {listed} (TopExp order)"
     )
+
+
+def _deviation_bound(shape: Any) -> float:
+    """An upper bound (mm) on the deviation of ``shape``'s stored triangulation from its
+    exact surfaces at triangle centroids and edge midpoints (``|S(u, v) - p|``)."""
+    from lattice_cad.occ_impl.chord import face_deviations
+
+    dev = face_deviations(shape, screen=float("inf"))
+    return float(dev.max()) if len(dev) else 0.0
 
 
 def _open_triangles(f: NDArray[np.int64]) -> NDArray[np.bool_]:

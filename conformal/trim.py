@@ -23,7 +23,7 @@ exact B-rep).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -65,6 +65,9 @@ class TrimReport:
     failed : str
         Why the trimmed lattice could not be written (then the lattice is written uncut and
         ``protrusion_before`` is what the file has); empty when it was.
+    clearance : float
+        When :func:`clear_inside` proved the lattice inside the part on the part's own
+        tessellation: the clearance (mm) from the exact surface it proved; else 0.
     """
 
     trimmed: bool
@@ -76,6 +79,7 @@ class TrimReport:
     pieces_removed: int
     seconds: float
     failed: str = ""
+    clearance: float = 0.0
 
     @property
     def within_tolerance(self) -> bool:
@@ -89,6 +93,11 @@ class TrimReport:
                 f"{self.protrusion_before:.3g} mm outside the part"
             )
         if not self.trimmed:
+            if self.clearance:
+                return (
+                    f"trim: the lattice lies inside the part, clear of its surface by more "
+                    f"than {self.clearance:.3g} mm (nothing to cut)"
+                )
             return (
                 f"trim: the lattice lies inside the part (largest protrusion "
                 f"{self.protrusion_before:.3g} mm)"
@@ -384,6 +393,76 @@ def trim_to_part(
         seconds=time.perf_counter() - t0,
     )
     return TrimResult(solid=cut, report=report)
+
+
+#: :func:`clear_inside`: the part's own tessellation stands off the exact surface by about
+#: its measured chord error (an upper bound at triangle centroids and edge midpoints) plus
+#: the B-rep's tolerance; a lattice clear inside it by this many times that lies inside the
+#: exact solid.
+CLEAR_CHORD_FACTOR = 2.0
+
+
+def clear_inside(lattice: Any, part: Any, graph: Any, *, radius: float) -> TrimResult | None:
+    """The lattice reported untrimmed, without the finer cutting tessellation, when it lies
+    clear inside the part's own tessellation; else None (then :func:`cutting_part` and
+    :func:`trim_to_part` decide).
+
+    :func:`cutting_part` tessellates a B-rep part again for the strut radius, which on
+    threads and small fillets takes minutes (the M6 screw: 77 s); a lattice filled with
+    whole cells inside the part (``fill="inside"``) is then usually found not to touch the
+    surface at all. Here the stitched lattice is split (``conformal.skin_split``) against
+    the part's own tessellation, with the trim's clearance widened by
+    ``CLEAR_CHORD_FACTOR`` times the larger of that tessellation's measured chord error
+    (``Part.chord_bound``, measured when it was loaded) and its deflection, plus the
+    B-rep's largest tolerance: when every element is deep,
+    every point of the lattice is inside the exact solid by more than the trim's
+    clearance. Nodes on or near the surface (clip, conform and tet fills) end the test
+    before the split.
+
+    Parameters
+    ----------
+    lattice : Mesh
+        The lattice as :func:`fast_stitch.stitch` made ``graph`` into.
+    part : conformal.Part
+        A B-rep part as loaded (with its ``chord_bound``); other parts give None.
+    graph : LatticeGraph
+    radius : float
+        The largest strut radius (mm).
+
+    Returns
+    -------
+    TrimResult or None
+        ``report.trimmed`` is False and ``report.clearance`` the clearance proven (mm).
+    """
+    from conformal.skin_split import split_lattice
+    from lattice_cad.core.mesh import mesh_arrays
+    from lattice_cad.occ_impl.shapes import max_tolerance
+
+    t0 = time.perf_counter()
+    bound = getattr(part, "chord_bound", None)
+    if getattr(part, "shape", None) is None or bound is None:
+        return None
+    arrays = mesh_arrays(lattice)
+    if arrays is None or graph.num_edges == 0:
+        return None
+    v, f = arrays
+    extent = float(np.abs(part.bounds).max()) if len(part.vertices) else 1.0
+    ulp = float(np.spacing(np.float32(max(extent, 1.0))))
+    # how far the tessellation may stand off the exact surface, and the clearance from it
+    # that proves the trim's clearance from the exact surface (with a factor of safety)
+    dev = max(float(part.deflection), float(bound)) + max(max_tolerance(s) for s in part.shape)
+    margin = max(NEAR_MARGIN_RTOL * float(radius), NEAR_MARGIN_ULPS * ulp)
+    margin += CLEAR_CHORD_FACTOR * dev
+    nodes = graph.nodes
+    if not bool(np.all(part.contains(nodes))):
+        return None
+    if float(part.distance(nodes, max_distance=2.0 * margin).min()) <= margin:
+        return None
+    split = split_lattice(graph, v, f, part, margin=margin)
+    if split is None or split.counts["deep"] != len(f):
+        return None
+    result = _untouched(lattice, v, f, tol=_tolerance(radius, extent), before=0.0, t0=t0)
+    return TrimResult(solid=result.solid, report=replace(result.report, clearance=margin - dev))
 
 
 def _largest_per_solid(

@@ -820,6 +820,14 @@ class Lattice:
         radius = float(self.graph.radii.max())
         if self.keep:
             return self._cut_then_keep(shift=shift)
+        if split and not shift and "_cutting_part" not in self.__dict__:
+            # clear inside the part's own tessellation (an inside fill, usually): no finer
+            # cutting tessellation (minutes on threads and small fillets) and no boolean
+            from conformal.trim import clear_inside
+
+            clear = clear_inside(self._kept_mesh, self.part, self.graph, radius=radius)
+            if clear is not None:
+                return clear
         return trim_to_part(
             self._kept_mesh,
             self._cutting_part,
