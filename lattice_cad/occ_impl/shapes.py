@@ -701,12 +701,12 @@ def translated(shape: TopoDS_Shape, offset: Any) -> TopoDS_Shape:
     return mk.Shape()
 
 
-def copied(shape: TopoDS_Shape) -> TopoDS_Shape:
-    """A deep copy of ``shape`` (geometry too, without its triangulation).
+def copied(shape: TopoDS_Shape, *, mesh: bool = False) -> TopoDS_Shape:
+    """A deep copy of ``shape`` (geometry too; its triangulation only with ``mesh``).
 
     Meshing the copy leaves the original's triangulation (and the user's shape) as it was.
     """
-    mk = BRepBuilderAPI_Copy(shape, True, False)
+    mk = BRepBuilderAPI_Copy(shape, True, bool(mesh))
     check_done(mk, "copy")
     out = mk.Shape()
     if out is None or out.IsNull():
