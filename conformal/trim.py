@@ -400,6 +400,10 @@ def trim_to_part(
 #: the B-rep's tolerance; a lattice clear inside it by this many times that lies inside the
 #: exact solid.
 CLEAR_CHORD_FACTOR = 2.0
+#: :func:`clear_inside` tessellates the part again to prove a clearance the part's own
+#: tessellation cannot, when that tessellation's chord error is at least this many times
+#: the cutting one's (:func:`cutting_part`): else it would cost about as much.
+CLEAR_FINER_RATIO = 4.0
 
 
 def clear_inside(lattice: Any, part: Any, graph: Any, *, radius: float) -> TrimResult | None:
@@ -414,10 +418,13 @@ def clear_inside(lattice: Any, part: Any, graph: Any, *, radius: float) -> TrimR
     the part's own tessellation, with the trim's clearance widened by
     ``CLEAR_CHORD_FACTOR`` times the larger of that tessellation's measured chord error
     (``Part.chord_bound``, measured when it was loaded) and its deflection, plus the
-    B-rep's largest tolerance: when every element is deep,
-    every point of the lattice is inside the exact solid by more than the trim's
-    clearance. Nodes on or near the surface (clip, conform and tet fills) end the test
-    before the split.
+    B-rep's largest tolerance: when every element is deep, every point of the lattice is
+    inside the exact solid by more than the trim's clearance. When some elements come
+    closer than that, but no nearer than allows a tessellation at least
+    ``CLEAR_FINER_RATIO`` times coarser than the cutting one, the part is tessellated
+    again (checked against its exact surface) just finely enough, and the proof is made
+    on that (the cycloidal gear's inside fill). Nodes on or near the surface (clip, conform
+    and tet fills) end the test before the split.
 
     Parameters
     ----------
@@ -435,6 +442,7 @@ def clear_inside(lattice: Any, part: Any, graph: Any, *, radius: float) -> TrimR
         ``report.trimmed`` is False and ``report.clearance`` the clearance proven (mm).
     """
     from conformal.skin_split import split_lattice
+    from lattice_cad.core.errors import PartError
     from lattice_cad.core.mesh import mesh_arrays
     from lattice_cad.occ_impl.shapes import max_tolerance
 
@@ -450,17 +458,36 @@ def clear_inside(lattice: Any, part: Any, graph: Any, *, radius: float) -> TrimR
     ulp = float(np.spacing(np.float32(max(extent, 1.0))))
     # how far the tessellation may stand off the exact surface, and the clearance from it
     # that proves the trim's clearance from the exact surface (with a factor of safety)
-    dev = max(float(part.deflection), float(bound)) + max(max_tolerance(s) for s in part.shape)
-    margin = max(NEAR_MARGIN_RTOL * float(radius), NEAR_MARGIN_ULPS * ulp)
-    margin += CLEAR_CHORD_FACTOR * dev
-    nodes = graph.nodes
+    tol_b = max(max_tolerance(s) for s in part.shape)
+    dev = max(float(part.deflection), float(bound)) + tol_b
+    near = max(NEAR_MARGIN_RTOL * float(radius), NEAR_MARGIN_ULPS * ulp)
+    nodes = graph.nodes[graph.degree > 0]  # (a node without struts has no mesh)
     if not bool(np.all(part.contains(nodes))):
         return None
-    if float(part.distance(nodes, max_distance=2.0 * margin).min()) <= margin:
-        return None
+    if float(part.distance(nodes, max_distance=2.0 * near).min()) <= near:
+        return None  # nodes on the surface (clip, conform and tet fills)
+    margin = near + CLEAR_CHORD_FACTOR * dev
     split = split_lattice(graph, v, f, part, margin=margin)
-    if split is None or split.counts["deep"] != len(f):
+    if split is None or split.counts["wall"]:
         return None
+    if split.counts["deep"] != len(f):
+        # near the surface, inside it: a tessellation fine enough to prove the clearance,
+        # if it is much coarser than the cutting one
+        # (the vertices' clearance from this tessellation: from the exact surface it may be
+        # up to ``dev`` less, or more; the finer tessellation is a try, proven or not)
+        c = float(part.distance(split.near_vertices, max_distance=margin).min())
+        finer = 0.5 * (c - near - CLEAR_CHORD_FACTOR * tol_b) / (1 + CLEAR_CHORD_FACTOR)
+        if not finer >= CLEAR_FINER_RATIO * _wanted(part, radius, None):
+            return None
+        try:
+            medium = part.refined(finer, angular=config.CUT_ANGULAR_DEFLECTION, checked=True)
+        except PartError:
+            return None
+        dev = max(finer, float(medium.chord_error or 0.0)) + tol_b
+        margin = near + CLEAR_CHORD_FACTOR * dev
+        split = split_lattice(graph, v, f, medium, margin=margin)
+        if split is None or split.counts["deep"] != len(f):
+            return None
     result = _untouched(lattice, v, f, tol=_tolerance(radius, extent), before=0.0, t0=t0)
     return TrimResult(solid=result.solid, report=replace(result.report, clearance=margin - dev))
 

@@ -140,3 +140,43 @@ def test_regression_the_m6_inside_fill_builds_no_cutting_tessellation(monkeypatc
     )
     np.testing.assert_array_equal(_triangles(mesh), _triangles(rounded))
     assert _exact_depth(lat.part, mesh.vertices) >= rep.clearance
+
+
+def _chain(reach: float, r: float) -> LatticeGraph:
+    """Struts along x from the cylinder's axis, the last node ``reach`` from it (mm)."""
+    x = np.array([0.0, 3.0, 6.0, reach])
+    nodes = np.stack([x, np.zeros(4), np.full(4, 5.0)], axis=1)
+    return LatticeGraph(nodes, np.array([[0, 1], [1, 2], [2, 3]]), r)
+
+
+def test_a_lattice_close_to_a_curved_wall_is_proven_on_a_finer_tessellation(monkeypatch):
+    """Struts reaching 0.55 mm under a cylinder of radius 10 meshed with a 0.3 mm chord error: too
+    close for the part's own tessellation, proven on one just fine enough (far coarser than
+    the cutting tessellation's 0.5 % r), and OCCT agrees."""
+    import cadquery as cq
+
+    from conformal.part import Part
+
+    part = load_part(cq.Workplane("XY").circle(10.0).extrude(10.0), deflection=0.3)
+    asked: list[float] = []
+    real = Part.refined
+
+    def spy(self, deflection, **k):
+        asked.append(deflection)
+        return real(self, deflection, **k)
+
+    monkeypatch.setattr(Part, "refined", spy)
+    r = 0.2
+    g = _chain(9.45, r)
+    mesh = fast_stitch.stitch(g)
+    got = trim.clear_inside(mesh, part, g, radius=r)
+    assert got is not None and not got.report.trimmed
+    assert len(asked) == 1 and asked[0] >= trim.CLEAR_FINER_RATIO * trim._wanted(part, r, None)
+    depth = float(-signed_distance(part.shape, mesh.vertices).max())
+    assert 0.4 < depth and depth >= got.report.clearance > 0
+    # 0.01 mm under the wall: no tessellation much coarser than the cutting one proves it,
+    # and none is tried
+    asked.clear()
+    g = _chain(9.99, r)
+    assert trim.clear_inside(fast_stitch.stitch(g), part, g, radius=r) is None
+    assert not asked
