@@ -553,7 +553,19 @@ def _kill(pool: ProcessPoolExecutor) -> None:
     for p in procs:
         if p.is_alive():
             p.kill()
+    # the call queue's feeder thread may be blocked writing specs to a pipe no worker reads
+    # any more; shutdown(wait=True) joined it and hung for good (CPython gh-94777; seen once
+    # in CI: tests/test_hubspeed.py::test_ctrl_c_stops_the_workers, 600 s). Its reading end
+    # closed, the write fails and the thread ends; its join is not waited for.
+    queue = getattr(pool, "_call_queue", None)
+    if queue is not None:
+        queue.cancel_join_thread()
+        reader = getattr(queue, "_reader", None)
+        if reader is not None:
+            reader.close()
     pool.shutdown(wait=True, cancel_futures=True)
+    for p in procs:
+        p.join(timeout=10.0)
 
 
 def _run(
