@@ -373,18 +373,25 @@ def _mesh(shape: TopoDS_Shape, deflection: float, angular: float, parallel: bool
         raise OCCTFailure("BRepMesh_IncrementalMesh: IsDone() is false")
 
 
+def _plain_edges(face: TopoDS_Face) -> list[Any]:
+    """The edges of ``face`` that are not degenerate (a cone's apex, a sphere's pole)."""
+    out = []
+    exp = TopExp_Explorer(face, TopAbs_EDGE)
+    while exp.More():
+        edge = TopoDS.Edge_s(exp.Current())
+        exp.Next()
+        if not BRep_Tool.Degenerated_s(edge):
+            out.append(edge)
+    return out
+
+
 def _edges_shared(shape: TopoDS_Shape, faces: list[TopoDS_Face]) -> bool:
     """True when every edge of ``faces`` has the same nodes in the triangulation of each
     face of ``shape`` that holds it (the faces share their edge nodes: a closed mesh)."""
     ancestors = TopTools_IndexedDataMapOfShapeListOfShape()
     TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, ancestors)
     for face in faces:
-        exp = TopExp_Explorer(face, TopAbs_EDGE)
-        while exp.More():
-            edge = TopoDS.Edge_s(exp.Current())
-            exp.Next()
-            if BRep_Tool.Degenerated_s(edge):
-                continue
+        for edge in _plain_edges(face):
             nodes = set()
             for other in ancestors.FindFromKey(edge):
                 loc = TopLoc_Location()
@@ -419,12 +426,7 @@ def _edge_neighbours(
 ) -> list[TopoDS_Face]:
     """The faces sharing a (non-degenerate) edge with ``face``."""
     out = []
-    exp = TopExp_Explorer(face, TopAbs_EDGE)
-    while exp.More():
-        edge = TopoDS.Edge_s(exp.Current())
-        exp.Next()
-        if BRep_Tool.Degenerated_s(edge):
-            continue
+    for edge in _plain_edges(face):
         for other in ancestors.FindFromKey(edge):
             if not other.IsSame(face):
                 out.append(TopoDS.Face_s(other))
@@ -456,16 +458,10 @@ def _adjacent_groups(
         return i
 
     for i in which:
-        exp = TopExp_Explorer(faces[i], TopAbs_EDGE)
-        while exp.More():
-            edge = TopoDS.Edge_s(exp.Current())
-            exp.Next()
-            if BRep_Tool.Degenerated_s(edge):
-                continue
-            for other in ancestors.FindFromKey(edge):
-                for j in which:
-                    if j != i and faces[j].IsSame(other):
-                        parent[root(j)] = root(i)
+        for other in _edge_neighbours(faces[i], ancestors):
+            for j in which:
+                if j != i and faces[j].IsSame(other):
+                    parent[root(j)] = root(i)
     groups: dict[int, list[int]] = {}
     for i in which:
         groups.setdefault(root(i), []).append(i)
