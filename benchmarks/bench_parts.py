@@ -550,6 +550,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--json", type=Path, metavar="PATH", help="also save the rows as JSON")
     p.add_argument("--no-warmup", action="store_true", help="skip the numba warm-up runs")
+    p.add_argument(
+        "--data",
+        type=Path,
+        metavar="DIR",
+        action="append",
+        help="fill the parts in DIR instead (every file in it; repeatable); default: "
+        "../shared/data/step and ../shared/data/meshes",
+    )
     return p
 
 
@@ -563,10 +571,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _interrupt)
     if args.jobs < 1 or not args.timeout > 0:
         sys.exit("error: --jobs must be >= 1 and --timeout > 0")
-    dirs = [DATA / d for d in PART_DIRS]
+    dirs = args.data or [DATA / d for d in PART_DIRS]
     missing = [d for d in dirs if not d.is_dir()]
     if missing:
-        sys.exit(f"error: shared data not found: {', '.join(map(str, missing))}")
+        what = "part folder" if args.data else "shared data"
+        sys.exit(f"error: {what} not found: {', '.join(map(str, missing))}")
     paths = sorted((f for d in dirs for f in d.iterdir() if f.is_file()), key=lambda f: f.name)
     if args.parts:
         paths = [f for f in paths if any(s in f.name for s in args.parts)]
@@ -579,7 +588,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     out_dir.mkdir(parents=True, exist_ok=True)
 
     print(f"lattice-cad: {LATTICE_CAD}")
-    print(f"data: {DATA}  ({len(paths)} parts)  settings: {' '.join(settings)}")
+    where = ", ".join(map(str, args.data)) if args.data else DATA
+    print(f"data: {where}  ({len(paths)} parts)  settings: {' '.join(settings)}")
     print(f"timeout {args.timeout:g} s, jobs {args.jobs}, output: {out_dir}", flush=True)
     t0 = time.perf_counter()
     runner = Runner()
@@ -642,7 +652,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if args.json:
         payload = {
-            "data": str(DATA),
+            "data": [str(d) for d in dirs],
             "timeout": args.timeout,
             "jobs": args.jobs,
             "interrupted": interrupted,

@@ -560,17 +560,7 @@ def _from_shape(
 
     solids = _occ.solids(shape)
     if not solids:
-        shells = _occ.open_shells(shape)
-        faces = _occ.faces_outside_solids(shape)
-        what = (
-            f"{shells} open shell(s)"
-            if shells
-            else (f"{faces} face(s)" if faces else "no geometry at all")
-        )
-        raise PartError(
-            f"{name}: no closed solid, only {what}; a lattice needs a closed volume "
-            "(sew the surfaces into a solid in your CAD tool)"
-        )
+        solids = _solids_of_surfaces(shape, name)
     box = _occ.bounds(_occ.compound(solids) if len(solids) > 1 else solids[0])
     diag = float(np.linalg.norm(box[1] - box[0]))
     defl = 1e-3 * diag if deflection is None else float(deflection)
@@ -610,6 +600,46 @@ def _from_shape(
         part.chord_error = chord_error
         part.chord_unresolved = unresolved
     return part
+
+
+def _solids_of_surfaces(shape: Any, name: str) -> list[Any]:
+    """The solids of a B-rep without any: its faces sewn into closed shells, each made a
+    solid (``occ_impl.shapes.solids_from_surfaces``; a STEP surface model, e.g. a
+    ``SHELL_BASED_SURFACE_MODEL`` of a closed shell), said in a warning; faces left open
+    are named (in the warning when some solid was made, else in the error)."""
+    from lattice_cad.occ_impl import shapes as _occ
+
+    n_faces = _occ.faces_outside_solids(shape)
+    if n_faces == 0:
+        raise PartError(
+            f"{name}: no closed solid, no geometry at all; a lattice needs a closed volume"
+        )
+    made, left = _occ.solids_from_surfaces(shape)
+
+    def named(items: list[tuple[int, NDArray[np.float64]]]) -> str:
+        shown = [
+            f"face {k} (free edge {_fmt_point(w[0])} - {_fmt_point(w[1])})" for k, w in items[:3]
+        ]
+        return ", ".join(shown) + (f" and {len(items) - 3} more" if len(items) > 3 else "")
+
+    if not made:
+        raise PartError(
+            f"{name}: no closed solid, only {n_faces} open face(s), which do not close "
+            f"into a solid even when sewn: {named(left)}; a lattice needs a closed volume "
+            "(close the surfaces into a solid in your CAD tool)"
+        )
+    note = f"; {len(left)} face(s) that do not close were left out: {named(left)}" if left else ""
+    warnings.warn(
+        f"{name}: the file holds surfaces, not a solid: {n_faces - len(left)} face(s) were "
+        f"sewn into {len(made)} closed shell(s) and made solid(s){note}",
+        LatticeWarning,
+        stacklevel=4,
+    )
+    return made
+
+
+def _fmt_point(p: NDArray[np.float64]) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in p) + ")"
 
 
 def _mesh_volume(t: NDArray[np.float64]) -> float:

@@ -33,7 +33,10 @@ def test_parterror_is_valueerror_and_latticeerror():
 
 # ------------------------------------------------------------ bad inputs
 BROKEN = {
-    "pythonocc_splinecage_surfaces_only.stp": r"no closed solid, only 4 open shell",
+    "pythonocc_splinecage_surfaces_only.stp": (
+        r"no closed solid, only 4 open face\(s\), which do not close into a solid even when "
+        r"sewn: face 1 \(free edge \("
+    ),
     "trimesh_teapot_open.stl": r"not a closed solid: \d+ open",
     "newell_teapot_open.obj": r"not a closed solid: \d+ open",
     "cube_no_bottom.obj": r"not a closed solid: 8 open",
@@ -261,28 +264,92 @@ def _inch_box_step(tmp_path):
 
     from lattice_cad.occ_impl import step as _occ
 
-    shape = cq.Workplane().box(25.4, 50.8, 12.7, centered=False).val().wrapped
+    shape = cq.Workplane().box(25.4, 50.8, 12.7, centered=False).val()
     path = tmp_path / "inch.step"
-    _occ.write_step(shape, path, unit="IN")
-    return path, float(np.linalg.norm([25.4, 50.8, 12.7]))
+    _occ.write_step(shape.wrapped, path, unit="IN")
+    return path, shape
 
 
 def test_step_units_check_refuses_a_part_loaded_at_the_wrong_scale(tmp_path):
     from lattice_cad.core.errors import StepUnitsError
     from lattice_cad.occ_impl import step as _occ
 
-    path, diagonal = _inch_box_step(tmp_path)
-    _occ.check_step_units(path, ["INCH"], diagonal)  # the right size passes
+    path, box = _inch_box_step(tmp_path)
+    _occ.check_step_units(path, ["INCH"], box.wrapped)  # the right size passes
     # what an OCP install that converts twice produced: 25.4 times too large
     with pytest.raises(
-        StepUnitsError, match=r"inch\.step: declared unit INCH .*\(25\.4 times as large\)"
+        StepUnitsError,
+        match=r"inch\.step: declared unit INCH .* edges 25\.4 times as long as the file's own",
     ):
-        _occ.check_step_units(path, ["INCH"], diagonal * 25.4)
-    with pytest.raises(StepUnitsError, match="inch.step"):
-        _occ.check_step_units(path, ["INCH"], diagonal / 25.4)
+        _occ.check_step_units(path, ["INCH"], box.scale(25.4).wrapped)
+    for wrong in (1 / 25.4, 10.0, 1000.0, 1e-3):
+        with pytest.raises(StepUnitsError, match="inch.step"):
+            _occ.check_step_units(path, ["INCH"], box.scale(wrong).wrapped)
     # OCCT naming another unit than the file declares is refused too
     with pytest.raises(StepUnitsError, match="declares its lengths in INCH, but OCCT reads"):
-        _occ.check_step_units(path, ["millimetre"], diagonal)
+        _occ.check_step_units(path, ["millimetre"], box.wrapped)
+
+
+@pytest.mark.parametrize("where", ["far", "sphere"])
+def test_step_units_check_passes_parts_the_span_of_their_points_misjudged(tmp_path, where):
+    """Regression: the size check compared the loaded shape with the span of the file's
+    CARTESIAN_POINTs, which takes in placement origins (a filleted box at (8000, 2000,
+    500) "spanned" 8290 mm against 61.6 mm loaded) and misses a sphere's extent (its points
+    are its centre and a pole: 25 mm against 86.6 mm): both valid files were refused as
+    loaded at the wrong scale. Edge lengths do not depend on either."""
+    import cadquery as cq
+
+    if where == "far":
+        wp = cq.Workplane().box(50, 30, 20).edges().fillet(3).translate((8000, 2000, 500))
+        size, volume = [50, 30, 20], None
+    else:
+        wp = cq.Workplane().sphere(25)
+        size, volume = [50, 50, 50], 4 / 3 * np.pi * 25**3
+    path = tmp_path / f"{where}.step"
+    cq.exporters.export(wp, str(path))
+    part = load_part(path)
+    np.testing.assert_allclose(part.size, size, rtol=5e-3)  # (a tessellation's size)
+    if volume is not None:
+        np.testing.assert_allclose(part.volume, volume, rtol=1e-2)
+    # and the writer, whose file is checked the same way, writes it back
+    from lattice_cad.occ_impl import step as _occ
+
+    out = tmp_path / f"{where}_again.step"
+    _occ.write_step(wp.val().wrapped, out)
+    assert load_part(out).size == pytest.approx(part.size, rel=1e-6)
+
+
+def test_a_closed_shell_without_a_solid_loads_as_a_solid(tmp_path):
+    """Regression: a STEP surface model (SHELL_BASED_SURFACE_MODEL holding a CLOSED_SHELL,
+    what CadQuery writes for a shelled box) was refused as "no closed solid, only 1 open
+    shell"; it is now made a solid, with a warning."""
+    import cadquery as cq
+
+    from lattice_cad.occ_impl import shapes as _occ
+
+    solid = cq.Workplane().box(60, 40, 30).faces(">Z").shell(-2).val()
+    shell = solid.Shells()[0]
+    path = tmp_path / "shell.step"
+    cq.exporters.export(cq.Workplane().add(shell), str(path))
+    text = path.read_text(errors="ignore")
+    assert "SHELL_BASED_SURFACE_MODEL" in text and "MANIFOLD_SOLID_BREP" not in text
+    with pytest.warns(LatticeWarning, match=r"holds surfaces, not a solid: 11 face\(s\) were sewn"):
+        part = load_part(path)
+    assert part.volume == pytest.approx(60 * 40 * 30 - 56 * 36 * 28, rel=1e-4)
+    assert len(_occ.solids(part.shape[0])) == 1
+
+
+def test_open_faces_are_named(tmp_path):
+    """A box missing its top face does not close even when sewn: the error names the faces
+    with a free edge and where that edge is."""
+    import cadquery as cq
+
+    box = cq.Workplane().box(10, 10, 10).val()
+    faces = [f for f in box.Faces() if f.Center().z < 4.9]  # all but the top
+    path = tmp_path / "open.step"
+    cq.exporters.export(cq.Workplane().add(cq.Shell.makeShell(faces)), str(path))
+    with pytest.raises(PartError, match=r"only 5 open face\(s\).*face \d \(free edge \(.*, 5\) - "):
+        load_part(path)
 
 
 def test_every_step_part_in_shared_data_passes_the_units_check():

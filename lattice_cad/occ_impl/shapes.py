@@ -1136,6 +1136,99 @@ def faces_outside_solids(shape: TopoDS_Shape) -> int:
     return count(shape, TopAbs_FACE, TopAbs_SOLID)
 
 
+def solids_from_surfaces(
+    shape: TopoDS_Shape, *, tolerance: float | None = None
+) -> tuple[list[TopoDS_Shape], list[tuple[int, NDArray[np.float64]]]]:
+    """Solids made of the faces of ``shape`` that lie in no solid (a surface model: a
+    STEP ``SHELL_BASED_SURFACE_MODEL`` holding a closed shell, or loose faces that meet).
+
+    The faces are sewn (``BRepBuilderAPI_Sewing``, at ``tolerance``: default the largest
+    tolerance of ``shape``, at least 1e-6 mm); each closed shell of the result becomes a
+    solid (``BRepBuilderAPI_MakeSolid``, oriented outward by ``ShapeFix_Solid``) when
+    BRepCheck accepts it and its volume is positive.
+
+    Returns
+    -------
+    solids : list of TopoDS_Solid
+    open_faces : list of (int, (2, 3) float64)
+        The faces (1-based, in the order ``TopExp_Explorer`` visits the faces of ``shape``)
+        in no solid made: each with the end points of one of its free edges after sewing,
+        or its bounding box when it has none (a closed shell that gave no valid solid).
+    """
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp
+    from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
+
+    in_solids = _shape_map(solids(shape), TopAbs_FACE)
+    loose = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    k = 0
+    while exp.More():
+        k += 1
+        if not in_solids.Contains(exp.Current()):
+            loose.append((k, TopoDS.Face_s(exp.Current())))
+        exp.Next()
+    if not loose:
+        return [], []
+    tol = max(1e-6, max_tolerance(shape)) if tolerance is None else float(tolerance)
+    with occt_errors("sewing the faces into shells"):
+        sew = BRepBuilderAPI_Sewing(tol)
+        for _, face in loose:
+            sew.Add(face)
+        sew.Perform()
+        sewn = sew.SewedShape()
+    if sewn is None or sewn.IsNull():
+        return [], [(k, bounds(face)) for k, face in loose]
+    made: list[TopoDS_Shape] = []
+    exp = TopExp_Explorer(sewn, TopAbs_SHELL)
+    while exp.More():
+        shell = TopoDS.Shell_s(exp.Current())
+        exp.Next()
+        if not BRep_Tool.IsClosed_s(shell):
+            continue
+        mk = BRepBuilderAPI_MakeSolid(shell)
+        if not mk.IsDone():
+            continue
+        fix = ShapeFix_Solid(mk.Solid())
+        fix.Perform()
+        got = solids(fix.Solid())
+        if len(got) == 1 and is_valid(got[0]) and volume(got[0]) > 0.0:
+            made.append(got[0])
+    in_made = _shape_map(made, TopAbs_FACE)
+    edge_faces = TopTools_IndexedDataMapOfShapeListOfShape()
+    TopExp.MapShapesAndAncestors_s(sewn, TopAbs_EDGE, TopAbs_FACE, edge_faces)
+    left: list[tuple[int, NDArray[np.float64]]] = []
+    for k, face in loose:
+        new = sew.ModifiedSubShape(face) if sew.IsModifiedSubShape(face) else face
+        if in_made.Contains(new):
+            continue
+        where = bounds(new)
+        e = TopExp_Explorer(new, TopAbs_EDGE)
+        while e.More():
+            edge = TopoDS.Edge_s(e.Current())
+            e.Next()
+            if edge_faces.Contains(edge) and edge_faces.FindFromKey(edge).Size() == 1:
+                a = BRep_Tool.Pnt_s(TopExp.FirstVertex_s(edge))
+                b = BRep_Tool.Pnt_s(TopExp.LastVertex_s(edge))
+                where = np.array([[a.X(), a.Y(), a.Z()], [b.X(), b.Y(), b.Z()]])
+                break
+        left.append((k, where))
+    return made, left
+
+
+def _shape_map(shapes: list[TopoDS_Shape], kind: Any) -> Any:
+    """A ``TopTools_IndexedMapOfShape`` of the sub-shapes of type ``kind`` of ``shapes``
+    (``Contains`` is ``IsSame``: orientation aside)."""
+    from OCP.TopExp import TopExp
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    out = TopTools_IndexedMapOfShape()
+    for sh in shapes:
+        TopExp.MapShapes_s(sh, kind, out)
+    return out
+
+
 def bounds(shape: TopoDS_Shape) -> NDArray[np.float64]:
     """(2, 3) float64 bounding box of ``shape``."""
     box = Bnd_Box()

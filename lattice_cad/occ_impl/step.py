@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Interface import Interface_Static
 from OCP.STEPControl import (
@@ -28,7 +29,6 @@ from OCP.TopoDS import TopoDS_Shape
 from lattice_cad.core.errors import OCCTFailure, StepUnitsError
 from lattice_cad.occ_impl.quiet import c_stdout_captured
 from lattice_cad.occ_impl.shapes import (
-    bounds,
     compound,
     from_bytes,
     is_valid,
@@ -82,8 +82,7 @@ def read_step(
         shape = reader.OneShape()
     if shape.IsNull():
         return None
-    box = bounds(shape)
-    check_step_units(path, occt_units, float(np.linalg.norm(box[1] - box[0])))
+    check_step_units(path, occt_units, shape)
     return shape
 
 
@@ -102,12 +101,26 @@ _POINT = re.compile(
     rf"CARTESIAN_POINT\s*\(\s*'[^']*'\s*,\s*\(\s*({_NUM})\s*,\s*({_NUM})\s*,\s*({_NUM})\s*\)",
     re.IGNORECASE,
 )
+_NAME = r"'(?:[^']|'')*'"
+_POINT_ID = re.compile(
+    rf"#(\d+)\s*=\s*CARTESIAN_POINT\s*\(\s*{_NAME}\s*,\s*\(\s*({_NUM})\s*,\s*({_NUM})\s*,"
+    rf"\s*({_NUM})\s*\)",
+    re.IGNORECASE,
+)
+_VERTEX = re.compile(rf"#(\d+)\s*=\s*VERTEX_POINT\s*\(\s*{_NAME}\s*,\s*#(\d+)\s*\)", re.IGNORECASE)
+_EDGE = re.compile(rf"EDGE_CURVE\s*\(\s*{_NAME}\s*,\s*#(\d+)\s*,\s*#(\d+)", re.IGNORECASE)
+#: Edge lengths (end to end) of the loaded shape and of the file's text agree when they are
+#: within this relative tolerance; the unit is taken as right when at least
+#: ``_MATCHED_FRACTION`` of the shape's edges find their length among the file's.
+_LENGTH_RTOL = 1e-4
+_MATCHED_FRACTION = 0.5
+#: At most this many of the shape's edges are compared.
+_MAX_EDGES = 4000
 _SI_LENGTH = re.compile(r"SI_UNIT\s*\(\s*(\$|\.\w+\.)\s*,\s*\.METRE\.\s*\)", re.IGNORECASE)
 _NAMED_LENGTH = re.compile(r"CONVERSION_BASED_UNIT\s*\(\s*'([^']*)'", re.IGNORECASE)
-#: Loaded size / size from the file's own coordinates must lie in this band. The file's
-#: points include B-spline control points and placements, so the loaded shape is usually a
-#: bit smaller (0.49 .. 1.09 over shared/data); a unit applied twice or not at all is off by
-#: 10, 25.4 or 1000.
+#: When the edges cannot be matched (a file without EDGE_CURVEs between VERTEX_POINTs, or
+#: edges OCCT split or merged), the longest edge of the shape over the longest of the file
+#: must lie in this band; a unit applied twice or not at all is off by 10, 25.4 or 1000.
 _SIZE_RATIO_BAND = (0.15, 3.0)
 
 
@@ -136,7 +149,7 @@ def declared_length_unit(text: str) -> tuple[str, float] | None:
 
 
 def check_step_units(
-    path: str | os.PathLike[str], occt_units: list[str], loaded_diagonal: float
+    path: str | os.PathLike[str], occt_units: list[str], shape: TopoDS_Shape
 ) -> None:
     """Cross-check the unit a STEP file declares against OCCT's reading of it.
 
@@ -146,13 +159,20 @@ def check_step_units(
 
     1. the length unit parsed from the file's text equals the unit OCCT reports
        (``STEPControl_Reader.FileUnits``);
-    2. the diagonal of the loaded shape (mm) is close to the diagonal of the file's own
-       ``CARTESIAN_POINT`` coordinates times the declared unit (within ``_SIZE_RATIO_BAND``).
+    2. the edges of the loaded ``shape`` (mm, end vertex to end vertex) are as long as the
+       file's own ``EDGE_CURVE`` entities (between their ``VERTEX_POINT`` ones) times the declared
+       unit: at least half of them find their length among the file's (within
+       ``_LENGTH_RTOL``), and no other ratio of two length units fits better. Lengths do
+       not change under an assembly's placements; the span of the file's points does (it
+       takes in the placements' origins, so a part far from the origin looked thousands of
+       times too small) and misses curved extents (a sphere's points are its centre and
+       poles). When no edge can be matched, the longest edges are compared
+       (``_SIZE_RATIO_BAND``).
 
     Raises
     ------
     StepUnitsError
-        Naming the file, both units and both sizes.
+        Naming the file, both units and the scale found.
     """
     name = os.fspath(path)
     with open(path, encoding="latin-1") as fh:
@@ -167,21 +187,85 @@ def check_step_units(
             f"{name}: the file declares its lengths in {unit}, but OCCT reads them as "
             f"{', '.join(known)}; refusing to guess the part's size"
         )
-    pts = np.array(_POINT.findall(text), dtype=np.float64)
-    if len(pts) < 2 or loaded_diagonal <= 0:
+    file_len = _file_edge_lengths(text) * mm_per_unit
+    shape_len = _shape_edge_lengths(shape)
+    if len(file_len) == 0 or len(shape_len) == 0:
         return
-    raw = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) * mm_per_unit
-    if raw <= 0:
+    scale, fit = _best_scale(np.sort(file_len), shape_len)
+    if scale is None:  # nothing matches: the longest edges
+        ratio = float(shape_len.max() / file_len.max())
+        lo, hi = _SIZE_RATIO_BAND
+        if lo <= ratio <= hi:
+            return
+        scale, fit = ratio, 0.0
+    elif scale == 1.0:
         return
-    ratio = loaded_diagonal / raw
-    lo, hi = _SIZE_RATIO_BAND
-    if not lo <= ratio <= hi:
-        raise StepUnitsError(
-            f"{name}: declared unit {unit} ({mm_per_unit:g} mm) makes the file's points span "
-            f"{raw:.4g} mm, but OCCT loaded a shape {loaded_diagonal:.4g} mm across "
-            f"({ratio:.3g} times as large); the OCCT install converts units wrongly "
-            "(check `pip check` and that only one package provides OCP)"
-        )
+    how = f"{100 * fit:.0f} % of its edges match at that scale" if fit else "its longest edge"
+    raise StepUnitsError(
+        f"{name}: declared unit {unit} ({mm_per_unit:g} mm), but the shape OCCT loaded has "
+        f"edges {scale:.3g} times as long as the file's own ({how}); the OCCT install "
+        "converts units wrongly (check `pip check` and that only one package provides OCP)"
+    )
+
+
+def _file_edge_lengths(text: str) -> NDArray[np.float64]:
+    """(E,) float64: the nonzero end-to-end lengths of the file's EDGE_CURVEs, in its unit."""
+    pts = {int(i): (float(x), float(y), float(z)) for i, x, y, z in _POINT_ID.findall(text)}
+    verts = {int(i): pts.get(int(p)) for i, p in _VERTEX.findall(text)}
+    ends = [(verts.get(int(a)), verts.get(int(b))) for a, b in _EDGE.findall(text)]
+    ab = np.array([(a, b) for a, b in ends if a is not None and b is not None], dtype=np.float64)
+    if len(ab) == 0:
+        return np.zeros(0)
+    length = np.linalg.norm(ab[:, 1] - ab[:, 0], axis=1)
+    return length[length > 0]
+
+
+def _shape_edge_lengths(shape: TopoDS_Shape) -> NDArray[np.float64]:
+    """(E,) float64: the nonzero end-to-end lengths (mm) of up to ``_MAX_EDGES`` edges of
+    ``shape`` (evenly spread over its edge map)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp
+    from OCP.TopoDS import TopoDS
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    edges = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_EDGE, edges)
+    n = edges.Extent()
+    out = []
+    for k in np.unique(np.linspace(1, n, min(n, _MAX_EDGES)).astype(int)).tolist() if n else []:
+        edge = TopoDS.Edge_s(edges.FindKey(k))
+        v0, v1 = TopExp.FirstVertex_s(edge), TopExp.LastVertex_s(edge)
+        if v0.IsNull() or v1.IsNull():
+            continue
+        a, b = BRep_Tool.Pnt_s(v0), BRep_Tool.Pnt_s(v1)
+        out.append(a.Distance(b))
+    length = np.asarray(out, dtype=np.float64)
+    return length[length > 0]
+
+
+def _best_scale(
+    file_len: NDArray[np.float64], shape_len: NDArray[np.float64]
+) -> tuple[float | None, float]:
+    """The ratio of length units (1 first) by which the most of ``shape_len`` are found in
+    the sorted ``file_len``, and that fraction; (None, 0) when none reaches
+    ``_MATCHED_FRACTION``."""
+    units = sorted(set(_NAMED_MM.values()) | set(_SI_PREFIX_MM.values()))
+    scales = [1.0] + sorted({a / b for a in units for b in units if a != b})
+    best: tuple[float | None, float] = (None, 0.0)
+    for s in scales:
+        ref = file_len * s
+        i = np.clip(np.searchsorted(ref, shape_len), 1, len(ref) - 1) if len(ref) > 1 else None
+        if i is None:
+            near = np.abs(shape_len - ref[0])
+        else:
+            near = np.minimum(np.abs(shape_len - ref[i - 1]), np.abs(shape_len - ref[i]))
+        fit = float(np.mean(near <= _LENGTH_RTOL * shape_len))
+        if fit >= _MATCHED_FRACTION and fit > best[1]:
+            best = (s, fit)
+        if s == 1.0 and fit >= _MATCHED_FRACTION:
+            return best  # the declared unit fits: no other ratio is looked at
+    return best
 
 
 #: The header's time stamp: ``SOURCE_DATE_EPOCH`` (the reproducible-builds convention) if set,
@@ -271,8 +355,7 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike[str], unit: str = "M
                     f"cannot write {target}: OCCT's STEP writer failed ({' '.join(said)[:200]})"
                 )
         _stable_header(tmp, Path(target).name)
-        box = bounds(shape)
-        check_step_units(tmp, [unit], float(np.linalg.norm(box[1] - box[0])))
+        check_step_units(tmp, [unit], shape)
         os.replace(tmp, target)
     finally:
         Interface_Static.SetCVal_s("write.step.unit", "MM")
