@@ -756,14 +756,23 @@ def _from_mesh_file(path: Path, scale: float) -> Part:
         check_mesh_file(path)  # not the format of its suffix: say so, before trimesh guesses
     except InputFileError as exc:
         raise PartError(str(exc)) from None
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            loaded = trimesh.load(str(path), force="mesh", process=False)
-    except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds
-        raise PartError(f"{path}: cannot read the mesh: {exc}") from None
-    v = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64).reshape(-1, 3)
-    f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+    if path.suffix.lower() == ".3mf":  # lib3mf: build items, components, the model's unit
+        from lattice_cad.io.exchange import read_mesh
+
+        try:
+            v, f = read_mesh(path)
+        except InputFileError as exc:
+            raise PartError(str(exc)) from None
+    else:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                loaded = trimesh.load(str(path), force="mesh", process=False)
+        except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds
+            raise PartError(f"{path}: cannot read the mesh: {exc}") from None
+        v = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+        f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
+    v, f = v.reshape(-1, 3), f.reshape(-1, 3)
     if len(f) == 0:
         raise PartError(f"{path}: the mesh has no triangles (empty file)")
     if not np.isfinite(v).all():

@@ -403,3 +403,34 @@ def test_closest_points_equal_trimesh_on_a_real_part(max_distance):
     np.testing.assert_allclose(d[near], ref[near], rtol=0, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(c[near] - pts[near], axis=1), ref[near], atol=1e-9)
     assert np.all(np.isinf(d[ref > max_distance * (1 + 1e-9)]))
+
+
+def test_3mf_part_is_read_as_built_in_its_unit(tmp_path):
+    """Regression: a .3mf part went through trimesh, whose 3MF reader needs networkx (not a
+    dependency): "cannot read the mesh: No module named 'networkx'". It is read with lib3mf
+    as the file builds it: the build item's transform, components with theirs, the model's
+    unit (here inches: a part 25.4 times too small otherwise)."""
+    import lib3mf
+    import trimesh
+
+    from lattice_cad.io.exchange import _set_geometry
+
+    wrapper = lib3mf.get_wrapper()
+    model = wrapper.CreateModel()
+    model.SetUnit(lib3mf.ModelUnit.Inch)
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))  # centred on the origin
+    mesh = model.AddMeshObject()
+    _set_geometry(lib3mf, mesh, box.vertices, box.faces)
+    pair = model.AddComponentsObject()
+    pair.AddComponent(mesh, wrapper.GetIdentityTransform())
+    pair.AddComponent(mesh, wrapper.GetTranslationTransform(4.0, 0.0, 0.0))
+    model.AddBuildItem(pair, wrapper.GetTranslationTransform(10.0, 20.0, 30.0))
+    path = tmp_path / "pair.3mf"
+    model.QueryWriter("3mf").WriteToFile(str(path))
+
+    with pytest.warns(LatticeWarning, match="2 bodies"):
+        part = load_part(path)
+    inch = 25.4
+    np.testing.assert_allclose(part.bounds[0], np.array([9.5, 19.0, 28.5]) * inch, rtol=1e-6)
+    np.testing.assert_allclose(part.bounds[1], np.array([14.5, 21.0, 31.5]) * inch, rtol=1e-6)
+    assert part.volume == pytest.approx(2 * 6.0 * inch**3, rel=1e-6)

@@ -816,6 +816,88 @@ def _get_geometry(lib3mf: Any, obj: Any) -> tuple[NDArray[np.float64], NDArray[n
     return pos.astype(np.float64), tri.astype(np.int64)
 
 
+#: Millimetres per 3MF model unit (``lib3mf.ModelUnit``), by name.
+_3MF_UNIT_MM = {"MicroMeter": 1e-3, "MilliMeter": 1.0, "CentiMeter": 10.0, "Inch": 25.4,
+                "Foot": 304.8, "Meter": 1000.0}  # fmt: skip
+#: Deepest nesting of 3MF components followed (a deeper one is taken for a cycle).
+_3MF_MAX_DEPTH = 32
+
+
+def _3mf_matrix(t: Any) -> NDArray[np.float64]:
+    """(4, 4) float64: a ``lib3mf.Transform`` (row vectors: ``[x y z 1] @ M``)."""
+    m = np.eye(4)
+    m[:, :3] = [[float(t.Fields[i][j]) for j in range(3)] for i in range(4)]
+    return m
+
+
+def _3mf_built(
+    lib3mf: Any, model: Any, path: Path
+) -> list[tuple[NDArray[np.float64], NDArray[np.int64]]]:
+    """The triangles a 3MF builds, in mm: each build item's object with the item's
+    transform, components followed with theirs (a part placed on a slicer's bed, an
+    assembly of instances), scaled by the model's unit. Support objects, the clipping
+    meshes of beam lattices and the beams themselves are left out (the triangles of a
+    beam-lattice object are its representation for readers without the extension). A
+    file without build items gives its mesh objects as they are."""
+    objs = _mesh_objects(model)
+    skip = set()
+    for obj in objs:
+        mode, rid = obj.BeamLattice().GetClipping()
+        if mode != lib3mf.BeamLatticeClipMode.NoClipMode:
+            skip.add(rid)
+    supports = (lib3mf.ObjectType.Support, lib3mf.ObjectType.SolidSupport)
+    unit = model.GetUnit()
+    names = {getattr(lib3mf.ModelUnit, k): k for k in _3MF_UNIT_MM}
+    mm = _3MF_UNIT_MM.get(names.get(unit, "MilliMeter"), 1.0)
+    out: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
+
+    def mesh_of(obj: Any, m: NDArray[np.float64] | None) -> None:
+        if obj.GetUniqueResourceID() in skip or obj.GetTriangleCount() == 0:
+            return
+        if obj.GetType() in supports:
+            return
+        v, f = _get_geometry(lib3mf, obj)
+        if obj.BeamLattice().GetBeamCount():  # the beams' nodes are not on the surface
+            keep = np.zeros(len(v), dtype=bool)
+            keep[f.ravel()] = True
+            v, f = v[keep], (np.cumsum(keep) - 1)[f]
+        if m is not None:
+            v = v @ m[:3, :3] + m[3, :3]
+        out.append((v * mm if mm != 1.0 else v, f))
+
+    def visit(obj: Any, m: NDArray[np.float64] | None, depth: int) -> None:
+        if depth > _3MF_MAX_DEPTH:
+            raise InputFileError(
+                f"{path}: components nested more than {_3MF_MAX_DEPTH} deep (a cycle?)"
+            )
+        if obj.IsMeshObject():
+            if not hasattr(obj, "GetTriangleCount"):
+                obj = model.GetMeshObjectByID(obj.GetResourceID())
+            mesh_of(obj, m)
+        elif obj.IsComponentsObject():
+            if not hasattr(obj, "GetComponentCount"):
+                obj = model.GetComponentsObjectByID(obj.GetResourceID())
+            for i in range(obj.GetComponentCount()):
+                comp = obj.GetComponent(i)
+                mc = _3mf_matrix(comp.GetTransform()) if comp.HasTransform() else None
+                both = mc if m is None else (m if mc is None else mc @ m)
+                visit(comp.GetObjectResource(), both, depth + 1)
+
+    items = model.GetBuildItems()
+    built = False
+    while items.MoveNext():
+        item = items.GetCurrent()
+        built = True
+        m = _3mf_matrix(item.GetObjectTransform()) if item.HasObjectTransform() else None
+        if m is not None and np.array_equal(m, np.eye(4)):
+            m = None  # (the identity: the file's float32 coordinates exactly)
+        visit(item.GetObjectResource(), m, 0)
+    if not built:
+        for obj in objs:
+            mesh_of(obj, None)
+    return out
+
+
 def read_beam_lattice(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Summary of the beam lattices in a 3MF file (for checks and tests).
 
@@ -927,10 +1009,9 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
     """Read the triangles of a mesh file (``.stl``, ``.3mf``, ``.ply``, ``.obj``, ``.off``...).
 
     STL vertices are merged by position (STL stores each triangle separately);
-    the other formats keep their indexing. A 3MF's triangle objects are
-    concatenated (clipping meshes of beam lattices are skipped, and so are the beams: the
-    triangles of a beam-lattice object are its representation for readers without the
-    extension).
+    the other formats keep their indexing. A 3MF gives what it builds, in mm
+    (:func:`_3mf_built`: build items and components with their transforms, the model's
+    unit; no supports, no clipping meshes, no beams).
 
     Returns
     -------
@@ -947,27 +1028,14 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
     fmt = format_for(p, Kind.MESH, action="read")
     if fmt.name == "3mf":
         lib3mf, model = _read_3mf_model(p)
-        objs = _mesh_objects(model)
-        clip_ids = set()
-        for obj in objs:
-            mode, rid = obj.BeamLattice().GetClipping()
-            if mode != lib3mf.BeamLatticeClipMode.NoClipMode:
-                clip_ids.add(rid)
-        vs, fs, base = [], [], 0
-        for obj in objs:
-            if obj.GetUniqueResourceID() in clip_ids or obj.GetTriangleCount() == 0:
-                continue
-            v, f = _get_geometry(lib3mf, obj)
-            if obj.BeamLattice().GetBeamCount():  # the beams' nodes are not on the surface
-                keep = np.zeros(len(v), dtype=bool)
-                keep[f.ravel()] = True
-                v, f = v[keep], (np.cumsum(keep) - 1)[f]
-            vs.append(v)
-            fs.append(f + base)
-            base += len(v)
-        if not fs:
+        pieces = _3mf_built(lib3mf, model, p)
+        if not pieces:
             return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-        return np.vstack(vs), np.vstack(fs)
+        base = np.cumsum([0] + [len(v) for v, _ in pieces[:-1]])
+        return (
+            np.vstack([v for v, _ in pieces]),
+            np.vstack([f + b for (_, f), b in zip(pieces, base, strict=True)]),
+        )
     import trimesh
 
     try:
