@@ -296,9 +296,10 @@ def voxel_lattice(
         Strut radius; see :mod:`conformal.radius`. A callable receives the
         (M, 3) strut midpoints (in the part's frame).
     fill : {"inside", "clip", "conform", "auto"}
-        See the module docstring. ``"auto"``: ``"inside"`` when a whole cell fits, else
-        ``"conform"`` (thin parts: the surface nodes follow the walls, so the lattice stays
-        connected); the report's ``fill`` says which.
+        See the module docstring. ``"auto"``: ``"inside"`` when a whole cell fits and keeps
+        a strut once the dangling ones are pruned, else ``"conform"`` (thin parts, coils:
+        the surface nodes follow the walls, so the lattice stays connected); the report's
+        ``fill`` says which.
     origin : (3,) float, optional
         A lattice grid point, in the lattice frame (default: centred on the
         part's bounding box in that frame).
@@ -361,7 +362,8 @@ def voxel_lattice(
     rep.cells_cut = int(vox.cut.sum())
     rep.seconds["voxelize"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    if fill == "auto":
+    auto = fill == "auto"
+    if auto:
         fill = "inside" if rep.cells_inside else "conform"
     rep.fill = fill
     occupied = vox.inside if fill == "inside" else (vox.inside | vox.cut)
@@ -393,6 +395,14 @@ def voxel_lattice(
         advice = JOINED_ADVICE.get(fill, "")
         nodes, edges = keep_main_components(local, nodes, edges, rep, advice=advice)
     rep.seconds["clip"] = time.perf_counter() - t0
+    if not len(edges) and auto and fill == "inside":
+        # whole cells fit, but none keeps a strut once the dangling ones are pruned (cells
+        # alone in a thin coil or rod): the conforming fill, as when no cell fits
+        return voxel_lattice(
+            part, c, h, radius, fill="conform", origin=origin, rotation=rotation,
+            min_strut=min_strut, prune=prune, min_radius=min_radius, fit=fit,
+            return_report=return_report, segments=segments, profile=profile,
+        )  # fmt: skip
     if not len(edges):
         raise _nothing_fits(part, h, radius, f"no strut of {_mm(h)} cells is left inside")
     if rot is not None:
