@@ -252,6 +252,29 @@ def test_thin_part_default_fill_gives_one_connected_lattice():
     assert rep.bodies == 1 and g.num_edges > 50
 
 
+def test_auto_fill_conforms_when_whole_cells_keep_no_strut():
+    """Regression (a CadQuery spring, bench_parts --data on parts made outside shared/data):
+    whole 3.07 mm cells fit in its 6 mm wire, so the default fill chose "inside", then
+    pruned every strut of those lone cells and failed with "no strut of 3.066 mm cells is
+    left inside", although the conforming fill it names works. It now conforms."""
+    import cadquery as cq
+
+    from conformal import load_part, voxel_lattice
+
+    helix = cq.Wire.makeHelix(pitch=10, height=40, radius=15)
+    wire = cq.Wire.makeCircle(3, cq.Vector(15, 0, 0), cq.Vector(0, 1, 0))
+    part = load_part(cq.Solid.sweep(wire, [], helix, isFrenet=True))
+    cell = float(part.size.max()) / 15
+    with pytest.warns(LatticeWarning, match="thinned"):
+        g, rep = voxel_lattice(part, "bcc", cell, cell / 12, fill="auto", return_report=True)
+    assert rep.cells_inside > 0  # whole cells fit: "inside" was tried first
+    assert rep.fill == "conform" and rep.bodies == 1 and g.num_edges > 1000
+    on = part.distance(g.nodes) <= 1e-9 * float(part.size.max())
+    assert np.all(part.contains(g.nodes) | on) and on.sum() > 100  # inside, many on the wall
+    with pytest.raises(ValueError, match="no strut of"):  # an inside fill asked for
+        voxel_lattice(part, "bcc", cell, cell / 12, fill="inside")
+
+
 def test_nothing_fits_says_what_would():
     """A radius larger than half the part's thickness: the error names the thickness and
     the largest radius that fits; an inside fill names the largest cell that fits whole."""
