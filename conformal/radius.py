@@ -529,6 +529,7 @@ def repair_graph(
     on_surf = np.zeros(len(nodes), bool) if surface is None else np.asarray(surface, bool).copy()
     rep = RepairReport()
     poly: _Polygons = {"segments": segments, "profile": profile}  # what the stitch will build
+    solid = _piece_labels(len(nodes), edges)  # the separate solids (a mesh's own pieces)
     median = float(np.median(np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)))
     budget = max_change * len(edges)  # the repair changes the lattice, it must not replace it
     for _ in range(max_rounds):
@@ -575,7 +576,7 @@ def repair_graph(
             f"thinned to {floor:g}: the radius is too large for the strut lengths (median "
             f"{median:g}); use a smaller radius or a larger size"
         )
-    nodes, edges, asked = _largest_piece(nodes, edges, asked)
+    nodes, edges, asked = _largest_piece(nodes, edges, asked, group=solid)
     fitted, unfit = fit_radii(
         nodes, edges, asked, min_radius=tolerance * float(asked.min()), **poly
     )
@@ -678,18 +679,39 @@ def _collapse(
     return nodes, e2[first], r2[first], surface, merged
 
 
-def _largest_piece(
-    nodes: NDArray[np.float64], edges: NDArray[np.int64], radii: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """The largest connected piece, nodes renumbered (unused nodes dropped)."""
+def _piece_labels(n: int, edges: NDArray[np.int64]) -> NDArray[np.int64]:
+    """(n,) int64: the connected piece of each node (an unused node is a piece of its own)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    n = len(nodes)
     g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-    _, lab = connected_components(g, directed=False)
+    return connected_components(g, directed=False)[1].astype(np.int64)
+
+
+def _largest_piece(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    radii: NDArray[np.float64],
+    *,
+    group: NDArray[np.int64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """The largest connected piece (by struts) of each ``group`` of nodes ((N,) int64, e.g.
+    the separate solids of a tet mesh; default: one group), nodes renumbered (unused nodes
+    dropped)."""
+    n = len(nodes)
+    lab = _piece_labels(n, edges)
     elab = lab[edges[:, 0]]
-    keep = elab == np.argmax(np.bincount(elab))
+    size = np.bincount(elab, minlength=n)
+    grp = np.zeros(n, dtype=np.int64) if group is None else np.asarray(group, dtype=np.int64)
+    # per group, the piece with the most struts (a piece lies in one group: the repair only
+    # merges and drops struts, so it never joins two groups)
+    piece_group = np.zeros(n, dtype=np.int64)
+    piece_group[elab] = grp[edges[:, 0]]
+    pieces = np.flatnonzero(size)
+    order = pieces[np.lexsort((-size[pieces], piece_group[pieces]))]
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = piece_group[order[1:]] != piece_group[order[:-1]]
+    keep = np.isin(elab, order[first])
     edges, radii = edges[keep], radii[keep]
     used = np.zeros(n, dtype=bool)
     used[edges.ravel()] = True

@@ -204,3 +204,29 @@ def test_tet_lattice_of_a_thin_part_says_it_is_thin():
         lat = Lattice.fill(part, "kelvin", h, h / 12, fill="conform")
     rep_c = lat.build_report
     assert rep_c.thinned_beyond_tolerance <= 0.05 * lat.graph.num_edges < rep_c.radii_reduced
+
+
+def test_tet_lattice_keeps_every_separate_solid():
+    """Regression (two spheres 10 mm apart in one .ply, bench_parts --data): the graph
+    repair kept "the largest piece", so the tet lattice filled one sphere and dropped the
+    other without a word (215 of 425 nodes; the voxel fills gave 2 bodies). The largest
+    piece is now kept per separate solid of the tet mesh."""
+    import trimesh
+
+    a = trimesh.creation.icosphere(4, 15.0)
+    b = a.copy()
+    b.apply_translation([40.0, 0.0, 0.0])
+    both = trimesh.util.concatenate([a, b])
+    part = Part(both.vertices, both.faces, name="two spheres")
+    nodes, tets = tet_mesh(part, 4.67)
+    g = tet_lattice(part, 4.67, 0.39)
+    assert g.num_nodes == len(nodes)  # no node lost
+    for centre in ([0.0, 0.0, 0.0], [40.0, 0.0, 0.0]):
+        near = np.linalg.norm(g.nodes - centre, axis=1) <= 15.0 + 1e-6
+        assert near.sum() > 150  # each sphere has its lattice
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = g.num_nodes
+    adj = coo_matrix((np.ones(g.num_edges), (g.edges[:, 0], g.edges[:, 1])), shape=(n, n))
+    assert connected_components(adj, directed=False)[0] == 2
