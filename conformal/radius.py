@@ -480,6 +480,31 @@ class _Polygons(TypedDict):
     profile: str
 
 
+def fit_floor(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    r_min: float,
+    min_radius: float | None = None,
+) -> float:
+    """The thinnest radius a builder may fit a strut to.
+
+    ``min_radius`` (default a tenth of ``r_min``, the thinnest radius asked), raised to the
+    thinnest radius STL and 3MF files can hold where the struts are: single-precision
+    coordinates resolve ``|x| / config.PRECISION_RATIO_F32`` there (the contract
+    :meth:`LatticeGraph.check_precision` enforces when writing). A strut the fit would
+    thin further is repaired or dropped like one that cannot be stitched, instead of
+    making a lattice its own writer refuses (a part 5,000 mm from the origin). Not raised
+    when ``r_min`` itself is below that radius: the writer's refusal then names the
+    radius needed, which is the user's to choose.
+    """
+    floor = 0.1 * float(r_min) if min_radius is None else float(min_radius)
+    if len(edges) == 0:
+        return floor
+    big = float(np.abs(nodes[np.unique(edges)]).max())
+    single = big / config.PRECISION_RATIO_F32 * (1.0 + 1e-9)
+    return max(floor, single) if single <= float(r_min) else floor
+
+
 def repair_graph(
     nodes: NDArray[np.float64],
     edges: NDArray[np.int64],
@@ -566,7 +591,7 @@ def repair_graph(
     # struts that cannot be stitched even at a tenth of their radius (nearly parallel to a
     # neighbour, or crossing another) go in any case, however much has changed
     n_asked, r_asked = len(radii), float(np.min(radii)) if len(radii) else 0.0
-    floor = 0.1 * r_asked
+    floor = fit_floor(nodes, edges, r_asked)
     keep = unstitchable_dropped(nodes, edges, asked, min_radius=floor, **poly)
     rep.dropped += int((~keep).sum())
     edges, asked = edges[keep], asked[keep]
@@ -578,7 +603,7 @@ def repair_graph(
         )
     nodes, edges, asked = _largest_piece(nodes, edges, asked, group=solid)
     fitted, unfit = fit_radii(
-        nodes, edges, asked, min_radius=tolerance * float(asked.min()), **poly
+        nodes, edges, asked, min_radius=max(tolerance * float(asked.min()), floor), **poly
     )
     if len(unfit):  # what the repair could not fix is thinned further, and counted
         fitted, unfit = fit_radii(nodes, edges, fitted, min_radius=floor, **poly)

@@ -49,6 +49,7 @@ from conformal.radius import (
     Profile,
     RadiusSpec,
     check_stitch_profile,
+    fit_floor,
     fit_radii,
     resolve_radii,
     unstitchable_dropped,
@@ -453,7 +454,7 @@ def _finish_without_unstitchable(
     if not (callable(radius) or np.ndim(radius) == 0):
         raise err  # per-strut radii are given for these struts: nothing may be dropped
     r = resolve_radii(radius, nodes, edges)
-    floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
+    floor = fit_floor(nodes, edges, float(r.min()), min_radius)
     keep = unstitchable_dropped(
         nodes, edges, r, min_radius=floor, segments=segments, profile=profile
     )
@@ -532,7 +533,7 @@ def _finish(
     """
     r = resolve_radii(radius, nodes, edges)
     if fit == "shrink":
-        floor = 0.1 * float(r.min()) if min_radius is None else float(min_radius)
+        floor = fit_floor(nodes, edges, float(r.min()), min_radius)
         # one radius for all (the usual case): the fit may work on r itself
         same = bool(len(r)) and float(r.min()) == float(r.max())
         r0 = float(r.flat[0]) if same else 0.0

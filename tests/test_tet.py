@@ -230,3 +230,30 @@ def test_tet_lattice_keeps_every_separate_solid():
     n = g.num_nodes
     adj = coo_matrix((np.ones(g.num_edges), (g.edges[:, 0], g.edges[:, 1])), shape=(n, n))
     assert connected_components(adj, directed=False)[0] == 2
+
+
+def test_tet_lattice_far_from_the_origin_is_written(tmp_path):
+    """Regression (a 40 x 30 x 20 mm box at (5000, -3000, 200), bench_parts --data): the
+    tet fit thinned 21 struts to 0.1597 mm, thinner than float32 coordinates hold 5,020 mm
+    from the origin (|x| / r 3.14e4 > 3e4), so the product refused to write the lattice it
+    had built ("radius 0.1597 is too small for its position"). The fit's floor is now the
+    thinnest radius STL and 3MF hold there (conformal.radius.fit_floor)."""
+    import trimesh
+
+    from lattice_cad import Lattice
+    from lattice_cad.core import config
+    from lattice_cad.core.mesh import Mesh
+    from lattice_cad.io.exchange import read_mesh
+
+    box = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
+    box.apply_translation([5000.0, -3000.0, 200.0])
+    part = Part(box.vertices, box.faces, name="far box")
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "", LatticeWarning)
+        lat = Lattice.fill(part, cell_size=2.66667, radius=0.222222, method="tet")
+        out = lat.save(tmp_path / "far.stl")
+    floor = 5020.0 / config.PRECISION_RATIO_F32
+    assert lat.graph.radii.min() >= floor and lat.graph.radii.min() < 0.222222
+    lat.graph.check_precision("float32")
+    v, f = read_mesh(out)
+    assert_valid(Mesh(vertices=v, faces=f))  # the float32 file: watertight, no intersection
