@@ -498,11 +498,28 @@ def fit_floor(
     radius needed, which is the user's to choose.
     """
     floor = 0.1 * float(r_min) if min_radius is None else float(min_radius)
-    if len(edges) == 0:
-        return floor
-    big = float(np.abs(nodes[np.unique(edges)]).max())
-    single = big / config.PRECISION_RATIO_F32 * (1.0 + 1e-9)
+    single = _single_precision_radius(nodes, edges)
     return max(floor, single) if single <= float(r_min) else floor
+
+
+def _single_precision_radius(nodes: NDArray[np.float64], edges: NDArray[np.int64]) -> float:
+    if len(edges) == 0:
+        return 0.0
+    big = float(np.abs(nodes[np.unique(edges)]).max())
+    return big / config.PRECISION_RATIO_F32 * (1.0 + 1e-9)
+
+
+def floor_note(nodes: NDArray[np.float64], edges: NDArray[np.int64], floor: float) -> str:
+    """Why the fit's floor is ``floor`` when float32 coordinates set it (see
+    :func:`fit_floor`), for an error message; "" otherwise."""
+    single = _single_precision_radius(nodes, edges)
+    if not (single > 0.0 and floor <= single * (1.0 + 1e-9) and floor >= single * (1 - 1e-9)):
+        return ""
+    big = single * config.PRECISION_RATIO_F32
+    return (
+        f", the thinnest that STL and 3MF (single-precision coordinates) hold {big:.5g} mm "
+        "from the origin, where the lattice lies"
+    )
 
 
 def repair_graph(
@@ -598,8 +615,8 @@ def repair_graph(
     if not len(edges):
         raise FitError(
             f"none of the {n_asked} strut(s) can be stitched at radius {r_asked:g} even when "
-            f"thinned to {floor:g}: the radius is too large for the strut lengths (median "
-            f"{median:g}); use a smaller radius or a larger size"
+            f"thinned to {floor:g}{floor_note(nodes, edges, floor)}: the radius is too large "
+            f"for the strut lengths (median {median:g}); use a smaller radius or a larger size"
         )
     nodes, edges, asked = _largest_piece(nodes, edges, asked, group=solid)
     fitted, unfit = fit_radii(

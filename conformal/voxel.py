@@ -51,6 +51,7 @@ from conformal.radius import (
     check_stitch_profile,
     fit_floor,
     fit_radii,
+    floor_note,
     resolve_radii,
     unstitchable_dropped,
 )
@@ -546,11 +547,16 @@ def _finish(
             r = np.full((1, 2), r0)  # what r held everywhere, for the counts below
         changed = int((new < r).any(axis=1).sum())
         if len(unfit):
+            note = floor_note(nodes, edges, floor)
             raise FitError(
-                f"{len(unfit)} strut(s) cannot be thinned enough to stitch (min radius {floor:g}); "
-                f"e.g. strut {int(unfit[0])} (nodes {edges[unfit[0]].tolist()}); "
-                "use larger cells, a smaller radius or more segments (--segments), or a lower "
-                "min_radius (--min-radius)"
+                f"{len(unfit)} strut(s) cannot be thinned enough to stitch (min radius {floor:g}"
+                f"{note}); e.g. strut {int(unfit[0])} (nodes {edges[unfit[0]].tolist()}); "
+                + (
+                    "move the part nearer the origin, or use larger cells and a larger radius"
+                    if note
+                    else "use larger cells, a smaller radius or more segments (--segments), or "
+                    "a lower min_radius (--min-radius)"
+                )
             )
         if changed:
             warnings.warn(

@@ -309,3 +309,29 @@ def test_islands_are_removed_one_body_per_solid():
     n = g.num_nodes
     adj = coo_matrix((np.ones(g.num_edges), (g.edges[:, 0], g.edges[:, 1])), shape=(n, n))
     assert connected_components(adj, directed=False)[0] == 1
+
+
+def test_fit_floor_far_from_the_origin_says_why():
+    """A part 8,000 mm from the origin (a CadQuery filleted box, bench_parts --data): single
+    -precision files hold no strut thinner than 0.2675 mm there, so the conforming fit may
+    thin a 0.278 mm strut only that far, and most cannot be stitched. The error says that
+    the floor comes from the position (it used to advise a smaller radius, which cannot
+    help); before the floor, the fit thinned them and the writer refused the lattice."""
+    import trimesh
+
+    from lattice_cad.core.errors import FitError
+
+    box = trimesh.creation.box(extents=(50.0, 30.0, 20.0))
+    box.apply_translation([8000.0, 2000.0, 500.0])
+    part = Part(box.vertices, box.faces, name="far box")
+    with pytest.raises(
+        FitError,
+        match=r"min radius 0\.26\d+, the thinnest that STL and 3MF \(single-precision "
+        r"coordinates\) hold 80\d\d mm from the origin.*move the part nearer the origin",
+    ):
+        voxel_lattice(part, "kelvin", 3.3333, 0.27778, fill="conform")
+    # near the origin the same lattice is fitted as usual
+    near = Part(box.vertices - [8000.0, 2000.0, 500.0], box.faces, name="box")
+    with pytest.warns(LatticeWarning, match="thinned"):
+        g = voxel_lattice(near, "kelvin", 3.3333, 0.27778, fill="conform")
+    assert g.radii.min() < 0.2675
