@@ -513,7 +513,7 @@ def floor_note(nodes: NDArray[np.float64], edges: NDArray[np.int64], floor: floa
     """Why the fit's floor is ``floor`` when float32 coordinates set it (see
     :func:`fit_floor`), for an error message; "" otherwise."""
     single = _single_precision_radius(nodes, edges)
-    if not (single > 0.0 and floor <= single * (1.0 + 1e-9) and floor >= single * (1 - 1e-9)):
+    if single == 0.0 or floor != single:  # (fit_floor returns this very value when it binds)
         return ""
     big = single * config.PRECISION_RATIO_F32
     return (
@@ -611,13 +611,13 @@ def repair_graph(
     floor = fit_floor(nodes, edges, r_asked)
     keep = unstitchable_dropped(nodes, edges, asked, min_radius=floor, **poly)
     rep.dropped += int((~keep).sum())
-    edges, asked = edges[keep], asked[keep]
-    if not len(edges):
+    if not keep.any():
         raise FitError(
             f"none of the {n_asked} strut(s) can be stitched at radius {r_asked:g} even when "
             f"thinned to {floor:g}{floor_note(nodes, edges, floor)}: the radius is too large "
             f"for the strut lengths (median {median:g}); use a smaller radius or a larger size"
         )
+    edges, asked = edges[keep], asked[keep]
     nodes, edges, asked = _largest_piece(nodes, edges, asked, group=solid)
     fitted, unfit = fit_radii(
         nodes, edges, asked, min_radius=max(tolerance * float(asked.min()), floor), **poly

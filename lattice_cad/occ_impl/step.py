@@ -232,8 +232,10 @@ def _shape_edge_lengths(shape: TopoDS_Shape) -> NDArray[np.float64]:
     edges = TopTools_IndexedMapOfShape()
     TopExp.MapShapes_s(shape, TopAbs_EDGE, edges)
     n = edges.Extent()
+    if n == 0:
+        return np.zeros(0)
     out = []
-    for k in np.unique(np.linspace(1, n, min(n, _MAX_EDGES)).astype(int)).tolist() if n else []:
+    for k in np.unique(np.linspace(1, n, min(n, _MAX_EDGES)).astype(int)).tolist():
         edge = TopoDS.Edge_s(edges.FindKey(k))
         v0, v1 = TopExp.FirstVertex_s(edge), TopExp.LastVertex_s(edge)
         if v0.IsNull() or v1.IsNull():
