@@ -200,10 +200,14 @@ class Part:
             # a checked call right after an unchecked one reuses BRepMesh's work
             reuse = self.__dict__.get("_meshed_at") == key[:2]
             self.__dict__["_meshed_at"] = None  # in case meshing fails half-way
+            # dense faces are split into patches (occ_impl.chord.split_dense_faces) once for
+            # deflections within a factor 2: a checked call after an unchecked one meshes the
+            # same patches (and reuses their mesh), cutting_part's budget trials share them
+            split = _split_for(self.__dict__.setdefault("_split", {}), key[0], key[1])
             with warnings.catch_warnings():  # the union was announced when it was loaded
                 warnings.simplefilter("ignore", LatticeWarning)
                 cache[key] = _from_shape(
-                    shape, self.name, key[0], key[1], checked=checked, reuse=reuse
+                    shape, self.name, key[0], key[1], checked=checked, reuse=reuse, split=split
                 )
             self.__dict__["_meshed_at"] = key[:2]
             cache[key].unrefined = self
@@ -544,6 +548,18 @@ def _unit_scale(units: str | float | None) -> float:
     return scale
 
 
+def _split_for(
+    made: dict[tuple[float, float], dict[int, Any]], deflection: float, angular: float
+) -> dict[int, Any]:
+    """The patches (per solid, see :func:`_from_shape`) made for the deflection nearest to
+    ``deflection`` within a factor 2 (and the same ``angular``), or a new empty entry."""
+    near = [d for d, a in made if a == angular and 0.5 <= deflection / d <= 2.0]
+    if near:
+        best = min(near, key=lambda d: abs(np.log(deflection / d)))
+        return made[(best, angular)]
+    return made.setdefault((deflection, angular), {})
+
+
 def _from_shape(
     shape: Any,
     name: str,
@@ -553,9 +569,12 @@ def _from_shape(
     checked: bool = False,
     reuse: bool = False,
     measure: bool = False,
+    split: dict[int, Any] | None = None,
 ) -> Part:
     """The part of a B-rep ``shape``; ``measure`` (an unchecked tessellation): also bound its
-    chord error (``Part.chord_bound``)."""
+    chord error (``Part.chord_bound``). With ``split`` (solid index: what
+    ``occ_impl.chord.split_dense_faces`` gave for it, filled in when missing), dense faces
+    are meshed as patches; the part's ``shape`` stays the solids as they were."""
     from lattice_cad.occ_impl import shapes as _occ
 
     solids = _occ.solids(shape)
@@ -571,8 +590,9 @@ def _from_shape(
     bound: float | None = 0.0 if measure and not checked else None
     for k, solid in enumerate(solids):
         v, f, report, dev = _closed_tessellation(
-            solid, k, name, defl, angular, diag, checked, reuse, measure=bound is not None
-        )
+            solid, k, name, defl, angular, diag, checked, reuse, measure=bound is not None,
+            split=split,
+        )  # fmt: skip
         if bound is not None and dev is not None:
             bound = max(bound, dev)
         if report is not None:
@@ -657,6 +677,7 @@ def _closed_tessellation(
     reuse: bool = False,
     *,
     measure: bool = False,
+    split: dict[int, Any] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], Any, float | None]:
     """A closed, 2-manifold triangulation of one B-rep solid, healing it if needed.
 
@@ -673,18 +694,34 @@ def _closed_tessellation(
     that differ by up to the B-rep's own tolerance are merged; if the mesh is still open,
     the solid is healed with ShapeFix and meshed again. Only then is it refused, naming the
     B-rep faces that border the holes.
+
+    With ``split`` (see :func:`_from_shape`), the faces BRepMesh would fill densely are
+    meshed as patches (``occ_impl.chord.split_dense_faces``: the same surfaces); should that
+    mesh not close, the solid is meshed again as it is before it is healed.
     """
     from lattice_cad.occ_impl import shapes as _occ
+    from lattice_cad.occ_impl.chord import split_dense_faces
 
     problem, faces_at = "", np.zeros(0, dtype=np.int64)
-    for healed in (False, True):
-        shape = _occ.heal(solid) if healed else solid
+    patches = None
+    if split is not None:
+        if k not in split:
+            split[k] = None if reuse else split_dense_faces(solid, defl, angular)
+        patches = split[k]
+    tries = [(False, patches)] + ([(False, None)] if patches is not None else []) + [(True, None)]
+    for n_try, (healed, patch) in enumerate(tries):
+        shape = _occ.heal(solid) if healed else solid if patch is None else patch[0]
         control = config.CHORD_CONTROL if checked else 0.0
         got = _occ.tessellate(
-            shape, defl, angular, face_ids=True, control=control, clean=not (reuse and not healed)
-        )
+            shape, defl, angular, face_ids=True, control=control,
+            clean=not (reuse and n_try == 0), patches_of=None if patch is None else patch[1],
+        )  # fmt: skip
         v, f, owner = got[:3]
         report = got[3] if control > 0 else None
+        if patch is not None:  # the patches' faces back to the solid's
+            owner = patch[1][owner]
+            if report is not None:
+                _faces_of_solid(report, patch[1])
         if len(f) == 0:
             raise PartError(f"{name}: solid {k} has no faces to triangulate")
         limit = max(1e-6 * diag, min(_occ.max_tolerance(shape), 1e-4 * diag))
@@ -698,11 +735,22 @@ def _closed_tessellation(
                 dev = _deviation_bound(shape) if measure else None
                 return vv, ff, report, dev
         faces_at = np.unique(owner[kept][_open_triangles(ff)])
+        if patch is not None and split is not None:
+            split[k] = None  # the patches' mesh did not close: the next call meshes it whole
     listed = ", ".join(str(int(i)) for i in faces_at[:10]) + (" ..." if len(faces_at) > 10 else "")
     raise PartError(
         f"{name}: solid {k} is not closed after triangulation and healing ({problem}); "
         f"the holes border B-rep face(s) {listed} (TopExp order)"
     )
+
+
+def _faces_of_solid(report: Any, face_of: NDArray[np.int64]) -> None:
+    """Make the face indices of a ``ChordReport`` of a solid's patches (``face_of``: the
+    solid's face of each patch) indices of the solid's faces, each listed once."""
+    for name in ("refined", "unresolved", "within_tolerance", "finer"):
+        setattr(report, name, sorted({int(face_of[i]) for i in getattr(report, name)}))
+    if report.worst_face >= 0:
+        report.worst_face = int(face_of[report.worst_face])
 
 
 def _deviation_bound(shape: Any) -> float:

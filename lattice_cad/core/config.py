@@ -338,6 +338,21 @@ CUT_ANGULAR_DEFLECTION = 0.3
 #: 24 -> 60 s, 2.5x; the cycloidal gear 34 -> 43 CPU s, 1.3x; benchmarks/results/
 #: bench_protrusion_exact.txt).
 CUT_MAX_TRIANGLES = 700_000
+#: A refined tessellation (``conformal.Part.refined``) first splits each B-rep face that a
+#: coarse pass predicts would hold more than MESH_SPLIT_MIN triangles into patches of about
+#: MESH_FACE_TRIANGLES (``occ_impl.chord.split_dense_faces``: ShapeUpgrade_FaceDivideArea,
+#: the same surfaces): BRepMesh's time per face grows faster than its triangles, and the
+#: patches are meshed in parallel. M6 screw's thread face: 70 K triangles in 8.3 s as one
+#: face (8.5 K a second, 36-42 K for faces of 11-55 K elsewhere); cutting tessellations of
+#: the M6 100 -> 17 s, the cycloidal gear 35 -> 6 s. Below 30 K the split costs more than it
+#: saves (NIST CTC-02's four 24-28 K B-spline faces: 1.2 s to split one; 7.3 s whole, 10.4 s
+#: split).
+MESH_FACE_TRIANGLES = 3000
+MESH_SPLIT_MIN = 30_000
+#: The coarse pass of that prediction meshes at this many times the chord error asked, and
+#: predicts the fine count as this many times its own (triangles grow at most as 1 / chord
+#: error: exact for doubly curved faces, pessimistic for cylinders and planes).
+MESH_SPLIT_COARSE = 16.0
 #: A refined tessellation (``conformal.Part.refined``, so the cutting one) is checked face by
 #: face against the exact surface (``occ_impl.chord``): B-spline faces whose triangles
 #: deviate by more than this factor times the chord error asked get knots inserted where

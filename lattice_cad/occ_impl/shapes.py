@@ -913,6 +913,7 @@ def tessellate(
     face_ids: bool = False,
     control: float = 0.0,
     clean: bool = True,
+    patches_of: NDArray[np.int64] | None = None,
 ) -> Any:
     """Triangulate the whole of ``shape`` at once, faces sharing their edge nodes.
 
@@ -925,6 +926,9 @@ def tessellate(
     and B-spline faces deviating by more than ``control * deflection`` are refined
     (:func:`lattice_cad.occ_impl.chord.mesh_checked`: BRepMesh does not always honour the
     chord error); a :class:`~lattice_cad.occ_impl.chord.ChordReport` is then returned last.
+    ``patches_of`` (F,) int64: when the faces are patches of larger ones
+    (:func:`~lattice_cad.occ_impl.chord.split_dense_faces`), the face each is part of (the
+    patches of one face are refined together).
 
     Returns
     -------
@@ -945,7 +949,9 @@ def tessellate(
     if control > 0:
         from lattice_cad.occ_impl.chord import mesh_checked
 
-        meshed, report = mesh_checked(shape, deflection, angular, factor=control, clean=clean)
+        meshed, report = mesh_checked(
+            shape, deflection, angular, factor=control, clean=clean, face_of=patches_of
+        )
         faces = stored_triangulations(meshed)
     else:
         if clean:
