@@ -557,8 +557,8 @@ def repair_graph(
         At most this fraction of the struts is collapsed or dropped; what is still unfit
         then is thinned (and counted in ``report.unfit``). 0.3 (was 0.15): tet lattices of
         the shared parts at r = cell / 12 (``bench_parts.py``) keep the radius asked on far
-        more struts for a few more dropped (GE bracket: 306 struts below 0.7 r of 4,603
-        left, against 1,408 of 5,668 at 0.15).
+        more struts for a few more dropped (GE bracket: 415 struts below 0.7 r of 4,627
+        left, against 1,616 of 5,668 at 0.15).
     segments, profile
         The stitch's profile polygons, which the graph is repaired and fitted for (as in
         :func:`fit_radii`).
