@@ -292,13 +292,13 @@ def split_dense_faces(
         it is part of.
     """
     from OCP.BRepCheck import BRepCheck_Analyzer
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
     from OCP.ShapeBuild import ShapeBuild_ReShape
     from OCP.ShapeExtend import ShapeExtend_Status
     from OCP.ShapeFix import ShapeFix_Shape
     from OCP.ShapeUpgrade import ShapeUpgrade_FaceDivideArea
     from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    from lattice_cad.occ_impl.shapes import face_area
 
     target = int(config.MESH_FACE_TRIANGLES if target is None else target)
     k = float(config.MESH_SPLIT_COARSE if coarse is None else coarse)
@@ -321,9 +321,7 @@ def split_dense_faces(
     done = 0
     for i in dense.tolist():
         face = faces[i]
-        props = GProp_GProps()
-        BRepGProp.SurfaceProperties_s(face, props)
-        area = float(props.Mass())
+        area = face_area(face)
         if not area > 0:
             continue
         tool = ShapeUpgrade_FaceDivideArea(face)
