@@ -247,3 +247,63 @@ def band_rings(edges, scale, prad, end_offset, length, gap0, out_x, out_b):
             )  # fmt: skip
             out_x[e, sd] = x
             out_b[e, sd] = b
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def taper_cone_pairs(nodes, edges, offsets, inc_edge, inc_side, length, base, off_a, rad_a,
+                     off_b, rad_b, n_found, start, out, write):  # fmt: skip
+    """Pairs of struts at a node that a widening strut may bring together
+    (``fast_stitch.hubvolume.taper_cone_pairs``).
+
+    Every strut end (e, s) has two rings at each end of the strut: ``off_a``/``rad_a`` (the
+    hub ring) and ``off_b``/``rad_b`` (the band ring; the same arrays where there is none),
+    offsets from the end's own node. Seen from node ``n = edges[e, s]``, the strut lies in
+    the cone of half-angle ``H`` (the largest ``atan(radius / distance)`` of its four
+    rings): the frustums between rings are convex hulls of rings inside the cone. The end
+    is *loose* when a ring beyond its near hub ring is wider than ``base[e, s]`` (the radius
+    the hub was built for): only then can the strut reach a neighbour of the same node.
+    A pair at n is listed when one end is loose and ``H_a + H_b >= angle``.
+
+    Two passes: ``write=False`` counts per node (``n_found``), ``write=True`` fills ``out``
+    (K, 3) int64 ``(n, e_a, e_b)`` from ``start`` (the exclusive prefix sum of the counts).
+    """
+    for n in prange(offsets.shape[0] - 1):
+        lo = offsets[n]
+        d = offsets[n + 1] - lo
+        k = 0
+        if d >= 2:
+            dirs = np.empty((d, 3))
+            half = np.empty(d)
+            loose = np.zeros(d, dtype=np.bool_)
+            for t in range(d):
+                e = inc_edge[lo + t]
+                s = inc_side[lo + t]
+                f = 1 - s
+                other = edges[e, f]
+                L = length[e]
+                for c in range(3):
+                    dirs[t, c] = (nodes[other, c] - nodes[n, c]) / L
+                h = max(np.arctan2(rad_a[e, s], off_a[e, s]), np.arctan2(rad_b[e, s], off_b[e, s]))
+                for far_off, far_rad in ((off_a[e, f], rad_a[e, f]), (off_b[e, f], rad_b[e, f])):
+                    dist = L - far_off
+                    h = max(h, np.arctan2(far_rad, dist) if dist > 0.0 else 0.5 * np.pi)
+                half[t] = h
+                widest = max(rad_b[e, s], max(rad_a[e, f], rad_b[e, f]))
+                loose[t] = widest > base[e, s] * (1.0 + 1e-9)
+            for a in range(d):
+                for b in range(a + 1, d):
+                    if not (loose[a] or loose[b]):
+                        continue
+                    c = dirs[a, 0] * dirs[b, 0] + dirs[a, 1] * dirs[b, 1] + dirs[a, 2] * dirs[b, 2]
+                    ang = np.arccos(min(1.0, max(-1.0, c)))
+                    if half[a] + half[b] < ang:
+                        continue
+                    if write:
+                        out[start[n] + k, 0] = n
+                        ea = inc_edge[lo + a]
+                        eb = inc_edge[lo + b]
+                        out[start[n] + k, 1] = ea
+                        out[start[n] + k, 2] = eb
+                    k += 1
+        if not write:
+            n_found[n] = k

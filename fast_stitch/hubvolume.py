@@ -91,6 +91,7 @@ __all__ = [
     "profile_factor",
     "hub_scales",
     "band_rings",
+    "taper_cone_pairs",
 ]
 
 Profile = Literal["volume", "area", "inscribed", "circumscribed"]
@@ -155,6 +156,106 @@ def band_rings(
     gap0 = band_gaps(prad, end_offset, length)
     _hub_kernels.band_rings(edges, scale, prad, end_offset, length, gap0, x, b)
     return x, b
+
+
+def taper_cone_pairs(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    incidence: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]],
+    length: NDArray[np.float64],
+    base: NDArray[np.float64],
+    hub: tuple[NDArray[np.float64], NDArray[np.float64]],
+    band: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+) -> NDArray[np.int64]:
+    """Pairs of struts at a node that a tapered strut may bring into contact.
+
+    The hubs keep the struts of a node apart beyond their profiles for the radius each
+    hub was built for (``base``). A strut that is wider somewhere beyond its near profile
+    (a strut that widens away from the node, or a band ring grown with a far hub) is
+    *loose*; a pair at node n with a loose strut is listed unless the cones from n that
+    hold the two struts (half-angle: the largest ``atan(radius / distance)`` of the
+    strut's rings) are apart. The listed pairs are those to test exactly.
+
+    Parameters
+    ----------
+    nodes : (N, 3) float64
+    edges : (M, 2) int64
+    incidence : tuple
+        ``LatticeGraph.incidence`` (offsets, inc_edge, inc_side).
+    length : (M,) float64
+    base : (M, 2) float64
+        Radius at each strut end that its hub was built for.
+    hub : ((M, 2) float64, (M, 2) float64)
+        Offset and radius of the hub ring at each strut end.
+    band : ((M, 2) float64, (M, 2) float64), optional
+        Offset and radius of the band ring at each strut end (``profile="volume"``).
+
+    Returns
+    -------
+    (K, 3) int64
+        ``(node, strut_a, strut_b)``, by node.
+    """
+    off_a, rad_a = (np.ascontiguousarray(x, dtype=np.float64) for x in hub)
+    off_b, rad_b = (off_a, rad_a) if band is None else (
+        np.ascontiguousarray(x, dtype=np.float64) for x in band)  # fmt: skip
+    offsets, inc_edge, inc_side = incidence
+    n = len(offsets) - 1
+    args = (
+        np.ascontiguousarray(nodes, dtype=np.float64), edges, offsets, inc_edge, inc_side,
+        np.ascontiguousarray(length, dtype=np.float64),
+        np.ascontiguousarray(base, dtype=np.float64), off_a, rad_a, off_b, rad_b,
+    )  # fmt: skip
+    count = np.zeros(n, dtype=np.int64)
+    start = np.zeros(n + 1, dtype=np.int64)
+    out = np.zeros((0, 3), dtype=np.int64)
+    _hub_kernels.taper_cone_pairs(*args, count, start, out, False)
+    np.cumsum(count, out=start[1:])
+    out = np.empty((int(start[-1]), 3), dtype=np.int64)
+    if len(out):
+        _hub_kernels.taper_cone_pairs(*args, count, start, out, True)
+    return out
+
+
+def cap_taper_growth(
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    incidence: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]],
+    prad: NDArray[np.float64],
+    end_offset: NDArray[np.float64],
+    length: NDArray[np.float64],
+    scale: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """(N,) float64: ``scale`` with no growth (``s_n = 1``) at the nodes of tapered pairs.
+
+    A hub that grows (``s_n > 1``) scales its band rings by ``s_n``; the hub offsets keep
+    a node's struts apart for their profile radii, so a grown band ring on a strut that
+    widens can reach the neighbouring strut (a tet lattice of ``meshes/hammer.obj``: struts
+    0.005 -> 0.009 at 20.7 degrees, hub grown 1.23 times, ten self-intersecting face
+    pairs). Every grown node of a pair :func:`taper_cone_pairs` lists with the grown
+    scales (the pair's node and the far nodes of its two struts) keeps ``s_n = 1``; the
+    pairs left are tested exactly by the stitch. Depends on node n's struts and their far
+    ends only (the sharded stitch gets the same bits).
+    """
+    grown = scale > 1.0
+    if not grown.any():
+        return scale
+    x_off, x_rad = band_rings(scale, edges, prad, end_offset, length)
+    s_end = scale[edges]
+    pairs = taper_cone_pairs(
+        nodes, edges, incidence, length, prad * np.maximum(s_end, 1.0),
+        (end_offset * s_end, prad * s_end), (x_off, x_rad),
+    )  # fmt: skip
+    if not len(pairs):
+        return scale
+    involved = np.zeros(len(scale), dtype=bool)
+    involved[pairs[:, 0]] = True
+    involved[edges[pairs[:, 1:]].ravel()] = True
+    cap = involved & grown
+    if not cap.any():
+        return scale
+    scale = scale.copy()
+    scale[cap] = 1.0
+    return scale
 
 
 def hub_scales(

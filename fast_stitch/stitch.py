@@ -42,8 +42,10 @@ from fast_stitch.hubvolume import (
     Profile,
     area_factor,
     band_rings,
+    cap_taper_growth,
     hub_scales,
     profile_factor,
+    taper_cone_pairs,
 )
 from lattice_cad.core import config
 from lattice_cad.core.checks import (
@@ -288,15 +290,15 @@ def stitch(
         numba.set_num_threads(min(workers, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
     bar = Progress(progress, graph.num_nodes, desc="stitch", unit="hub")
     try:
-        radii = graph.radii * profile_factor(P, profile)
+        prad = graph.radii * profile_factor(P, profile)
         mesh, end_offset, face_start, radii = _stitch(
-            graph, radii, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar,
+            graph, prad, P, bool(shrink), int(seed) & 0xFFFFFFFFFFFFFFFF, bar,
             correct_hubs=profile == "volume", report=_report,
         )  # fmt: skip
         if check_clearance:
             bar("clearance", 0, 1)
             _check_clearance(graph, radii, mesh, end_offset, face_start, P)
-            _check_tapered_neighbours(graph, radii, mesh, end_offset, face_start, P)
+            _check_tapered_neighbours(graph, prad, mesh, face_start, P)
         bar("done", 1, 1)
         return mesh
     finally:
@@ -421,6 +423,10 @@ def _stitch(
                 nodes, edges, graph.incidence, degree, graph.radii, radii, end_offset, length,
                 vertices, faces, face_start, node_rep, P, frames=(axis, sign, fu, fv),
             )  # fmt: skip
+            if graph.is_tapered:  # no growth where a widening strut meets a neighbour
+                scale = cap_taper_growth(
+                    nodes, edges, graph.incidence, radii, end_offset, length, scale
+                )
             if report is not None:  # the unscaled profiles and scales (the sharded cap rounds)
                 report["scale0"], report["radii0"], report["offset0"] = scale, radii, end_offset
             override = None if report is None else report.get("scale_override")
@@ -712,69 +718,67 @@ def _check_clearance(
 
 def _check_tapered_neighbours(
     graph: LatticeGraph,
-    radii: NDArray[np.float64],
+    prad: NDArray[np.float64],
     mesh: Mesh,
-    end_offset: NDArray[np.float64],
     face_start: NDArray[np.int64],
     P: int,
 ) -> None:
     """Raise StitchError if a tapered strut widens into a neighbour at the same node.
 
-    The hub construction keeps struts of one node apart beyond their profiles when their
-    radius does not grow away from the node faster than their axes part (always true for
-    cylinders). A strut that widens (``r`` at the far end over its distance larger than
-    at the profile) can reach its neighbour at a small angle: struts of 0.02 -> 0.07 and
-    0.05 at 14 degrees, found by the fuzzer. Pairs whose cones from the node (half-angle
-    ``atan(r / s)`` at both ends of the frustum) are apart are safe; the others are
-    tested exactly, triangle by triangle (cylinder against cylinder, and against the
-    joint at the neighbour's far end).
+    The hub construction keeps the struts of one node apart beyond their profiles for the
+    radius each hub was built for. A strut wider than that somewhere beyond its near
+    profile (it widens away from the node, or the band ring of a grown far hub) can reach
+    its neighbour at a small angle: struts of 0.02 -> 0.07 and 0.05 at 14 degrees (the
+    fuzzer), 0.005 -> 0.009 and 0.005 -> 0.0087 at 20.7 degrees on a tet lattice of
+    ``meshes/hammer.obj``. Pairs whose cones from the node are apart are safe
+    (:func:`fast_stitch.hubvolume.taper_cone_pairs`, from the mesh's own rings); the
+    others are tested exactly, triangle by triangle (strut against strut, and each
+    against the joint at the other's far end).
     """
     if not graph.is_tapered:
         return
-    offsets, inc_edge, inc_side = graph.incidence
     edges, L = graph.edges, graph.edge_lengths
-    e_all = inc_edge
-    s_all = inc_side
-    near_r = radii[e_all, s_all]
-    far_r = radii[e_all, 1 - s_all]
-    d_near = end_offset[e_all, s_all]
-    d_far_s = L[e_all] - end_offset[e_all, 1 - s_all]  # distance of the far profile
-    # each end profile has its end's radius (the frustum runs between the two profiles)
-    r_at_near, r_at_far = near_r, far_r
-    half = np.maximum(np.arctan2(r_at_near, d_near), np.arctan2(r_at_far, d_far_s))
-    # r / s grows along the frustum (cross-multiplied: offsets are 0 at leaves)
-    widening = r_at_far * d_near > r_at_near * d_far_s
-    unit = graph.edge_vectors / L[:, None]
+    m = graph.num_edges
     v, f = mesh.vertices, mesh.faces
     bb = _band_base(graph, mesh, P)
-    for n in np.flatnonzero(graph.degree >= 2):
-        lo, hi = int(offsets[n]), int(offsets[n + 1])
-        if not widening[lo:hi].any():
-            continue
-        dirs = unit[e_all[lo:hi]] * np.where(s_all[lo:hi] == 0, 1.0, -1.0)[:, None]
-        ang = np.arccos(np.clip(dirs @ dirs.T, -1.0, 1.0))
-        for a in range(hi - lo):
-            for b in range(a + 1, hi - lo):
-                if not (widening[lo + a] or widening[lo + b]):
-                    continue
-                if half[lo + a] + half[lo + b] < ang[a, b]:
-                    continue
-                ea, eb = int(e_all[lo + a]), int(e_all[lo + b])
-                hit = _faces_meet(v, f, _strut_faces(ea, P, bb), _strut_faces(eb, P, bb))
-                for e_cyl, e_far, side in ((ea, eb, s_all[lo + b]), (eb, ea, s_all[lo + a])):
-                    if hit:
-                        break
-                    far = int(edges[e_far, 1 - side])
-                    count = int(_face_counts(graph.degree[far : far + 1], P)[0])
-                    far_faces = np.arange(face_start[far], face_start[far] + count)
-                    hit = _faces_meet(v, f, _strut_faces(e_cyl, P, bb), far_faces)
-                if hit:
-                    raise StitchError(
-                        f"node {int(n)}: struts {ea} and {eb} meet at "
-                        f"{math.degrees(ang[a, b]):.3g} degrees and one widens away from the "
-                        f"node (radii {radii[ea].tolist()} and {radii[eb].tolist()}), so they "
-                        "overlap beyond the joint; use a larger angle or less taper"
-                    )
+
+    def rings(first: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Offset and radius of the rings from vertex row ``first`` (ring (e, s) at
+        ``first + (2 e + s) P``), measured from the end's own node."""
+        ring0 = v[first + np.arange(2 * m) * P].reshape(m, 2, 3) - graph.nodes[edges]
+        axis = graph.edge_vectors / L[:, None]
+        off = np.einsum("msk,mk->ms", ring0, axis) * np.array([1.0, -1.0])
+        rad = np.linalg.norm(ring0 - off[:, :, None] * (axis[:, None, :] * np.array(
+            [[1.0], [-1.0]])), axis=2)  # fmt: skip
+        return off, rad
+
+    hub = rings(0)
+    band = rings(2 * m * P) if bb >= 0 else None
+    pairs = taper_cone_pairs(
+        graph.nodes, edges, graph.incidence, L, np.maximum(prad, hub[1]), hub, band
+    )
+    if not len(pairs):
+        return
+    unit = graph.edge_vectors / L[:, None]
+    for n, ea, eb in pairs.tolist():
+        hit = _faces_meet(v, f, _strut_faces(ea, P, bb), _strut_faces(eb, P, bb))
+        for e_cyl, e_far in ((ea, eb), (eb, ea)):
+            if hit:
+                break
+            far = int(edges[e_far, 1] if edges[e_far, 0] == n else edges[e_far, 0])
+            count = int(_face_counts(graph.degree[far : far + 1], P)[0])
+            far_faces = np.arange(face_start[far], face_start[far] + count)
+            hit = _faces_meet(v, f, _strut_faces(e_cyl, P, bb), far_faces)
+        if hit:
+            da = unit[ea] * (1.0 if edges[ea, 0] == n else -1.0)
+            db = unit[eb] * (1.0 if edges[eb, 0] == n else -1.0)
+            ang = math.degrees(math.acos(max(-1.0, min(1.0, float(da @ db)))))
+            raise StitchError(
+                f"node {n}: struts {ea} and {eb} meet at {ang:.3g} degrees and one widens "
+                f"away from the node (radii {graph.radii[ea].tolist()} and "
+                f"{graph.radii[eb].tolist()}), so they overlap beyond the joint; use a larger "
+                "angle or less taper"
+            )
 
 
 def _band_base(graph: LatticeGraph, mesh: Mesh, P: int) -> int:

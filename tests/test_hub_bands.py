@@ -177,3 +177,63 @@ def test_ge_tet_window_volume_and_prisms():
     assert_valid(mesh)
     ref = build_reference(g, keep_solids=False)
     assert abs(mesh.volume / ref.volume - 1.0) < 1e-3
+
+
+def _two_struts(angle_deg: float, r_near: float, r_far: float, length: float = 10.0):
+    """Node 0 at the origin, struts to nodes 1 and 2 at ``angle_deg`` apart, both of radius
+    ``r_near`` at node 0 and ``r_far`` at the far end."""
+    a = math.radians(angle_deg)
+    nodes = np.array([[0.0, 0.0, 0.0], [length, 0.0, 0.0],
+                      [length * math.cos(a), length * math.sin(a), 0.0]])  # fmt: skip
+    edges = np.array([[0, 1], [0, 2]])
+    radii = np.array([[r_near, r_far], [r_near, r_far]])
+    return nodes, edges, radii
+
+
+def _cones(nodes, edges, radii, offset):
+    from fast_stitch.fit import _incidence
+    from fast_stitch.hubvolume import taper_cone_pairs
+
+    length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+    off = np.full_like(radii, offset)
+    return taper_cone_pairs(nodes, edges, _incidence(edges, len(nodes)), length, radii,
+                            (off, radii))  # fmt: skip
+
+
+def test_taper_cone_pairs_closed_form():
+    """Rings at offset 1: a strut of radius r near and R far, of length 10, lies in the cone
+    of half-angle max(atan(r / 1), atan(R / 9)) from node 0."""
+    # cylinders are never loose, however close
+    assert len(_cones(*_two_struts(5.0, 0.3, 0.3), 1.0)) == 0
+    # widening 0.3 -> 0.6: half-angle max(atan(0.3), atan(0.6 / 9)) = 16.70 degrees each
+    half = math.degrees(math.atan(0.3))
+    assert _cones(*_two_struts(2 * half + 0.05, 0.3, 0.6), 1.0).tolist() == []
+    assert _cones(*_two_struts(2 * half - 0.05, 0.3, 0.6), 1.0).tolist() == [[0, 0, 1]]
+    # widening 0.3 -> 2.7: the far ring sets it, atan(2.7 / 9) = 16.70 degrees as well
+    assert _cones(*_two_struts(2 * half - 0.05, 0.1, 2.7), 1.0).tolist() == [[0, 0, 1]]
+    assert _cones(*_two_struts(2 * half + 0.05, 0.1, 2.7), 1.0).tolist() == []
+
+
+def test_growth_is_capped_at_nodes_of_tapered_pairs():
+    """Node 0 with two struts of length 1 at ``angle`` (radius 0.03 at node 0, ``r_far`` at
+    the far end) and a third opposite them; its hub grown 1.2 times."""
+    from fast_stitch.fit import _incidence, end_offsets
+    from fast_stitch.hubvolume import cap_taper_growth
+
+    def capped(angle: float, r_far: float) -> list[float]:
+        a = math.radians(angle)
+        nodes = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [math.cos(a), math.sin(a), 0.0],
+                          [-math.cos(a / 2), -math.sin(a / 2), 0.0]])  # fmt: skip
+        edges = np.array([[0, 1], [0, 2], [0, 3]])
+        radii = np.array([[0.03, r_far], [0.03, r_far], [0.03, 0.03]])
+        length = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)
+        off = end_offsets(nodes, edges, radii)
+        grown = np.array([1.2, 1.0, 1.0, 1.0])
+        inc = _incidence(edges, 4)
+        return cap_taper_growth(nodes, edges, inc, radii, off, length, grown).tolist()
+
+    # 10 degrees, widening 0.03 -> 0.06: the grown band rings' cones meet, no growth
+    assert capped(10.0, 0.06) == [1.0, 1.0, 1.0, 1.0]
+    # cylinders at 10 degrees, or the same taper at 30 degrees: the growth is kept
+    assert capped(10.0, 0.03) == [1.2, 1.0, 1.0, 1.0]
+    assert capped(30.0, 0.06) == [1.2, 1.0, 1.0, 1.0]
