@@ -143,7 +143,9 @@ def test_tet_face_recognition_part_stitches_with_grown_hubs():
     on the face-recognition sample part: hubs grown to the exact volume overlapped struts
     the fit had cleared (strut 211 / strut 1294); their growth is capped now. Since the
     graph repair drops clashing struts too, the overlap arises at r = cell / 11 (and / 10),
-    no longer at / 12 (6 hubs capped there, none of which would overlap)."""
+    no longer at / 12 (6 hubs capped there, none of which would overlap). Hubs at pairs
+    of a widening strut do not grow either (``hubvolume.cap_taper_growth``): the uncapped
+    mesh is stitched with both caps off."""
     part = load_part(DATA / "step" / "pythonocc_face_recognition_sample_part.stp")
     cell = round(float(max(part.size)) / 15, 6)
     with warnings.catch_warnings():
@@ -159,6 +161,7 @@ def test_tet_face_recognition_part_stitches_with_grown_hubs():
     st = importlib.import_module("fast_stitch.stitch")
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(st, "cap_growth", lambda n, e, r, o, s: (s, np.zeros(0, np.int64)))
+        mp.setattr(st, "cap_taper_growth", lambda *args: args[-1])  # no cap at all
         with pytest.raises(fast_stitch.StitchError, match="overlap although they share no node"):
             fast_stitch.stitch(g)
         free = fast_stitch.stitch(g, check_clearance=False)
