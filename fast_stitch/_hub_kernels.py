@@ -251,15 +251,17 @@ def band_rings(edges, scale, prad, end_offset, length, gap0, out_x, out_b):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def taper_cone_pairs(nodes, edges, offsets, inc_edge, inc_side, length, base, off_a, rad_a,
-                     off_b, rad_b, n_found, start, out, write):  # fmt: skip
+                     off_b, rad_b, far_off_a, far_rad_a, far_off_b, far_rad_b, n_found, start,
+                     out, write):  # fmt: skip
     """Pairs of struts at a node that a widening strut may bring together
     (``fast_stitch.hubvolume.taper_cone_pairs``).
 
     Every strut end (e, s) has two rings at each end of the strut: ``off_a``/``rad_a`` (the
     hub ring) and ``off_b``/``rad_b`` (the band ring; the same arrays where there is none),
-    offsets from the end's own node. Seen from node ``n = edges[e, s]``, the strut lies in
-    the cone of half-angle ``H`` (the largest ``atan(radius / distance)`` of its four
-    rings): the frustums between rings are convex hulls of rings inside the cone. The end
+    offsets from the end's own node; the rings at the far end, seen from node n, are read
+    from ``far_*`` (the same arrays, or bounds). Seen from node ``n = edges[e, s]``, the
+    strut lies in the cone of half-angle ``H`` (the largest ``atan(radius / distance)`` of
+    its four rings): the frustums between rings are convex hulls of rings inside the cone. The end
     is *loose* when a ring beyond its near hub ring is wider than ``base[e, s]`` (the radius
     the hub was built for): only then can the strut reach a neighbour of the same node.
     A pair at n is listed when one end is loose and ``H_a + H_b >= angle``.
@@ -284,11 +286,14 @@ def taper_cone_pairs(nodes, edges, offsets, inc_edge, inc_side, length, base, of
                 for c in range(3):
                     dirs[t, c] = (nodes[other, c] - nodes[n, c]) / L
                 h = max(np.arctan2(rad_a[e, s], off_a[e, s]), np.arctan2(rad_b[e, s], off_b[e, s]))
-                for far_off, far_rad in ((off_a[e, f], rad_a[e, f]), (off_b[e, f], rad_b[e, f])):
+                for far_off, far_rad in (
+                    (far_off_a[e, f], far_rad_a[e, f]),
+                    (far_off_b[e, f], far_rad_b[e, f]),
+                ):
                     dist = L - far_off
                     h = max(h, np.arctan2(far_rad, dist) if dist > 0.0 else 0.5 * np.pi)
                 half[t] = h
-                widest = max(rad_b[e, s], max(rad_a[e, f], rad_b[e, f]))
+                widest = max(rad_b[e, s], max(far_rad_a[e, f], far_rad_b[e, f]))
                 loose[t] = widest > base[e, s] * (1.0 + 1e-9)
             for a in range(d):
                 for b in range(a + 1, d):

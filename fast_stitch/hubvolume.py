@@ -166,6 +166,7 @@ def taper_cone_pairs(
     base: NDArray[np.float64],
     hub: tuple[NDArray[np.float64], NDArray[np.float64]],
     band: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    far: tuple[tuple[NDArray[np.float64], NDArray[np.float64]], ...] | None = None,
 ) -> NDArray[np.int64]:
     """Pairs of struts at a node that a tapered strut may bring into contact.
 
@@ -189,6 +190,9 @@ def taper_cone_pairs(
         Offset and radius of the hub ring at each strut end.
     band : ((M, 2) float64, (M, 2) float64), optional
         Offset and radius of the band ring at each strut end (``profile="volume"``).
+    far : (hub, band), optional
+        The rings to take for a strut's far end (seen from the pair's node), in the same
+        form; default ``hub`` and ``band``.
 
     Returns
     -------
@@ -198,12 +202,16 @@ def taper_cone_pairs(
     off_a, rad_a = (np.ascontiguousarray(x, dtype=np.float64) for x in hub)
     off_b, rad_b = (off_a, rad_a) if band is None else (
         np.ascontiguousarray(x, dtype=np.float64) for x in band)  # fmt: skip
+    if far is None:
+        far_rings = (off_a, rad_a, off_b, rad_b)
+    else:
+        far_rings = tuple(np.ascontiguousarray(x, dtype=np.float64) for ring in far for x in ring)
     offsets, inc_edge, inc_side = incidence
     n = len(offsets) - 1
     args = (
         np.ascontiguousarray(nodes, dtype=np.float64), edges, offsets, inc_edge, inc_side,
         np.ascontiguousarray(length, dtype=np.float64),
-        np.ascontiguousarray(base, dtype=np.float64), off_a, rad_a, off_b, rad_b,
+        np.ascontiguousarray(base, dtype=np.float64), off_a, rad_a, off_b, rad_b, *far_rings,
     )  # fmt: skip
     count = np.zeros(n, dtype=np.int64)
     start = np.zeros(n + 1, dtype=np.int64)
@@ -231,26 +239,27 @@ def cap_taper_growth(
     a node's struts apart for their profile radii, so a grown band ring on a strut that
     widens can reach the neighbouring strut (a tet lattice of ``meshes/hammer.obj``: struts
     0.005 -> 0.009 at 20.7 degrees, hub grown 1.23 times, ten self-intersecting face
-    pairs). Every grown node of a pair :func:`taper_cone_pairs` lists with the grown
-    scales (the pair's node and the far nodes of its two struts) keeps ``s_n = 1``; the
-    pairs left are tested exactly by the stitch. Depends on node n's struts and their far
-    ends only (the sharded stitch gets the same bits).
+    pairs). A grown node with a pair that :func:`taper_cone_pairs` lists (its own rings
+    scaled by ``s_n``, the far ends' unscaled) keeps ``s_n = 1``. That depends on node n's
+    struts, ``s_n`` and the offsets at their far ends only, as ``s_n`` itself does (the
+    sharded stitch gets the same bits). A far hub's growth is not bounded here: the
+    stitch's exact check of tapered neighbours has the last word.
     """
     grown = scale > 1.0
     if not grown.any():
         return scale
     x_off, x_rad = band_rings(scale, edges, prad, end_offset, length)
+    unit = np.ones_like(scale)
+    x_off1, x_rad1 = band_rings(unit, edges, prad, end_offset, length)
     s_end = scale[edges]
     pairs = taper_cone_pairs(
         nodes, edges, incidence, length, prad * np.maximum(s_end, 1.0),
         (end_offset * s_end, prad * s_end), (x_off, x_rad),
+        far=((end_offset, prad), (x_off1, x_rad1)),
     )  # fmt: skip
-    if not len(pairs):
-        return scale
-    involved = np.zeros(len(scale), dtype=bool)
-    involved[pairs[:, 0]] = True
-    involved[edges[pairs[:, 1:]].ravel()] = True
-    cap = involved & grown
+    cap = np.zeros(len(scale), dtype=bool)
+    cap[pairs[:, 0]] = True
+    cap &= grown
     if not cap.any():
         return scale
     scale = scale.copy()
