@@ -202,6 +202,7 @@ def taper_cone_pairs(
     off_a, rad_a = (np.ascontiguousarray(x, dtype=np.float64) for x in hub)
     off_b, rad_b = (off_a, rad_a) if band is None else (
         np.ascontiguousarray(x, dtype=np.float64) for x in band)  # fmt: skip
+    far_rings: tuple[NDArray[np.float64], ...]
     if far is None:
         far_rings = (off_a, rad_a, off_b, rad_b)
     else:
