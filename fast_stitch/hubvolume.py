@@ -166,7 +166,11 @@ def taper_cone_pairs(
     base: NDArray[np.float64],
     hub: tuple[NDArray[np.float64], NDArray[np.float64]],
     band: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-    far: tuple[tuple[NDArray[np.float64], NDArray[np.float64]], ...] | None = None,
+    far: tuple[
+        tuple[NDArray[np.float64], NDArray[np.float64]],
+        tuple[NDArray[np.float64], NDArray[np.float64]],
+    ]
+    | None = None,
 ) -> NDArray[np.int64]:
     """Pairs of struts at a node that a tapered strut may bring into contact.
 
@@ -202,17 +206,18 @@ def taper_cone_pairs(
     off_a, rad_a = (np.ascontiguousarray(x, dtype=np.float64) for x in hub)
     off_b, rad_b = (off_a, rad_a) if band is None else (
         np.ascontiguousarray(x, dtype=np.float64) for x in band)  # fmt: skip
-    far_rings: tuple[NDArray[np.float64], ...]
-    if far is None:
-        far_rings = (off_a, rad_a, off_b, rad_b)
-    else:
-        far_rings = tuple(np.ascontiguousarray(x, dtype=np.float64) for ring in far for x in ring)
+    far_off_a, far_rad_a, far_off_b, far_rad_b = off_a, rad_a, off_b, rad_b
+    if far is not None:
+        (far_off_a, far_rad_a), (far_off_b, far_rad_b) = (
+            (np.ascontiguousarray(x, dtype=np.float64) for x in ring) for ring in far
+        )
     offsets, inc_edge, inc_side = incidence
     n = len(offsets) - 1
     args = (
         np.ascontiguousarray(nodes, dtype=np.float64), edges, offsets, inc_edge, inc_side,
         np.ascontiguousarray(length, dtype=np.float64),
-        np.ascontiguousarray(base, dtype=np.float64), off_a, rad_a, off_b, rad_b, *far_rings,
+        np.ascontiguousarray(base, dtype=np.float64), off_a, rad_a, off_b, rad_b,
+        far_off_a, far_rad_a, far_off_b, far_rad_b,
     )  # fmt: skip
     count = np.zeros(n, dtype=np.int64)
     start = np.zeros(n + 1, dtype=np.int64)
