@@ -563,6 +563,15 @@ def _kill(pool: ProcessPoolExecutor) -> None:
         reader = getattr(queue, "_reader", None)
         if reader is not None:
             reader.close()
+    # a worker killed while writing a result leaves part of a message in the result pipe,
+    # and the pool's manager thread waits in recv() for the rest for good (shutdown joins
+    # it: the same test, 600 s, in CI; /tmp/ctrlc_loop.py: once in ~100 interrupts). This
+    # process holds the pipe's other writing end: closed, and the workers dead, recv() ends
+    # (EOFError), the manager thread finds the pool broken and ends.
+    results = getattr(pool, "_result_queue", None)
+    writer = getattr(results, "_writer", None)
+    if writer is not None:
+        writer.close()
     pool.shutdown(wait=True, cancel_futures=True)
     for p in procs:
         p.join(timeout=10.0)
