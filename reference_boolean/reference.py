@@ -548,33 +548,10 @@ def _build_one(args: tuple[Any, float, float, bool]) -> Any:
 
 
 def _kill(pool: ProcessPoolExecutor) -> None:
-    # concurrent.futures offers no way to stop one running task: end the pool's own workers
-    procs = list(getattr(pool, "_processes", {}).values())
-    for p in procs:
-        if p.is_alive():
-            p.kill()
-    # the call queue's feeder thread may be blocked writing specs to a pipe no worker reads
-    # any more; shutdown(wait=True) joined it and hung for good (CPython gh-94777; seen once
-    # in CI: tests/test_hubspeed.py::test_ctrl_c_stops_the_workers, 600 s). Its reading end
-    # closed, the write fails and the thread ends; its join is not waited for.
-    queue = getattr(pool, "_call_queue", None)
-    if queue is not None:
-        queue.cancel_join_thread()
-        reader = getattr(queue, "_reader", None)
-        if reader is not None:
-            reader.close()
-    # a worker killed while writing a result leaves part of a message in the result pipe,
-    # and the pool's manager thread waits in recv() for the rest for good (shutdown joins
-    # it: the same test, 600 s, in CI; /tmp/ctrlc_loop.py: once in ~100 interrupts). This
-    # process holds the pipe's other writing end: closed, and the workers dead, recv() ends
-    # (EOFError), the manager thread finds the pool broken and ends.
-    results = getattr(pool, "_result_queue", None)
-    writer = getattr(results, "_writer", None)
-    if writer is not None:
-        writer.close()
-    pool.shutdown(wait=True, cancel_futures=True)
-    for p in procs:
-        p.join(timeout=10.0)
+    """End the pool's workers now and wait for the pool (``lattice_cad.core.isolate.kill_pool``)."""
+    from lattice_cad.core.isolate import kill_pool
+
+    kill_pool(pool, wait=True)
 
 
 def _run(

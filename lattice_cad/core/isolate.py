@@ -45,9 +45,7 @@ def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) ->
         except BrokenProcessPool:
             raise ExternalCrash(f"{what} crashed (the child process died)") from None
     finally:
-        for proc in list(getattr(pool, "_processes", {}).values()):
-            proc.kill()
-        pool.shutdown(wait=False, cancel_futures=True)
+        kill_pool(pool, wait=False)
 
 
 def _import(module: str) -> None:
@@ -125,6 +123,40 @@ class IsolatedWorker:
 
 
 def _shutdown(pool: ProcessPoolExecutor) -> None:
-    for proc in list(getattr(pool, "_processes", {}).values()):
-        proc.kill()
-    pool.shutdown(wait=False, cancel_futures=True)
+    kill_pool(pool, wait=False)
+
+
+def kill_pool(pool: ProcessPoolExecutor, *, wait: bool) -> None:
+    """Kill the pool's worker processes, then shut the pool down (``wait``: join its
+    threads and the workers).
+
+    ``concurrent.futures`` offers no way to stop a running task, so the workers are killed;
+    two of the pool's threads could then wait for good (each seen in CI as a 600 s hang of
+    ``tests/test_hubspeed.py::test_ctrl_c_stops_the_workers``; ``shutdown(wait=True)`` joins
+    them, and without it the interpreter joins them at exit):
+
+    - the call queue's feeder thread, blocked writing tasks to a pipe no worker reads any
+      more (CPython gh-94777): its reading end is closed, so the write fails;
+    - the manager thread, in ``recv()`` of a result a worker was killed while writing: this
+      process holds the result pipe's other writing end; closed, and the workers dead, the
+      read ends (EOF) and the thread finds the pool broken. ``/tmp/ctrlc_loop.py`` (400
+      interrupts of the reference's hub build): a hang within a few hundred before, none
+      after.
+    """
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for p in procs:
+        if p.is_alive():
+            p.kill()
+    queue = getattr(pool, "_call_queue", None)
+    if queue is not None:
+        queue.cancel_join_thread()
+        reader = getattr(queue, "_reader", None)
+        if reader is not None:
+            reader.close()
+    writer = getattr(getattr(pool, "_result_queue", None), "_writer", None)
+    if writer is not None:
+        writer.close()
+    pool.shutdown(wait=wait, cancel_futures=True)
+    if wait:
+        for p in procs:
+            p.join(timeout=10.0)
