@@ -136,10 +136,11 @@ def kill_pool(pool: ProcessPoolExecutor, *, wait: bool) -> None:
     them, and without it the interpreter joins them at exit):
 
     - the call queue's feeder thread, blocked writing tasks to a pipe no worker reads any
-      more (CPython gh-94777): its reading end is closed, so the write fails;
+      more (CPython gh-94777): it is not joined (``cancel_join_thread``);
     - the manager thread, in ``recv()`` of a result a worker was killed while writing: this
-      process holds the result pipe's other writing end; closed, and the workers dead, the
-      read ends (EOF) and the thread finds the pool broken. ``/tmp/ctrlc_loop.py`` (400
+      process holds the result pipe's other writing end (only this thread touches it);
+      closed, and the workers dead, the read ends (EOF) and the thread finds the pool
+      broken. ``/tmp/ctrlc_loop.py`` (400
       interrupts of the reference's hub build): a hang within a few hundred before, none
       after.
     """
@@ -147,12 +148,13 @@ def kill_pool(pool: ProcessPoolExecutor, *, wait: bool) -> None:
     for p in procs:
         if p.is_alive():
             p.kill()
+    # the call queue's pipes are the manager thread's to close (terminate_broken closes its
+    # reader): closed here too, the two closes race, and a descriptor number closed twice
+    # may by then belong to another pool's pipe (a later isolated call "crashed" in CI).
+    # Not joining its feeder is enough: a daemon thread, it cannot hold up the exit.
     queue = getattr(pool, "_call_queue", None)
     if queue is not None:
         queue.cancel_join_thread()
-        reader = getattr(queue, "_reader", None)
-        if reader is not None:
-            reader.close()
     writer = getattr(getattr(pool, "_result_queue", None), "_writer", None)
     if writer is not None:
         writer.close()
