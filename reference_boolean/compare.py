@@ -415,7 +415,7 @@ def two_sided_deviations(
     import sys
     from concurrent.futures import ProcessPoolExecutor
 
-    from reference_boolean.reference import _kill
+    from lattice_cad.core.isolate import kill_pool
 
     meshes = list(meshes)
     if not meshes:
@@ -437,7 +437,7 @@ def two_sided_deviations(
                 while_waiting()
             p2, d2s = future.result()
         except BaseException:  # Ctrl-C or an error: no child left behind
-            _kill(pool)
+            kill_pool(pool, wait=True)
             raise
         finally:
             _FORKED.pop("pair", None)

@@ -52,6 +52,7 @@ from lattice_cad.core.checks import check_workers
 from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
 from lattice_cad.core.formats import Kind, resolve
 from lattice_cad.core.graph import LatticeGraph
+from lattice_cad.core.isolate import kill_pool
 from lattice_cad.core.mesh import Mesh
 from reference_boolean.frame import frame_scale, scale_spec, unscale_result
 from reference_boolean.rotations import Congruence, RotationCache
@@ -547,13 +548,6 @@ def _build_one(args: tuple[Any, float, float, bool]) -> Any:
     return unscale_result(res, s)
 
 
-def _kill(pool: ProcessPoolExecutor) -> None:
-    """End the pool's workers now and wait for the pool (``lattice_cad.core.isolate.kill_pool``)."""
-    from lattice_cad.core.isolate import kill_pool
-
-    kill_pool(pool, wait=True)
-
-
 def _run(
     specs: list[Any],
     deflection: float,
@@ -583,14 +577,14 @@ def _run(
                 progress, done_count, workers,
             )  # fmt: skip
         except BaseException:  # Ctrl-C (KeyboardInterrupt) or an error: no worker left behind
-            _kill(pool)
+            kill_pool(pool, wait=True)
             raise
         done_count = sum(r is not None for r in results)
         if timed_out is not None:
             results[timed_out] = HubResult(
                 status=f"timeout: the hub build took more than {timeout:g} s (stopped)"
             )
-            _kill(pool)
+            kill_pool(pool, wait=True)
         else:
             pool.shutdown(wait=True)
         todo = [i for i in todo if results[i] is None]

@@ -140,9 +140,8 @@ def kill_pool(pool: ProcessPoolExecutor, *, wait: bool) -> None:
     - the manager thread, in ``recv()`` of a result a worker was killed while writing: this
       process holds the result pipe's other writing end (only this thread touches it);
       closed, and the workers dead, the read ends (EOF) and the thread finds the pool
-      broken. ``/tmp/ctrlc_loop.py`` (400
-      interrupts of the reference's hub build): a hang within a few hundred before, none
-      after.
+      broken. 400 interrupts of the reference's hub build (``/tmp/ctrlc_loop.py``): a hang
+      within the first 50 before (twice), none after.
     """
     procs = list((getattr(pool, "_processes", None) or {}).values())
     for p in procs:
