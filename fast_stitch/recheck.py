@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from fast_stitch import _recheck_kernels as _rk
 from fast_stitch.check import CheckReport, check
 
-__all__ = ["recheck"]
+__all__ = ["recheck", "with_topology"]
 
 #: Above this fraction of the faces near the changes, the full check is run instead.
 MAX_LOCAL_FRACTION = 0.25
@@ -94,6 +94,7 @@ def recheck(
     *,
     max_report: int = 100,
     coplanar_rtol: float = 1e-12,
+    topology: bool = True,
 ) -> CheckReport:
     """The :func:`fast_stitch.check` report of ``after``, made from ``before`` (whose check
     was ``report``) by collapsing faces that ``report`` names.
@@ -103,10 +104,17 @@ def recheck(
     before, after : Mesh or (vertices, faces)
         ``vertices : (V, 3) float64``, ``faces : (F, 3) int64``.
     report : CheckReport
-        The full check of ``before`` (self-intersections included).
+        The check of ``before`` (self-intersections included): :func:`fast_stitch.check`,
+        or a :func:`recheck`, also one with ``topology=False``.
     max_report, coplanar_rtol
         As :func:`fast_stitch.check` (the fold tolerance is relative to the scale of the
         whole of ``after``, also in the local check).
+    topology : bool
+        False: only the zero-area faces and the self-intersections are ``after``'s (both
+        local: a face with no vertex where a named face had one keeps its geometry); the
+        rest of the report (edges, components, volume) is ``report``'s, not checked again.
+        For rounds of collapses that look only at those two (a collapse is decided by them
+        alone); :func:`with_topology` completes the last round's report.
 
     Returns
     -------
@@ -140,7 +148,16 @@ def recheck(
     changed = np.flatnonzero(marked[fa].any(axis=1))
     if len(changed) > MAX_CHANGED:
         return whole()
-    topo = whole(self_intersections=False)
+    if topology:
+        topo = whole(self_intersections=False)
+    else:  # the zero-area faces are among the changed ones (found by the local check)
+        topo = dataclasses.replace(
+            report,
+            n_vertices=len(va),
+            n_faces=len(fa),
+            n_zero_area=0,
+            zero_area_faces=np.zeros(0, np.int64),
+        )
     if len(changed) == 0:
         return dataclasses.replace(
             topo,
@@ -157,9 +174,31 @@ def recheck(
     rtol = coplanar_rtol * scale / sub_scale if sub_scale > 0 else coplanar_rtol
     local = check((va, sub), max_report=max_report, coplanar_rtol=rtol)
     found = near[np.asarray(local.self_intersection_pairs, dtype=np.int64).reshape(-1, 2)]
+    if not topology:  # (``near`` is sorted: the zero-area faces keep their order)
+        zero_after = near[np.asarray(local.zero_area_faces, dtype=np.int64)]
+        topo = dataclasses.replace(topo, n_zero_area=local.n_zero_area, zero_area_faces=zero_after)
     return dataclasses.replace(
         topo,
         n_self_intersections=local.n_self_intersections,
         n_self_intersecting_faces=local.n_self_intersecting_faces,
         self_intersection_pairs=np.sort(found, axis=1),
+    )
+
+
+def with_topology(
+    after: Any, folds: CheckReport, *, max_report: int = 100, coplanar_rtol: float = 1e-12
+) -> CheckReport:
+    """The full report of ``after`` from a :func:`recheck` of it with ``topology=False``
+    (``folds``): its topology checked in full, its self-intersections ``folds``'."""
+    full = check(
+        _arrays(after),
+        self_intersections=False,
+        max_report=max_report,
+        coplanar_rtol=coplanar_rtol,
+    )
+    return dataclasses.replace(
+        full,
+        n_self_intersections=folds.n_self_intersections,
+        n_self_intersecting_faces=folds.n_self_intersecting_faces,
+        self_intersection_pairs=folds.self_intersection_pairs,
     )

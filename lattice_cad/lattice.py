@@ -216,7 +216,7 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
 def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
     """:func:`_checked_single_precision` without the sliver collapse."""
     import fast_stitch
-    from fast_stitch.recheck import recheck
+    from fast_stitch.recheck import recheck, with_topology
     from lattice_cad import io
     from lattice_cad.core.mesh import Mesh, weld
     from lattice_cad.io.rounding import weld_merges
@@ -233,14 +233,19 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
         if len(pinched_vertices(f2, len(v2))):  # two sheets merged there: separated again
             v2, f2 = repair_rounded(v2, f2)
         out = Mesh(vertices=v2, faces=f2)
+    listed = config.COLLAPSE_MAX_REPORT
     for attempt in range(2):
-        report = fast_stitch.check(out)
-        for _ in range(20):  # tiny folds where the booleans left needles: collapse them
-            if report.valid:
-                break
+        report = fast_stitch.check(out, max_report=listed)
+        rounds = 0
+        # tiny folds where the booleans left needles: collapse them, rechecking the
+        # self-intersections and zero-area faces near the collapsed faces only (the rest
+        # is as checked, and a collapse looks at nothing else); the topology once, after
+        while (report.n_self_intersections or report.n_zero_area) and rounds < 20:
             before, out = out, _collapse_folds(out, report)
-            # self-intersections only near the collapsed faces: the rest is as checked
-            report = recheck(before, report, out)
+            report = recheck(before, report, out, max_report=listed, topology=False)
+            rounds += 1
+        if rounds:
+            report = with_topology(out, report, max_report=listed)
         if not report.valid:
             raise ExportError(
                 f"{name} cannot be written in single precision (STL, 3MF): rounding its "

@@ -104,3 +104,46 @@ def test_recheck_after_a_collapse_equals_the_full_check(max_report):
     np.testing.assert_array_equal(local.self_intersection_pairs, full.self_intersection_pairs)
     assert local.n_boundary_edges == full.n_boundary_edges
     assert local.n_faces == full.n_faces
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fold_rounds_without_topology_end_as_the_full_check(seed):
+    """Rounds of collapses rechecked with ``topology=False`` (self-intersections and
+    zero-area faces only) give, completed by ``with_topology``, the full check's report;
+    and each round's zero-area faces and self-intersections are the full check's."""
+    from fast_stitch.recheck import with_topology
+    from lattice_cad.core.mesh import Mesh
+    from lattice_cad.lattice import _collapse_folds
+
+    rng = np.random.default_rng(seed)
+    v, f = _sphere_through_box()
+    # needles: a corner of some faces moved onto another (zero area)
+    flat = rng.choice(len(f), 5, replace=False)
+    v = v.copy()
+    for face in f[flat]:
+        v[face[2]] = v[face[0]]
+    mesh = Mesh(vertices=v, faces=f)
+    rep = check(mesh, max_report=10_000)
+    assert rep.n_self_intersections > 0 and rep.n_zero_area > 0
+    for _ in range(4):
+        after = _collapse_folds(mesh, rep)
+        local = recheck(mesh, rep, after, max_report=10_000, topology=False)
+        full = check(after, max_report=10_000)
+        assert local.n_faces == full.n_faces and local.n_vertices == full.n_vertices
+        assert local.n_zero_area == full.n_zero_area
+        np.testing.assert_array_equal(local.zero_area_faces, full.zero_area_faces)
+        assert local.n_self_intersections == full.n_self_intersections
+        np.testing.assert_array_equal(local.self_intersection_pairs, full.self_intersection_pairs)
+        done = with_topology(after, local, max_report=10_000)
+        for field in (
+            "n_boundary_edges",
+            "n_nonmanifold_edges",
+            "n_components",
+            "volume",
+            "n_inverted_components",
+            "n_zero_area",
+            "n_self_intersections",
+        ):
+            assert getattr(done, field) == getattr(full, field), field
+        assert done.valid == full.valid
+        mesh, rep = after, local

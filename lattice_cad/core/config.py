@@ -247,6 +247,12 @@ TRIM_MIN_REL = 0.05
 #: tolerance before the result is checked again (lattice_cad.lattice).
 SIMPLIFY_ULPS = 4
 
+#: The float32 check of a boolean result lists up to this many problems of each kind, so
+#: that each collapse round takes all of them and the next check can be local
+#: (fast_stitch.recheck needs a complete list; with the check's default of 100, the GE
+#: bracket's tet trim at 5 mm went through two whole checks and 9 rounds).
+COLLAPSE_MAX_REPORT = 20_000
+
 #: Default number of surface samples per mesh for the deviation measures.
 DEFAULT_SAMPLES = 50_000
 
