@@ -38,8 +38,6 @@ __all__ = [
     "protrusion",
     "cutting_part",
     "cut_shortfall",
-    "PendingCut",
-    "start_cut",
 ]
 
 
@@ -237,110 +235,6 @@ def cutting_part(part: Any, radius: float, *, chord: float | None = None) -> Any
             stacklevel=2,
         )
     return cut
-
-
-@dataclass
-class PendingCut:
-    """:func:`cutting_part` of a part file computing in a child process (:func:`start_cut`).
-
-    Attributes
-    ----------
-    worker : lattice_cad.core.isolate.IsolatedWorker
-    source : str
-        The part file, as given to :func:`conformal.load_part`.
-    radius : float
-    chord : float or None
-        As given to :func:`cutting_part`.
-    """
-
-    worker: Any
-    source: str
-    radius: float
-    chord: float | None
-
-    def result(self, part: Any, radius: float, *, chord: float | None = None) -> Any:
-        """:func:`cutting_part` of ``part`` (loaded from ``source`` here too), ``radius`` and
-        ``chord``, from the child; None (the child closed) when those are not what it was
-        started with or it failed (the caller then cuts here). Its warnings are warned
-        again here, in order."""
-        import builtins
-        import warnings
-
-        from lattice_cad.core import errors
-
-        same = float(radius) == self.radius and chord == self.chord
-        if not same or not self.worker.submitted:
-            self.worker.close()
-            return None
-        try:
-            same_part, arrays, attrs, said = self.worker.result(
-                timeout=CUT_CHILD_TIMEOUT, what="the cutting tessellation"
-            )
-        except Exception:  # noqa: BLE001 - cut here instead (raises there as it would have)
-            return None
-        for category, message in said:
-            kind = getattr(errors, category, None) or getattr(builtins, category, None)
-            if not (isinstance(kind, type) and issubclass(kind, Warning)):
-                kind = errors.LatticeWarning
-            warnings.warn(message, kind, stacklevel=3)
-        if same_part:
-            return part
-        from conformal.part import Part
-
-        cut = Part(*arrays, name=part.name, shape=part.shape, deflection=attrs["deflection"])
-        cut.chord_error = attrs["chord_error"]
-        cut.chord_unresolved = attrs["chord_unresolved"]
-        cut.unrefined = part
-        return cut
-
-
-#: Seconds the child of :func:`start_cut` may take before the cut is made here instead.
-CUT_CHILD_TIMEOUT = 1800.0
-
-
-def start_cut(
-    source: str, radius: float, *, chord: float | None = None, worker: Any
-) -> PendingCut:
-    """Start :func:`cutting_part` of the part file ``source`` in ``worker`` (a
-    :class:`lattice_cad.core.isolate.IsolatedWorker`) and return at once.
-
-    The child loads the file itself (``conformal.load_part``: the same B-rep, meshed the
-    same way, so its tessellation is bit-identical to one made here) while the caller
-    builds and stitches the lattice. On parts whose cutting tessellation is costly
-    (threads, fillets: 6-19 s on the M6 screw, the Ventilator, NIST CTC-02 and the
-    cycloidal gear at the parts benchmark's radius) that time is taken off the fill's.
-    """
-    radius = float(radius)
-    chord = None if chord is None else float(chord)
-    worker.submit(_cut_in_child, str(source), radius, chord)
-    return PendingCut(worker, str(source), radius, chord)
-
-
-def _cut_in_child(
-    source: str, radius: float, chord: float | None
-) -> tuple[bool, tuple[NDArray[np.float64], NDArray[np.int64]] | None, dict[str, Any], list[Any]]:
-    """In a child: ``cutting_part(load_part(source), radius, chord=chord)`` as (whether it is
-    the part as loaded, its vertices and faces, its chord measures, the warnings
-    ``cutting_part`` gave as ``(category name, message)``)."""
-    import warnings
-
-    from conformal.part import load_part
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the caller loads the part and warns about it
-        part = load_part(source)
-    with warnings.catch_warnings(record=True) as said:
-        warnings.simplefilter("always")
-        cut = cutting_part(part, radius, chord=chord)
-    notes = [(type(w.message).__name__, str(w.message)) for w in said]
-    if cut is part:
-        return True, None, {}, notes
-    attrs = {
-        "deflection": float(cut.deflection),
-        "chord_error": cut.chord_error,
-        "chord_unresolved": int(cut.chord_unresolved),
-    }
-    return False, (np.asarray(cut.vertices), np.asarray(cut.faces)), attrs, notes
 
 
 def _budgeted(part: Any, defl: float, want: float, budget: int, angular: float) -> Any:

@@ -184,31 +184,6 @@ def _start_offsets(worker: Any, part: Any, skin: float | None) -> Any:
         return None
 
 
-def _start_cut(
-    part: Any, radius: float, *, method: str, fill: str, skin: float | None, trim: bool
-) -> Any:
-    """The cutting tessellation (``conformal.trim.start_cut``) of a STEP file started in a
-    child process, for a fill whose struts reach the part's surface and are trimmed (a tet
-    lattice, ``fill="clip"`` or ``"conform"``, no skin: a skin has OCCT's offsets in its
-    own child, and cuts by a tessellation that takes a fraction of their time); else None.
-    """
-    if skin is not None or not trim or (method != "tet" and fill not in ("clip", "conform")):
-        return None
-    if not isinstance(part, (str, os.PathLike)):
-        return None
-    if Path(part).suffix.lower() not in suffixes(Kind.SOLIDS, action="read"):
-        return None
-    from conformal.trim import start_cut
-    from lattice_cad.core.isolate import IsolatedWorker
-
-    worker = IsolatedWorker(warm="lattice_cad.occ_impl.shapes")
-    try:
-        return start_cut(os.fspath(part), radius, worker=worker)
-    except Exception:  # noqa: BLE001 - the cut is then made here, as without the child
-        worker.close()
-        return None
-
-
 def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
     """A boolean result (skin, trim) rounded to float32 as STL and 3MF store it, checked in
     full (with the folds the rounding makes collapsed), or :class:`ExportError`.
@@ -342,7 +317,6 @@ class Lattice:
     """
 
     _pending_offsets: Any  # OCCT's offsets started by fill(), collected by the skin
-    _pending_cut: Any  # the cutting tessellation started by fill(), see _cutting_part
 
     def __init__(
         self,
@@ -577,14 +551,7 @@ class Lattice:
         if self_supporting:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
-        # ... and the cutting tessellation, for a lattice trimmed by the part's surface
-        cut = _start_cut(part, radius, method=method, fill=fill, skin=skin, trim=trim)
-        try:
-            the_part = _load_part(part)
-        except BaseException:
-            if cut is not None:
-                cut.worker.close()
-            raise
+        the_part = _load_part(part)
         # the child offsets the part while this process builds and stitches the lattice
         pending = _start_offsets(worker, the_part, skin)
         try:
@@ -626,13 +593,11 @@ class Lattice:
             lat.build_report = report
             lat.build_direction, lat.critical_angle, lat.min_diameter = direction, crit, dmin
             lat.overhang_removal = removal
-        except BaseException:  # the children are not left running for a failed fill
-            for child in (pending, cut):
-                if child is not None:
-                    child.worker.close()
+        except BaseException:  # the child is not left running for a failed fill
+            if pending is not None:
+                pending.worker.close()
             raise
         lat._pending_offsets = pending
-        lat._pending_cut = cut
         return lat
 
     def printability(
@@ -867,9 +832,6 @@ class Lattice:
 
             clear = clear_inside(self._kept_mesh, self.part, self.graph, radius=radius)
             if clear is not None:
-                pending = self.__dict__.pop("_pending_cut", None)
-                if pending is not None:  # not needed after all
-                    pending.worker.close()
                 return clear
         return trim_to_part(
             self._kept_mesh,
@@ -912,19 +874,11 @@ class Lattice:
         so the cut lies within ``config.TRIM_RTOL`` r of the exact surface (keep zones are
         built inside it too; see ``_cut_then_keep``); with a skin, for the wall's
         tolerance (``conformal.skin.outer_chord``)."""
-        pending = self.__dict__.pop("_pending_cut", None)
         if self.part is None or self.graph.num_edges == 0:
-            if pending is not None:
-                pending.worker.close()
             return self.part
         from conformal.trim import cutting_part
 
-        radius = float(self.graph.radii.max())
-        if pending is not None:  # started by fill() in a child (None: not for this radius)
-            done = pending.result(self.part, radius, chord=self._cut_chord)
-            if done is not None:
-                return done
-        return cutting_part(self.part, radius, chord=self._cut_chord)
+        return cutting_part(self.part, float(self.graph.radii.max()), chord=self._cut_chord)
 
     @property
     def _cut_chord(self) -> float | None:
