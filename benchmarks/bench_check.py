@@ -16,7 +16,9 @@ running ``lattice-cad fill`` with the B checkout on the parts in ``<repo>/../sha
 
 Cases: ``ge_skin`` (the GE bracket with an octet lattice and a 1.5 mm skin, ~950 K
 triangles), ``gear_clip`` (the cycloidal gear, clip fill, ~820 K), ``vent_conform`` (the
-ventilator, conform fill, ~275 K).
+ventilator, conform fill, ~275 K), ``ge_tet5`` (the seed's Table 5 case: the GE bracket's
+tet lattice at 5 mm, r 0.25, trimmed, ~930 K, about 80 folds after rounding, 10 rounds of
+collapses).
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ CASES = {
                   "--radius", "0.2147"],
     "vent_conform": ["step/pythonocc_Ventilator.stp", "--fill", "conform", "--cell-size",
                      "5.333", "--radius", "0.4444"],
+    "ge_tet5": ["step/dolfiny_ge_bracket_rotated_nonds.step", "--method", "tet",
+                "--cell-size", "5", "--radius", "0.25"],
 }  # fmt: skip
 
 CAPTURE = r"""
