@@ -10,7 +10,10 @@ the previous check found it. :func:`recheck` checks the topology of the whole me
 and the self-intersections of the faces near the changes, and returns a report equivalent
 to :func:`fast_stitch.check` of the whole mesh (the counts of self-intersections are of
 that region); otherwise (an incomplete previous report, or a large changed region) it is
-the full check.
+the full check. The export lists every problem (``config.COLLAPSE_MAX_REPORT``), so that
+each round collapses them all and the next check stays local; its rounds recheck only the
+self-intersections and zero-area faces (``topology=False``: what the next collapse is
+decided by), and :func:`with_topology` checks the topology once, after the last round.
 
 Changed faces: the faces that use a vertex at the position of a vertex of a face the
 previous report named (a collapse keeps one vertex of an edge in place and moves every
