@@ -107,13 +107,22 @@ def test_recheck_after_a_collapse_equals_the_full_check(max_report):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_fold_rounds_without_topology_end_as_the_full_check(seed):
+def test_fold_rounds_without_topology_end_as_the_full_check(seed, monkeypatch):
     """Rounds of collapses rechecked with ``topology=False`` (self-intersections and
     zero-area faces only) give, completed by ``with_topology``, the full check's report;
     and each round's zero-area faces and self-intersections are the full check's."""
+    import fast_stitch.recheck as rc
     from fast_stitch.recheck import with_topology
     from lattice_cad.core.mesh import Mesh
     from lattice_cad.lattice import _collapse_folds
+
+    checked = []  # the faces each check inside recheck looked at
+
+    def counted(mesh, **kw):
+        checked.append(len(mesh[1]))
+        return check(mesh, **kw)
+
+    monkeypatch.setattr(rc, "check", counted)
 
     rng = np.random.default_rng(seed)
     v, f = _sphere_through_box()
@@ -147,3 +156,5 @@ def test_fold_rounds_without_topology_end_as_the_full_check(seed):
             assert getattr(done, field) == getattr(full, field), field
         assert done.valid == full.valid
         mesh, rep = after, local
+    # the rounds after the first were local: a check of far fewer faces than the mesh's
+    assert min(checked) < len(f) // 3
