@@ -730,7 +730,7 @@ def _closed_tessellation(
                 vv, ff, kept = v, f, np.ones(len(f), dtype=bool)
             else:
                 vv, ff, kept = _occ.merge_close(v, f, tol)
-            problem = _closed_problem(ff)
+            problem = _closed_problem(ff, vv)
             if not problem:
                 dev = _deviation_bound(shape) if measure else None
                 return vv, ff, report, dev
@@ -770,26 +770,59 @@ def _open_triangles(f: NDArray[np.int64]) -> NDArray[np.bool_]:
     return bad.reshape(3, -1).any(axis=0)
 
 
-def _closed_problem(f: NDArray[np.int64]) -> str:
-    """'' for a closed, 2-manifold, consistently oriented triangle mesh, else what is wrong."""
+def _closed_problem(f: NDArray[np.int64], v: NDArray[np.float64] | None = None) -> str:
+    """'' for a closed, 2-manifold, consistently oriented triangle mesh, else what is wrong.
+
+    f : (F, 3) int64 triangles; v : (V, 3) float64, optional: the vertices, to say where
+    (the first offending edges' end points and, for open edges, how many holes they bound).
+    """
     if len(f) == 0:
         return "no triangles"
     he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     und = np.sort(he, axis=1)
-    _, inv, cnt = unique_rows(und, return_inverse=True, return_counts=True)
+    rows, inv, cnt = unique_rows(und, return_inverse=True, return_counts=True)
     inv = inv.reshape(-1)
     open_edges = int((cnt == 1).sum())
     nonman = int((cnt > 2).sum())
     if open_edges:
-        return f"{open_edges} open (boundary) edge(s): it has holes"
+        holes = _edge_loops(rows[cnt == 1])
+        return (
+            f"{open_edges} open (boundary) edge(s) around {holes} hole(s): it has holes"
+            + _edges_at(rows[cnt == 1], v)
+        )
     if nonman:
-        return f"{nonman} non-manifold edge(s) shared by more than two triangles"
+        return f"{nonman} non-manifold edge(s) shared by more than two triangles" + _edges_at(
+            rows[cnt > 2], v
+        )
     fwd = he[:, 0] < he[:, 1]
     sfwd = np.bincount(inv, weights=fwd, minlength=len(cnt))
     bad = int((sfwd != 1).sum())
     if bad:
         return f"{bad} edge(s) where neighbouring triangles have opposite orientation"
     return ""
+
+
+def _edge_loops(edges: NDArray[np.int64]) -> int:
+    """How many connected pieces the edges ``(E, 2) int64`` form (the holes they bound)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    used, local = np.unique(edges, return_inverse=True)
+    local = local.reshape(-1, 2)
+    g = coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])), shape=(len(used),) * 2)
+    return int(connected_components(g, directed=False)[0])
+
+
+def _edges_at(edges: NDArray[np.int64], v: NDArray[np.float64] | None, most: int = 3) -> str:
+    """', e.g. the edge (x, y, z) - (x, y, z), ...': where the first ``most`` edges are."""
+    if v is None or not len(edges):
+        return ""
+    shown = "; ".join(
+        "({:.4g}, {:.4g}, {:.4g}) - ({:.4g}, {:.4g}, {:.4g})".format(*v[a], *v[b])
+        for a, b in edges[:most].tolist()
+    )
+    more = f" and {len(edges) - most} more" if len(edges) > most else ""
+    return f", e.g. the edge {shown}{more}"
 
 
 def _from_mesh_file(path: Path, scale: float) -> Part:
@@ -833,12 +866,12 @@ def _from_mesh_file(path: Path, scale: float) -> Part:
     v = uniq
     degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     f = f[~degenerate]
-    problem = _closed_problem(f)
+    problem = _closed_problem(f, v)
     if problem and "opposite orientation" not in problem:
         raise PartError(f"{path}: the mesh is not a closed solid: {problem}")
     bodies = _components(f, len(v))
     pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
-    repaired = 0
+    repaired: list[int] = []
     for body in bodies:
         fb = f[body]
         fixed = False
@@ -848,21 +881,24 @@ def _from_mesh_file(path: Path, scale: float) -> Part:
             if _closed_problem(fb):
                 raise PartError(
                     f"{path}: body {len(pieces)} cannot be oriented consistently "
-                    f"({_closed_problem(fb)}); repair the mesh"
+                    f"({_closed_problem(fb, v)}); repair the mesh"
                 )
-            repaired += 1
         vol = _mesh_volume(v[fb])
         if vol == 0.0:
             raise PartError(f"{path}: body {len(pieces)} encloses no volume")
         if vol < 0:
             fb = fb[:, ::-1]
             fixed = True
-        repaired += fixed
+        if fixed:
+            repaired.append("body {} at ({:.4g}, {:.4g}, {:.4g})".format(
+                len(pieces), *v[np.unique(fb)].mean(axis=0)
+            ))  # fmt: skip
         pieces.append((v, fb))
     if repaired:
+        which = "; ".join(repaired[:5]) + (" ..." if len(repaired) > 5 else "")
         warnings.warn(
-            f"{path}: {repaired} of {len(bodies)} bodies had flipped (inward-facing) "
-            "triangles; they were re-oriented outward",
+            f"{path}: {len(repaired)} of {len(bodies)} bodies had flipped (inward-facing) "
+            f"triangles ({which}: the mean of its vertices); they were re-oriented outward",
             LatticeWarning,
             stacklevel=3,
         )
