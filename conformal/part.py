@@ -514,7 +514,7 @@ def load_part(
                 )
             return _from_shape(shape, str(path), deflection, angular_deflection, measure=True)
         if suffix in _MESH_SUFFIXES:
-            return _from_mesh_file(path, _unit_scale(units))
+            return _from_mesh_file(path, _unit_scale(units), unit_given=units is not None)
         raise PartError(
             f"{path}: unsupported file type {suffix or '(no suffix)'!r}; use STEP "
             f"({', '.join(sorted(_STEP_SUFFIXES))}) or a mesh ({', '.join(sorted(_MESH_SUFFIXES))})"
@@ -825,7 +825,7 @@ def _edges_at(edges: NDArray[np.int64], v: NDArray[np.float64] | None, most: int
     return f", e.g. the edge {shown}{more}"
 
 
-def _from_mesh_file(path: Path, scale: float) -> Part:
+def _from_mesh_file(path: Path, scale: float, *, unit_given: bool = False) -> Part:
     import trimesh
 
     from lattice_cad.core.errors import InputFileError
@@ -871,7 +871,7 @@ def _from_mesh_file(path: Path, scale: float) -> Part:
         raise PartError(f"{path}: the mesh is not a closed solid: {problem}")
     bodies = _components(f, len(v))
     pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
-    repaired: list[int] = []
+    repaired: list[str] = []
     for body in bodies:
         fb = f[body]
         fixed = False
@@ -913,6 +913,17 @@ def _from_mesh_file(path: Path, scale: float) -> Part:
         f = pieces[0][1]
     if diag == 0:
         raise PartError(f"{path}: the mesh has zero size")
+    across = float(np.max(v.max(axis=0) - v.min(axis=0)))
+    if not unit_given and path.suffix.lower() != ".3mf" and across < config.SMALL_MESH_MM:
+        # STL, OBJ, PLY and OFF store no unit: a part in metres or inches reads as tiny
+        warnings.warn(
+            f"{path}: the mesh is {across:.3g} mm across, read as millimetres; if its unit "
+            "is another (metres, inches: "
+            f"{across:.3g} m = {1000 * across:.3g} mm, {across:.3g} in = {25.4 * across:.3g} mm), "
+            "pass it (units='m', or --units m)",
+            LatticeWarning,
+            stacklevel=3,
+        )
     return Part(v, f, name=str(path))
 
 

@@ -23,6 +23,7 @@ when ``--tolerance`` or ``--tolerance-volume`` is given, 2 wrong usage, 130 inte
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 import traceback
@@ -330,6 +331,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             escape_holes=args.escape_holes,
             escape_at=args.escape_at,
             keep=args.keep,
+            units=args.units,
         )
     lat.progress = con.bars
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
@@ -442,6 +444,8 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
     src = Path(args.input)
     _first_run_note(con)
     if src.suffix.lower() in suffixes(Kind.GRAPH, action="read"):
+        if args.units is not None:
+            raise ValueError("--units applies to part files; a graph is in millimetres")
         lat = Lattice(_load_graph(args.input), segments=args.segments, profile=args.profile)
         _graph_print_options(lat, args)
     else:
@@ -456,6 +460,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
                 segments=args.segments,
                 profile=args.profile,
                 **_print_kwargs(args),
+                units=args.units,
             )
     rep = _write_report(con, lat, args.report, args)
     strict = args.tolerance is not None or args.tolerance_volume is not None
@@ -563,6 +568,34 @@ def _cmd_preview(args: argparse.Namespace, con: _Console) -> int:
 
 
 # -------------------------------------------------------------------- parser
+def _units(text: str) -> str | float:
+    """``--units``: a unit name of ``conformal.UNITS`` or millimetres per file unit."""
+    from conformal.part import UNITS
+
+    if text.lower() in UNITS:
+        return text.lower()
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(
+            f"unknown unit {text!r}: use {', '.join(UNITS)} or millimetres per unit (> 0)"
+        )
+    return value
+
+
+def _add_units_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--units",
+        type=_units,
+        default=None,
+        metavar="UNIT",
+        help="unit of a mesh part file: mm (default), cm, m, in, ft, um, or millimetres per "
+        "unit (STL, OBJ and PLY store none; STEP files declare theirs)",
+    )
+
+
 def _add_lattice_options(p: argparse.ArgumentParser, *, skin: bool = True) -> None:
     g = p.add_argument_group("lattice")
     g.add_argument(
@@ -775,6 +808,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("part", help="part file: .step/.stp, or a closed mesh .stl/.obj/.ply/.3mf/.off")
     p.add_argument("-o", "--output", required=True, help=_OUTPUT_HELP)
+    _add_units_option(p)
     _add_lattice_options(p)
     p.add_argument(
         "--keep",
@@ -858,6 +892,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("input", metavar="GRAPH_OR_PART", help="graph (.json/.npz) or part file")
     p.add_argument("--report", required=True, metavar="DIR", help="directory for the report")
+    _add_units_option(p)
     p.add_argument(
         "--full-union-study",
         action="store_true",
@@ -1079,6 +1114,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
             profile=args.profile,
             progress=not con.quiet,
             beam_lattice=bool(args.beam_lattice),
+            units=args.units,
         )
     con.say(res.summary())
     return 0

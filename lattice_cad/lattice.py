@@ -57,13 +57,15 @@ def load_graph(path: str | os.PathLike[str]) -> LatticeGraph:
     return LatticeGraph.load(path)
 
 
-def _load_part(source: Any) -> Any:
+def _load_part(source: Any, units: str | float | None = None) -> Any:
     """A ``conformal.Part`` from anything :func:`conformal.load_part` accepts."""
     from conformal.part import Part, load_part
 
     if isinstance(source, Part):
+        if units is not None:
+            raise ValueError("units= applies to mesh files; a loaded Part is in millimetres")
         return source
-    return load_part(source)
+    return load_part(source, units=units)
 
 
 def _fill_graph(
@@ -428,6 +430,7 @@ class Lattice:
         escape_holes: float | None = None,
         escape_at: Any = None,
         keep: Any = None,
+        units: str | float | None = None,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -496,6 +499,10 @@ class Lattice:
             (a CadQuery selector such as ``">Z"`` or ``"%CYLINDER"``, build123d/cadquery
             faces, or a box ``((xmin, ymin, zmin), (xmax, ymax, zmax))`` with a margin);
             struts that enter a zone join it. See :mod:`lattice_cad.keep`.
+        units : str or float, optional
+            Unit of a mesh file (``"mm"``, ``"cm"``, ``"m"``, ``"in"``, ...) or millimetres
+            per file unit (default millimetres; see :func:`conformal.load_part`). STEP files
+            declare their unit, so passing it for one is an error.
 
         Returns
         -------
@@ -551,7 +558,12 @@ class Lattice:
         if self_supporting:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
-        the_part = _load_part(part)
+        try:
+            the_part = _load_part(part, units)
+        except BaseException:
+            if worker is not None:
+                worker.close()
+            raise
         # the child offsets the part while this process builds and stitches the lattice
         pending = _start_offsets(worker, the_part, skin)
         try:

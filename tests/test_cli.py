@@ -74,6 +74,7 @@ def test_every_flag_is_documented():
             "--segments",
             "--beam-lattice",
             "--report",
+            "--units",
         ],
         "stitch": ["--output", "--segments", "--beam-lattice"],
         "reference": ["--output"],
@@ -85,6 +86,7 @@ def test_every_flag_is_documented():
             "--method",
             "--fill",
             "--segments",
+            "--units",
         ],
         "check": ["--no-self-intersections"],
         "preview": ["--output", "--width", "--height"],
@@ -118,6 +120,8 @@ def test_version(capsys):
         ["fill", "x.step", "-o", "y.stl", "--method", "octree"],
         ["fill", "x.step", "-o", "y.stl", "--fill", "outside"],
         ["fill", "x.step", "-o", "y.stl", "--skin", "0"],
+        ["fill", "x.stl", "-o", "y.stl", "--units", "furlong"],
+        ["fill", "x.stl", "-o", "y.stl", "--units", "-2"],
         ["validate", "g.json"],  # --report is required
     ],
 )
@@ -240,6 +244,36 @@ def test_errors_are_one_line(capsys, tmp_path):
     assert code == 1 and "Traceback" in err and err.rstrip().splitlines()[-1].startswith("error:")
     code, _, err = run(capsys, "stitch", tmp_path / "g.txt", "-o", tmp_path / "x.stl")
     assert code == 1 and "cannot load a graph as .txt (g.txt): use .json, .npz" in err
+
+
+def test_fill_units_of_a_mesh_in_metres(capsys, tmp_path):
+    """STL stores no unit: a real part exported in metres reads as 1000 times too small
+    (a warning says so and what to pass), and ``--units m`` fills it at its size."""
+    import trimesh
+
+    tm = trimesh.load(DATA / "meshes" / "wingnut.obj", force="mesh")
+    tm.apply_scale(1e-3)
+    src = tmp_path / "wingnut_in_metres.stl"
+    tm.export(src)
+    out = tmp_path / "out.stl"
+    code, _, err = run(capsys, "fill", src, "-o", out, "--cell-size", "1.5", "--radius", "0.12")
+    assert code == 1 and not out.exists()
+    assert "mm across, read as millimetres" in err and "--units m" in err
+    code, out_text, err = run(
+        capsys, "fill", src, "-o", out, "--cell-size", "1.5", "--radius", "0.12", "--units", "m"
+    )
+    assert code == 0, err
+    assert "read as millimetres" not in err
+    written = trimesh.load(out, force="mesh")
+    np.testing.assert_allclose(
+        written.extents, 1000 * tm.extents, rtol=0.1
+    )  # the lattice spans the part (trimmed to it)
+    assert written.is_watertight and written.volume > 0
+    # a STEP file declares its unit
+    code, _, err = run(
+        capsys, "fill", DATA / "step" / "kcl_bracket.step", "-o", out, "--units", "in"
+    )
+    assert code == 1 and "STEP files declare their own unit" in err
 
 
 def test_stitch_check_preview(capsys, graph_json, tmp_path):

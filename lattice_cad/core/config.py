@@ -17,6 +17,9 @@ DEFAULT_CELL = "bcc"
 DEFAULT_CELL_SIZE = 5.0
 DEFAULT_RADIUS = 0.4
 DEFAULT_SEGMENTS = 6
+#: A mesh part file (no unit stored) smaller than this (mm, largest extent) read as
+#: millimetres gets a warning: it is likely in metres or inches (conformal.load_part).
+SMALL_MESH_MM = 1.0
 
 
 # --------------------------------------------------------- Printability (conformal.printability)
