@@ -819,3 +819,73 @@ def soups_within(tri, box, start, items, origin, h, dims, v, soup, soup_start, e
                 break
         out[s] = hit
     return out
+
+
+@njit(cache=True)
+def min_area_fill(p, forbidden):
+    """A minimal-area triangulation of a closed polygon (a hole's boundary loop).
+
+    p : (n, 3) float64 loop vertices in order; forbidden : (n, n) bool, chords (i, j) that
+    must not be used (they are edges of the mesh already). Returns (n - 2, 3) int64 local
+    triangles ``(i, j, k)`` for ``i < k < j`` (the reverse of the loop's direction along its
+    edges), or an empty array when every triangulation uses a forbidden chord. O(n^3).
+    """
+    n = p.shape[0]
+    inf = np.inf
+    w = np.full((n, n), inf)
+    arg = np.full((n, n), -1, dtype=np.int64)
+    for i in range(n - 1):
+        w[i, i + 1] = 0.0
+    for span in range(2, n):
+        for i in range(n - span):
+            j = i + span
+            if span < n - 1 and forbidden[i, j]:
+                continue
+            best = inf
+            bk = -1
+            for k in range(i + 1, j):
+                c = w[i, k] + w[k, j]
+                if c >= best:
+                    continue
+                ux = p[k, 0] - p[i, 0]
+                uy = p[k, 1] - p[i, 1]
+                uz = p[k, 2] - p[i, 2]
+                vx = p[j, 0] - p[i, 0]
+                vy = p[j, 1] - p[i, 1]
+                vz = p[j, 2] - p[i, 2]
+                cx = uy * vz - uz * vy
+                cy = uz * vx - ux * vz
+                cz = ux * vy - uy * vx
+                c += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+                if c < best:
+                    best = c
+                    bk = k
+            w[i, j] = best
+            arg[i, j] = bk
+    out = np.empty((max(n - 2, 0), 3), dtype=np.int64)
+    if n < 3 or arg[0, n - 1] < 0:
+        return out[:0]
+    stack = np.empty((n, 2), dtype=np.int64)
+    top = 0
+    stack[0, 0] = 0
+    stack[0, 1] = n - 1
+    top = 1
+    m = 0
+    while top > 0:
+        top -= 1
+        i = stack[top, 0]
+        j = stack[top, 1]
+        if j - i < 2:
+            continue
+        k = arg[i, j]
+        out[m, 0] = i
+        out[m, 1] = j
+        out[m, 2] = k
+        m += 1
+        stack[top, 0] = i
+        stack[top, 1] = k
+        top += 1
+        stack[top, 0] = k
+        stack[top, 1] = j
+        top += 1
+    return out[:m]

@@ -447,6 +447,7 @@ def load_part(
     units: str | float | None = None,
     deflection: float | None = None,
     angular_deflection: float = 0.3,
+    close_holes: bool = False,
 ) -> Part:
     """Load a part to fill with a lattice.
 
@@ -467,6 +468,11 @@ def load_part(
     angular_deflection : float
         Largest angle (radians) between neighbouring mesh normals on curved
         CAD faces.
+    close_holes : bool
+        Close the holes of an open *mesh* file with least-area patches (a warning says
+        how many, the largest and where; see :mod:`conformal.holes`) instead of refusing
+        it. Meshes with non-manifold edges are still refused. Ignored for B-rep parts
+        (their open faces are sewn and healed anyway).
 
     Returns
     -------
@@ -485,7 +491,8 @@ def load_part(
     -----
     LatticeWarning
         Several solids or bodies were united into one part; a mesh body with
-        inward-facing triangles was turned outward.
+        inward-facing triangles was turned outward; holes were closed; a mesh part is
+        under ``config.SMALL_MESH_MM`` across (likely in metres or inches).
     """
     if isinstance(source, (str, os.PathLike)):
         path = Path(source)
@@ -514,7 +521,9 @@ def load_part(
                 )
             return _from_shape(shape, str(path), deflection, angular_deflection, measure=True)
         if suffix in _MESH_SUFFIXES:
-            return _from_mesh_file(path, _unit_scale(units), unit_given=units is not None)
+            return _from_mesh_file(
+                path, _unit_scale(units), unit_given=units is not None, close_holes=close_holes
+            )
         raise PartError(
             f"{path}: unsupported file type {suffix or '(no suffix)'!r}; use STEP "
             f"({', '.join(sorted(_STEP_SUFFIXES))}) or a mesh ({', '.join(sorted(_MESH_SUFFIXES))})"
@@ -825,7 +834,9 @@ def _edges_at(edges: NDArray[np.int64], v: NDArray[np.float64] | None, most: int
     return f", e.g. the edge {shown}{more}"
 
 
-def _from_mesh_file(path: Path, scale: float, *, unit_given: bool = False) -> Part:
+def _from_mesh_file(
+    path: Path, scale: float, *, unit_given: bool = False, close_holes: bool = False
+) -> Part:
     import trimesh
 
     from lattice_cad.core.errors import InputFileError
@@ -867,8 +878,24 @@ def _from_mesh_file(path: Path, scale: float, *, unit_given: bool = False) -> Pa
     degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     f = f[~degenerate]
     problem = _closed_problem(f, v)
+    if problem and close_holes and "open (boundary)" in problem:
+        from conformal.holes import close_holes as _close
+
+        f, holes = _close(v, f, name=str(path))
+        warnings.warn(
+            f"{path}: {holes.summary()} (close_holes: least-area patches spanning each "
+            "hole's rim, not the missing shape)",
+            LatticeWarning,
+            stacklevel=3,
+        )
+        problem = _closed_problem(f, v)
     if problem and "opposite orientation" not in problem:
-        raise PartError(f"{path}: the mesh is not a closed solid: {problem}")
+        hint = (
+            "; close_holes=True (--close-holes) closes them with least-area patches"
+            if "open (boundary)" in problem and not close_holes
+            else ""
+        )
+        raise PartError(f"{path}: the mesh is not a closed solid: {problem}{hint}")
     bodies = _components(f, len(v))
     pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
     repaired: list[str] = []

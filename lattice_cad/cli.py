@@ -332,6 +332,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             escape_at=args.escape_at,
             keep=args.keep,
             units=args.units,
+            close_holes=args.close_holes,
         )
     lat.progress = con.bars
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
@@ -444,8 +445,8 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
     src = Path(args.input)
     _first_run_note(con)
     if src.suffix.lower() in suffixes(Kind.GRAPH, action="read"):
-        if args.units is not None:
-            raise ValueError("--units applies to part files; a graph is in millimetres")
+        if args.units is not None or args.close_holes:
+            raise ValueError("--units and --close-holes apply to part files, not to a graph")
         lat = Lattice(_load_graph(args.input), segments=args.segments, profile=args.profile)
         _graph_print_options(lat, args)
     else:
@@ -461,6 +462,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
                 profile=args.profile,
                 **_print_kwargs(args),
                 units=args.units,
+                close_holes=args.close_holes,
             )
     rep = _write_report(con, lat, args.report, args)
     strict = args.tolerance is not None or args.tolerance_volume is not None
@@ -585,7 +587,7 @@ def _units(text: str) -> str | float:
     return value
 
 
-def _add_units_option(p: argparse.ArgumentParser) -> None:
+def _add_part_file_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--units",
         type=_units,
@@ -593,6 +595,12 @@ def _add_units_option(p: argparse.ArgumentParser) -> None:
         metavar="UNIT",
         help="unit of a mesh part file: mm (default), cm, m, in, ft, um, or millimetres per "
         "unit (STL, OBJ and PLY store none; STEP files declare theirs)",
+    )
+    p.add_argument(
+        "--close-holes",
+        action="store_true",
+        help="close the holes of an open mesh part with least-area patches (a warning says "
+        "how many and where) instead of refusing it",
     )
 
 
@@ -808,7 +816,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("part", help="part file: .step/.stp, or a closed mesh .stl/.obj/.ply/.3mf/.off")
     p.add_argument("-o", "--output", required=True, help=_OUTPUT_HELP)
-    _add_units_option(p)
+    _add_part_file_options(p)
     _add_lattice_options(p)
     p.add_argument(
         "--keep",
@@ -892,7 +900,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("input", metavar="GRAPH_OR_PART", help="graph (.json/.npz) or part file")
     p.add_argument("--report", required=True, metavar="DIR", help="directory for the report")
-    _add_units_option(p)
+    _add_part_file_options(p)
     p.add_argument(
         "--full-union-study",
         action="store_true",
@@ -1090,6 +1098,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
             ("--remove-overhangs", args.remove_overhangs),
             ("--self-supporting", args.self_supporting),
             ("--node-set/--material", bool(args.node_set or args.material)),
+            ("--close-holes", args.close_holes),
         )
         if on
     ]
@@ -1097,7 +1106,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
         raise ShardingError(
             f"{', '.join(refused)} cannot be combined with --shards (the sharded path writes "
             "the stitched lattice of fill inside, clip or conform as .stl or .3mf, with "
-            "--beam-lattice one object per shard)"
+            "--beam-lattice one object per shard, of a closed part)"
         )
     with con.step(f"sharded fill ({args.shards} shards)"):
         res = fill_sharded(

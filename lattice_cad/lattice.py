@@ -57,7 +57,7 @@ def load_graph(path: str | os.PathLike[str]) -> LatticeGraph:
     return LatticeGraph.load(path)
 
 
-def _load_part(source: Any, units: str | float | None = None) -> Any:
+def _load_part(source: Any, units: str | float | None = None, close_holes: bool = False) -> Any:
     """A ``conformal.Part`` from anything :func:`conformal.load_part` accepts."""
     from conformal.part import Part, load_part
 
@@ -65,7 +65,7 @@ def _load_part(source: Any, units: str | float | None = None) -> Any:
         if units is not None:
             raise ValueError("units= applies to mesh files; a loaded Part is in millimetres")
         return source
-    return load_part(source, units=units)
+    return load_part(source, units=units, close_holes=close_holes)
 
 
 def _fill_graph(
@@ -431,6 +431,7 @@ class Lattice:
         escape_at: Any = None,
         keep: Any = None,
         units: str | float | None = None,
+        close_holes: bool = False,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -503,6 +504,9 @@ class Lattice:
             Unit of a mesh file (``"mm"``, ``"cm"``, ``"m"``, ``"in"``, ...) or millimetres
             per file unit (default millimetres; see :func:`conformal.load_part`). STEP files
             declare their unit, so passing it for one is an error.
+        close_holes : bool
+            Close the holes of an open mesh file with least-area patches, with a warning
+            (see :func:`conformal.load_part`), instead of refusing it.
 
         Returns
         -------
@@ -559,7 +563,7 @@ class Lattice:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
         try:
-            the_part = _load_part(part, units)
+            the_part = _load_part(part, units, close_holes)
         except BaseException:
             if worker is not None:
                 worker.close()

@@ -20,6 +20,9 @@ DEFAULT_SEGMENTS = 6
 #: A mesh part file (no unit stored) smaller than this (mm, largest extent) read as
 #: millimetres gets a warning: it is likely in metres or inches (conformal.load_part).
 SMALL_MESH_MM = 1.0
+#: Holes of a mesh part are closed (``close_holes=True``) up to this many rim edges each:
+#: the minimal-area patch is O(n^3) in time and O(n^2) in memory (conformal.holes).
+CLOSE_HOLES_MAX_EDGES = 2000
 
 
 # --------------------------------------------------------- Printability (conformal.printability)

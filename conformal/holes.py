@@ -1,0 +1,181 @@
+"""Closing the holes of an open triangle mesh (a documented repair of mesh part files).
+
+Scanned parts and meshes exported by hand often have a few missing triangles. A lattice
+needs a closed volume, so :func:`conformal.load_part` refuses them, naming where the open
+edges are; with ``close_holes=True`` (``lattice-cad fill --close-holes``) each hole is
+closed first and a warning says how many, how large and where:
+
+1. the faces are oriented consistently (breadth-first over shared edges);
+2. the boundary half-edges (edges used by one triangle) are chained into loops; a vertex
+   where two loops touch (two boundary edges leave it) is refused, naming it;
+3. each loop is triangulated by the triangulation of least total area (dynamic
+   programming over its vertices, O(n^3): ``conformal._kernels.min_area_fill``), using no
+   chord that is an edge of the mesh already (it would be shared by three triangles).
+   Loops of more than ``config.CLOSE_HOLES_MAX_EDGES`` edges are refused.
+
+The patches are the smallest surfaces spanning the holes' rims, not the shape that is
+missing: a hole in a flat or gently curved region closes as the region would; a large
+opening (the bottom of a scanned bust) closes with a flat-ish lid. The closed mesh is
+checked again like any other part (closed, 2-manifold, consistently oriented).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from conformal import _kernels
+from lattice_cad.core import config
+from lattice_cad.core.arrays import unique_rows
+from lattice_cad.core.errors import PartError
+
+__all__ = ["close_holes", "HoleReport"]
+
+
+@dataclass
+class HoleReport:
+    """What :func:`close_holes` did.
+
+    Attributes
+    ----------
+    holes : int
+        Holes closed.
+    added : int
+        Triangles added.
+    edges : list of int
+        Boundary edges of each hole, largest first.
+    perimeters : list of float
+        Length (mm) of each hole's rim, in the order of ``edges``.
+    centres : list of tuple of float
+        Mean of each hole's rim vertices, in the order of ``edges``.
+    """
+
+    holes: int = 0
+    added: int = 0
+    edges: list[int] = field(default_factory=list)
+    perimeters: list[float] = field(default_factory=list)
+    centres: list[tuple[float, float, float]] = field(default_factory=list)
+
+    def summary(self) -> str:
+        """One line: how many holes, and the largest with where it is."""
+        if not self.holes:
+            return "no holes"
+        x, y, z = self.centres[0]
+        return (
+            f"{self.holes} hole(s) closed with {self.added} triangle(s); the largest has "
+            f"{self.edges[0]} edges, {self.perimeters[0]:.4g} mm around, at "
+            f"({x:.4g}, {y:.4g}, {z:.4g})"
+        )
+
+
+def _boundary_loops(f: NDArray[np.int64], v: NDArray[np.float64], name: str) -> list[list[int]]:
+    """The loops of boundary half-edges of ``f`` (each in the direction its face runs)."""
+    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    _, inv, cnt = unique_rows(np.sort(he, axis=1), return_inverse=True, return_counts=True)
+    if (cnt > 2).any():
+        return []  # non-manifold edges: not a hole to close (the caller says so)
+    bnd = he[(cnt == 1)[inv.reshape(-1)]]
+    if not len(bnd):
+        return []
+    starts, n_out = np.unique(bnd[:, 0], return_counts=True)
+    if (n_out > 1).any():
+        x, y, z = v[starts[np.argmax(n_out > 1)]]
+        raise PartError(
+            f"{name}: holes touch at the vertex ({x:.4g}, {y:.4g}, {z:.4g}) (two open edges "
+            "leave it in the same direction), so they cannot be closed one by one; repair "
+            "the mesh"
+        )
+    nxt = dict(zip(bnd[:, 0].tolist(), bnd[:, 1].tolist(), strict=True))
+    loops: list[list[int]] = []
+    seen: set[int] = set()
+    for s in bnd[:, 0].tolist():
+        if s in seen:
+            continue
+        loop = [s]
+        seen.add(s)
+        a = nxt[s]
+        while a != s:
+            if a in seen or a not in nxt:
+                x, y, z = v[a]
+                raise PartError(
+                    f"{name}: the open edges at ({x:.4g}, {y:.4g}, {z:.4g}) do not close "
+                    "into a loop; repair the mesh"
+                )
+            loop.append(a)
+            seen.add(a)
+            a = nxt[a]
+        loops.append(loop)
+    return loops
+
+
+def close_holes(
+    v: NDArray[np.float64], f: NDArray[np.int64], *, name: str = "mesh"
+) -> tuple[NDArray[np.int64], HoleReport]:
+    """Close every hole of a triangle mesh with minimal-area patches.
+
+    Parameters
+    ----------
+    v : (V, 3) float64
+        Vertices (duplicates merged: holes are found from shared vertex indices).
+    f : (F, 3) int64
+        Triangles; their orientation may be inconsistent (it is made consistent).
+    name : str
+        Named in errors (the file).
+
+    Returns
+    -------
+    faces : (F + A, 3) int64
+        The mesh's triangles, consistently oriented, and the A added ones.
+    report : HoleReport
+
+    Raises
+    ------
+    PartError
+        Holes touching at a vertex, a loop of more than ``config.CLOSE_HOLES_MAX_EDGES``
+        edges, or one that every triangulation would join to an existing edge.
+    """
+    from conformal.part import _orient
+
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    f = _orient(np.ascontiguousarray(f, dtype=np.int64))
+    report = HoleReport()
+    loops = _boundary_loops(f, v, name)
+    if not loops:
+        return f, report
+    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    added: list[NDArray[np.int64]] = []
+    rows: list[tuple[int, float, tuple[float, float, float]]] = []
+    for loop in loops:
+        ids = np.asarray(loop, dtype=np.int64)
+        n = len(ids)
+        x, y, z = v[ids].mean(axis=0)
+        if n > config.CLOSE_HOLES_MAX_EDGES:
+            raise PartError(
+                f"{name}: a hole of {n} edges at ({x:.4g}, {y:.4g}, {z:.4g}) is larger than "
+                f"the {config.CLOSE_HOLES_MAX_EDGES} edges holes are closed up to; close it "
+                "in a mesh editor"
+            )
+        local = np.full(len(v), -1, dtype=np.int64)
+        local[ids] = np.arange(n)
+        inner = und[(local[und[:, 0]] >= 0) & (local[und[:, 1]] >= 0)]
+        forbidden = np.zeros((n, n), dtype=np.bool_)
+        li, lj = local[inner[:, 0]], local[inner[:, 1]]
+        forbidden[li, lj] = forbidden[lj, li] = True
+        tri = _kernels.min_area_fill(v[ids], forbidden)
+        if len(tri) != n - 2:
+            raise PartError(
+                f"{name}: the hole of {n} edges at ({x:.4g}, {y:.4g}, {z:.4g}) cannot be "
+                "closed without joining edges the mesh has already; repair the mesh"
+            )
+        added.append(ids[tri])
+        perimeter = float(np.linalg.norm(v[np.roll(ids, -1)] - v[ids], axis=1).sum())
+        rows.append((n, perimeter, (float(x), float(y), float(z))))
+    order = sorted(range(len(rows)), key=lambda k: (-rows[k][0], -rows[k][1]))
+    report.holes = len(loops)
+    report.added = int(sum(len(a) for a in added))
+    report.edges = [rows[k][0] for k in order]
+    report.perimeters = [rows[k][1] for k in order]
+    report.centres = [rows[k][2] for k in order]
+    return np.vstack([f, *added]), report

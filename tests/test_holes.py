@@ -1,0 +1,169 @@
+"""Closing the holes of open mesh parts (conformal.holes, ``load_part(close_holes=True)``)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from conformal import _kernels, load_part
+from conformal.holes import close_holes
+from conformal.part import _closed_problem
+from lattice_cad.core import config
+from lattice_cad.core.errors import LatticeWarning, PartError
+from tests.conftest import DATA
+
+BROKEN = DATA / "broken"
+
+
+def _tri_area(p, t):
+    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+
+
+def _all_triangulations(i, j):
+    """Every triangulation of the polygon i..j (a slow reference: Catalan many)."""
+    if j - i < 2:
+        yield []
+        return
+    for k in range(i + 1, j):
+        for left in _all_triangulations(i, k):
+            for right in _all_triangulations(k, j):
+                yield [(i, j, k), *left, *right]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_min_area_fill_is_the_least_area_triangulation(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(4, 9))
+    ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+    p = np.column_stack([np.cos(ang), np.sin(ang), rng.normal(0, 0.4, n)])
+    forbidden = np.zeros((n, n), dtype=bool)
+    tri = _kernels.min_area_fill(p, forbidden)
+    assert tri.shape == (n - 2, 3)
+    best = min(_tri_area(p, np.array(t)) for t in _all_triangulations(0, n - 1))
+    assert _tri_area(p, tri) == pytest.approx(best, rel=1e-12)
+    # with the best's first chords forbidden, the least area of those left
+    chords = {tuple(sorted(e)) for t in tri.tolist() for e in itertools.combinations(t, 2)}
+    chords = [c for c in chords if c[1] - c[0] not in (1, n - 1)]
+    if chords:
+        a, b = chords[0]
+        forbidden[a, b] = forbidden[b, a] = True
+        tri2 = _kernels.min_area_fill(p, forbidden)
+        allowed = [
+            t for t in _all_triangulations(0, n - 1)
+            if all(tuple(sorted(e)) != (a, b) for x in t for e in itertools.combinations(x, 2))
+        ]  # fmt: skip
+        assert _tri_area(p, tri2) == pytest.approx(
+            min(_tri_area(p, np.array(t)) for t in allowed), rel=1e-12
+        )
+
+
+def test_min_area_fill_square_with_a_forbidden_diagonal():
+    p = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0.5], [0, 1, 0]], dtype=float)
+    forbidden = np.zeros((4, 4), dtype=bool)
+    forbidden[0, 2] = forbidden[2, 0] = True
+    tri = _kernels.min_area_fill(p, forbidden)
+    assert sorted(map(sorted, tri.tolist())) == [[0, 1, 3], [1, 2, 3]]
+    forbidden[1, 3] = forbidden[3, 1] = True
+    assert len(_kernels.min_area_fill(p, forbidden)) == 0
+
+
+def _read(name):
+    import trimesh
+
+    tm = trimesh.load(BROKEN / name, force="mesh", process=False)
+    v, inv = np.unique(np.asarray(tm.vertices, float), axis=0, return_inverse=True)
+    f = inv.reshape(-1)[np.asarray(tm.faces, np.int64)]
+    return v, f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+
+
+def test_cube_without_its_bottom_closes_to_the_cube():
+    v, f = _read("cube_no_bottom.obj")
+    f2, rep = close_holes(v, f, name="cube")
+    assert _closed_problem(f2, v) == ""
+    assert rep.holes == 1 and rep.edges == [8] and rep.perimeters[0] == pytest.approx(8.0)
+    assert rep.added == 6 and len(f2) == len(f) + 6
+    import trimesh
+
+    tm = trimesh.Trimesh(v, f2, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent
+    assert abs(tm.volume) == pytest.approx(8.0, rel=1e-12)  # the 2 x 2 x 2 cube
+
+
+@pytest.mark.parametrize(
+    "name, holes",
+    [("newell_teapot_open.obj", 6), ("plane_holes.obj", 27), ("trimesh_teapot_open.stl", 6)],
+)
+def test_real_open_meshes_load_closed_with_a_warning(name, holes):
+    import manifold3d
+    import trimesh
+
+    with pytest.warns(LatticeWarning) as rec:
+        part = load_part(BROKEN / name, close_holes=True)
+    said = " | ".join(str(w.message) for w in rec)
+    assert f"{holes} hole(s) closed with " in said, said
+    tm = trimesh.Trimesh(part.vertices, part.faces, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent and tm.volume > 0
+    m = manifold3d.Manifold(
+        manifold3d.Mesh(
+            vert_properties=part.vertices.astype(np.float32),
+            tri_verts=part.faces.astype(np.uint32),
+        )
+    )
+    assert m.status() == manifold3d.Error.NoError
+    assert part.volume == pytest.approx(tm.volume, rel=1e-9)
+
+
+def test_open_mesh_error_says_how_to_close_it():
+    with pytest.raises(PartError, match=r"around 1 hole\(s\).*--close-holes"):
+        load_part(BROKEN / "cube_no_bottom.obj")
+    # non-manifold edges are no hole: refused as before, without the hint
+    with pytest.raises(PartError, match=r"non-manifold edge") as info:
+        load_part(BROKEN / "trimesh_wallhole_open.obj", close_holes=True)
+    assert "close-holes" not in str(info.value)
+
+
+def test_holes_touching_at_a_vertex_are_refused_naming_it():
+    # an octahedron without two faces that share only the vertex (0, 0, 1)
+    v = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    f = []
+    for k in range(4):
+        a, b = k, (k + 1) % 4
+        f += [[a, b, 4], [b, a, 5]]
+    f = np.array(f, dtype=np.int64)
+    keep = np.ones(len(f), dtype=bool)
+    keep[[0, 4]] = False  # faces (0, 1, top) and (2, 3, top)
+    with pytest.raises(PartError, match=r"holes touch at the vertex \(0, 0, 1\)"):
+        close_holes(v, f[keep], name="octahedron")
+    keep[[0, 4]] = [False, True]  # one hole: closes back to the octahedron
+    f2, rep = close_holes(v, f[keep], name="octahedron")
+    assert rep.holes == 1 and _closed_problem(f2, v) == ""
+
+
+def test_a_hole_larger_than_the_limit_is_refused(monkeypatch):
+    monkeypatch.setattr(config, "CLOSE_HOLES_MAX_EDGES", 7)
+    v, f = _read("cube_no_bottom.obj")
+    with pytest.raises(PartError, match=r"a hole of 8 edges at \(0, -1, 0\) is larger than the 7"):
+        close_holes(v, f, name="cube")
+
+
+def test_fill_closes_holes_from_the_command_line(capsys, tmp_path):
+    from lattice_cad.cli import main
+
+    out = tmp_path / "cube.stl"
+    argv = [str(BROKEN / "cube_no_bottom.obj"), "-o", str(out), "--cell-size", "1", "--radius"]
+    assert main(["fill", *argv, "0.1"]) == 1
+    assert "--close-holes" in capsys.readouterr().err and not out.exists()
+    assert main(["fill", *argv, "0.1", "--close-holes"]) == 0
+    err = capsys.readouterr().err
+    assert "1 hole(s) closed with 6 triangle(s); the largest has 8 edges, 8 mm around" in err
+    assert main(["check", str(out)]) == 0
+    import trimesh
+
+    tm = trimesh.load(out, force="mesh")
+    assert tm.is_watertight and tm.volume > 0
+    assert np.all(tm.bounds[0] >= -1 - 1e-6) and np.all(tm.bounds[1] <= 1 + 1e-6)
+    assert math.isclose(tm.extents.max(), 2.0, rel_tol=0.1)
