@@ -912,7 +912,11 @@ def _from_mesh_file(
                 )
         vol = _mesh_volume(v[fb])
         if vol == 0.0:
-            raise PartError(f"{path}: body {len(pieces)} encloses no volume")
+            x, y, z = v[np.unique(fb)].mean(axis=0)
+            raise PartError(
+                f"{path}: body {len(pieces)} ({len(fb)} triangle(s) about ({x:.4g}, {y:.4g}, "
+                f"{z:.4g})) encloses no volume: a sheet, not a solid"
+            )
         if vol < 0:
             fb = fb[:, ::-1]
             fixed = True

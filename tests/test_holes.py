@@ -126,6 +126,13 @@ def test_open_mesh_error_says_how_to_close_it():
     assert "close-holes" not in str(info.value)
 
 
+def test_a_triangle_soup_is_still_refused():
+    # each loose triangle closes to a sheet of two: no volume, refused naming where
+    with pytest.raises(PartError, match=r"body 0 \(2 triangle\(s\) about \(.*\)\) encloses no"):
+        with pytest.warns(LatticeWarning, match=r"100 hole\(s\) closed with 100 triangle"):
+            load_part(BROKEN / "trimesh_soup.stl", close_holes=True)
+
+
 def test_holes_touching_at_a_vertex_are_refused_naming_it():
     # an octahedron without two faces that share only the vertex (0, 0, 1)
     v = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
