@@ -821,6 +821,15 @@ def soups_within(tri, box, start, items, origin, h, dims, v, soup, soup_start, e
     return out
 
 
+@njit(cache=True, inline="always")
+def _area(p, i, k, j):
+    """Area of the triangle of rows ``i, k, j`` of ``p`` (n, 3)."""
+    u0, u1, u2 = p[k, 0] - p[i, 0], p[k, 1] - p[i, 1], p[k, 2] - p[i, 2]
+    w0, w1, w2 = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
+    c0, c1, c2 = u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
+    return 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
 @njit(cache=True)
 def min_area_fill(p, forbidden):
     """A minimal-area triangulation of a closed polygon (a hole's boundary loop).
@@ -847,16 +856,7 @@ def min_area_fill(p, forbidden):
                 c = w[i, k] + w[k, j]
                 if c >= best:
                     continue
-                ux = p[k, 0] - p[i, 0]
-                uy = p[k, 1] - p[i, 1]
-                uz = p[k, 2] - p[i, 2]
-                vx = p[j, 0] - p[i, 0]
-                vy = p[j, 1] - p[i, 1]
-                vz = p[j, 2] - p[i, 2]
-                cx = uy * vz - uz * vy
-                cy = uz * vx - ux * vz
-                cz = ux * vy - uy * vx
-                c += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+                c += _area(p, i, k, j)
                 if c < best:
                     best = c
                     bk = k
