@@ -459,9 +459,9 @@ def load_part(
         in-memory CAD shape (taken to be in millimetres).
     units : str or float, optional
         Unit of a *mesh* file (``"mm"``, ``"cm"``, ``"m"``, ``"in"``, ...) or
-        millimetres per file unit. Meshes default to millimetres. STEP files
-        declare their unit and are always converted to millimetres; passing
-        ``units`` for a STEP file or shape is an error.
+        millimetres per file unit. Meshes default to millimetres. STEP and 3MF
+        files declare their unit and are always converted to millimetres; passing
+        ``units`` for one of them or for a shape is an error.
     deflection : float, optional
         Largest distance between the exact CAD surface and its triangle mesh
         (default ``1e-3`` of the bounding-box diagonal).
@@ -521,6 +521,11 @@ def load_part(
                 )
             return _from_shape(shape, str(path), deflection, angular_deflection, measure=True)
         if suffix in _MESH_SUFFIXES:
+            if suffix == ".3mf" and units is not None:
+                raise ValueError(
+                    f"{path.name}: 3MF files declare their own unit (converted to mm); "
+                    "do not pass units="
+                )
             return _from_mesh_file(
                 path, _unit_scale(units), unit_given=units is not None, close_holes=close_holes
             )

@@ -152,6 +152,20 @@ def test_mesh_units_override():
         load_part(DATA / "step" / "kcl_bracket.step", units="mm")
 
 
+def test_mesh_units_are_refused_for_3mf(tmp_path):
+    import trimesh
+
+    from lattice_cad import io
+    from lattice_cad.core.mesh import Mesh
+
+    box = trimesh.creation.box((2.0, 3.0, 4.0))
+    path = tmp_path / "box.3mf"
+    io.save_mesh(Mesh(vertices=np.asarray(box.vertices), faces=np.asarray(box.faces)), path)
+    np.testing.assert_allclose(load_part(path).size, [2.0, 3.0, 4.0], atol=1e-6)
+    with pytest.raises(ValueError, match="3MF files declare their own unit"):
+        load_part(path, units="in")
+
+
 # ------------------------------------------------------------ in memory
 def test_cadquery_and_build123d_shapes(box):
     import build123d as bd
