@@ -317,6 +317,12 @@ class PendingOffsets:
     part: Any
     thickness: float
     mid_wall: bool
+    #: ``time.monotonic()`` when the offsets were started
+    started: float = field(default_factory=time.monotonic)
+
+    def remaining(self) -> float:
+        """Seconds left of ``config.OFFSET_TIMEOUT`` (counted from the start; at least 1)."""
+        return max(1.0, config.OFFSET_TIMEOUT - (time.monotonic() - self.started))
 
 
 def _offset_depths(thickness: float, mid_wall: bool) -> tuple[float, ...]:
@@ -395,7 +401,8 @@ def _occt_surfaces(
     dists = _offset_depths(thickness, mid_wall)
     out = [manifold3d.Manifold() for _ in dists]
     # volumes and meshes come from the child (meshed there, while this process stitched)
-    for k, (vols, meshes) in enumerate(occ.fused_offsets_result(pending.worker)):
+    results = occ.fused_offsets_result(pending.worker, timeout=pending.remaining())
+    for k, (vols, meshes) in enumerate(results):
         if meshes is None:
             bad = next(d for d, v in zip(dists, vols[1:], strict=True) if not 0.0 < v < vols[0])
             raise OCCTFailure(f"solid {k}: the offset by {-bad:g} is not inside the solid")

@@ -171,6 +171,35 @@ def test_voxel_surfaces_begun_while_occt_computes_are_the_same(polls, monkeypatc
     np.testing.assert_allclose(hi - lo, np.array([12.0, 9.0, 7.0]) - 2 * t, atol=0.02 * t)
 
 
+def test_offsets_get_their_time_from_their_start_not_from_when_they_are_waited_for(
+    monkeypatch,
+):
+    """OCCT's offsets run beside the lattice build: their budget (config.OFFSET_TIMEOUT)
+    counts from their start, so a lattice that took long to build does not add its own
+    time to the wait (a threaded bolt's offset ran past 120 s after a 50 s build: 181 s)."""
+    import time
+
+    from lattice_cad.core import config
+    from lattice_cad.core.isolate import IsolatedWorker
+
+    monkeypatch.setattr(config, "OFFSET_TIMEOUT", 3.0)
+    mesh = trimesh.creation.box(extents=(12.0, 9.0, 7.0))
+    part = Part(mesh.vertices, mesh.faces, name="box", shape=["not used"])
+    worker = IsolatedWorker()
+    try:
+        worker.submit(time.sleep, 60.0)  # an offset that never ends
+        pending = skin.PendingOffsets(worker, part, 1.5, False)
+        time.sleep(2.5)  # the lattice build, meanwhile
+        t0 = time.monotonic()
+        _, used, fallback, _ = skin._surfaces(part, 1.5, "auto", 0.5, False, pending)
+        waited = time.monotonic() - t0
+    finally:
+        worker.close()
+    assert used == "voxel" and "did not finish within" in fallback, fallback
+    assert waited < 2.9, waited  # 0.5 s of budget left (at least 1 s), not 3 s more
+    assert pending.remaining() == 1.0
+
+
 @pytest.mark.filterwarnings("ignore:.*solids were united")
 def test_early_offsets_serve_the_refined_part():
     """Lattice starts OCCT's offsets for the loaded part and cuts by its finer

@@ -176,6 +176,12 @@ VOXELS_PER_THICKNESS = 3.0
 #: Default escape-hole diameter (mm) when only hole positions are given.
 ESCAPE_DIAMETER = 2.0
 
+#: Seconds OCCT's offsets of a skin may take, counted from their start (they run in a
+#: child beside the lattice build and the voxel surfaces); then the voxel surfaces are used
+#: and the report says why. Successful offsets of the shared parts take 2-35 s (the
+#: cycloidal gear, split to C1 faces, the longest); a threaded bolt's ran past 120 s.
+OFFSET_TIMEOUT = 60.0
+
 
 # ------------------------------------------------------------ Keep-solid zones (conformal.keep)
 
