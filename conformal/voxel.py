@@ -94,6 +94,9 @@ class BuildReport:
     removed_unstitchable: int = 0
     bodies: int = 0
     fill: str = ""
+    #: the grid was moved to put a node at the part's deepest point (clip or conform, when
+    #: the grid as placed left no strut in a thin part)
+    origin_moved: bool = False
     radii_reduced: int = 0
     min_radius: float = float("nan")
     seconds: dict[str, float] = field(default_factory=dict)
@@ -405,8 +408,22 @@ def voxel_lattice(
             min_strut=min_strut, prune=prune, min_radius=min_radius, fit=fit,
             return_report=return_report, segments=segments, profile=profile,
         )  # fmt: skip
+    if not len(edges) and fill in ("clip", "conform") and origin is None:
+        # a part thinner than the cells (a rod) can lie between the grid's nodes, so that
+        # no strut has an end inside it: the grid moved to put a node at its deepest point
+        shifted = _origin_at_deepest(local, c, h)
+        if shifted is not None:
+            graph, moved = voxel_lattice(
+                part, c, h, radius, fill=fill, origin=shifted, rotation=rotation,
+                min_strut=min_strut, prune=prune, min_radius=min_radius, fit=fit,
+                return_report=True, segments=segments, profile=profile,
+            )  # fmt: skip
+            moved.origin_moved = True
+            return (graph, moved) if return_report else graph
     if not len(edges):
-        raise _nothing_fits(part, h, radius, f"no strut of {_mm(h)} cells is left inside")
+        raise _nothing_fits(
+            part, h, radius, f"no strut of {_mm(h)} cells is left inside", fill=fill
+        )
     if rot is not None:
         nodes = nodes @ rot.T
     t0 = time.perf_counter()
@@ -488,8 +505,27 @@ def _mm(h: NDArray[np.float64]) -> str:
     return "x".join(f"{x:.4g}" for x in h) + " mm" if np.ptp(h) > 0 else f"{h[0]:.4g} mm"
 
 
-def _nothing_fits(part: Part, h: NDArray[np.float64], radius: RadiusSpec, what: str) -> FillError:
-    """A :class:`FillError` that says what would fit the part."""
+def _origin_at_deepest(
+    part: Part, c: UnitCell, h: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """A grid origin (3,) that puts the cell's most connected node (the one nearest the
+    cell's centre among them) at the part's deepest grid point, or None (no point inside)."""
+    grid = part._depth_grid(96)
+    if grid is None:
+        return None
+    o, step, depth = grid
+    deep = o + np.array(np.unravel_index(int(np.argmax(depth)), depth.shape)) * step
+    frac = np.asarray(c.nodes, dtype=np.float64) / c.denominator
+    valence = np.bincount(np.asarray(c.edges).ravel(), minlength=len(frac))
+    best = np.flatnonzero(valence == valence.max())
+    k = best[np.argmin(np.linalg.norm(frac[best] - 0.5, axis=1))]
+    return np.asarray(deep - frac[k] * h, dtype=np.float64)
+
+
+def _nothing_fits(
+    part: Part, h: NDArray[np.float64], radius: RadiusSpec, what: str, *, fill: str = "inside"
+) -> FillError:
+    """A :class:`FillError` that says what would fit the part (``fill``: the fill tried)."""
     r_in = part.inscribed_radius()
     thick = 2.0 * r_in
     # a whole cube of edge c fits in a ball of radius c sqrt(3) / 2
@@ -500,6 +536,13 @@ def _nothing_fits(part: Part, h: NDArray[np.float64], radius: RadiusSpec, what: 
         "whole, and fill='conform' fills it with any cell size (fill='clip' too, but cells "
         "much thicker than the part fall apart into pieces, of which it keeps the largest)"
     )
+    if fill in ("clip", "conform"):
+        hint = (
+            f"its greatest thickness is about {thick:.3g} mm, and no strut of these cells "
+            f"keeps an end inside it even with a node at its deepest point: use smaller "
+            f"cells (about {thick:.3g} mm or less) or another cell (bcc has a node at each "
+            "cell's centre)"
+        )
     if r == r and 2 * r >= thick:
         hint = (
             f"its greatest thickness is about {thick:.3g} mm, too thin for struts of radius "

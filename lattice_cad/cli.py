@@ -339,6 +339,8 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     rep = lat.build_report
     if rep is not None:
         notes = [f"fill {rep.fill}"] if rep.fill else []
+        if rep.origin_moved:
+            notes.append("grid moved to put a node at the part's deepest point")
         if rep.removed_islands:
             notes.append(f"{rep.removed_islands} strut(s) in loose pieces removed")
         if rep.merged_nodes or rep.removed_short:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -288,6 +289,35 @@ def test_nothing_fits_says_what_would():
         voxel_lattice(part, "bcc", 15.0, 1.27, fill="inside")
     with pytest.raises(FillError, match=r"cells up to about \d\.\d+ mm fit whole"):
         voxel_lattice(part, "bcc", 15.0, 0.3, fill="inside")
+
+
+def test_conform_moves_the_grid_when_a_thin_rod_lies_between_its_nodes():
+    """Regression (a 200 x 4 x 4 mm rod made for bench_parts --data outside shared/data):
+    Kelvin cells of 13.3 mm conformed to it kept no strut (none had an end inside the
+    rod, which lay between the grid's nodes), and the error advised fill='conform', the
+    fill that failed. The grid is now moved to put a node at the rod's deepest point."""
+    import cadquery as cq
+
+    from conformal import load_part, voxel_lattice
+    from conformal.voxel import _nothing_fits
+
+    part = load_part(cq.Workplane().box(200.0, 4.0, 4.0))
+    cell = 200.0 / 15
+    with pytest.warns(LatticeWarning) as rec:
+        g, rep = voxel_lattice(part, "kelvin", cell, cell / 12, fill="conform", return_report=True)
+    assert any("loose piece" in str(w.message) for w in rec)
+    assert rep.origin_moved and rep.fill == "conform" and g.num_edges > 0
+    tol = 1e-9 * 200.0
+    assert np.all(part.contains(g.nodes) | (part.distance(g.nodes) <= tol))
+    # a grid that already keeps struts is not moved
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)  # thinned struts (as before)
+        g2, rep2 = voxel_lattice(part, "bcc", cell, cell / 12, fill="conform", return_report=True)
+    assert not rep2.origin_moved and g2.num_edges > 0
+    # when nothing is left even so, a clip or conform fill is not told to conform
+    msg = str(_nothing_fits(part, np.full(3, cell), 0.3, "no strut", fill="conform"))
+    assert "fill='conform'" not in msg
+    assert re.search(r"use smaller cells \(about 3\.\d+ mm or less\) or another cell", msg)
 
 
 def test_islands_are_removed_one_body_per_solid():
