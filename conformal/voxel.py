@@ -413,11 +413,13 @@ def voxel_lattice(
         # no strut has an end inside it: the grid moved to put a node at its deepest point
         shifted = _origin_at_deepest(local, c, h)
         if shifted is not None:
-            graph, moved = voxel_lattice(
+            again = voxel_lattice(
                 part, c, h, radius, fill=fill, origin=shifted, rotation=rotation,
                 min_strut=min_strut, prune=prune, min_radius=min_radius, fit=fit,
                 return_report=True, segments=segments, profile=profile,
             )  # fmt: skip
+            assert isinstance(again, tuple)
+            graph, moved = again
             moved.origin_moved = True
             return (graph, moved) if return_report else graph
     if not len(edges):
