@@ -36,7 +36,7 @@ from conformal.radius import (
 from conformal.voxel import BuildReport, FitMode, _finish
 from lattice_cad.core import config
 from lattice_cad.core.arrays import unique_rows
-from lattice_cad.core.errors import ExternalCrash, LatticeWarning
+from lattice_cad.core.errors import ExternalCrash, ExternalTimeout, LatticeWarning
 from lattice_cad.core.graph import LatticeGraph
 from lattice_cad.core.isolate import run_isolated
 from lattice_cad.core.mesh import signed_volume
@@ -53,7 +53,7 @@ def tet_mesh(
     *,
     algorithm: Algorithm = "hxt",
     surface_angle: float = 40.0,
-    timeout: float = 600.0,
+    timeout: float | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """A tetrahedral mesh of ``part`` with gmsh.
 
@@ -73,9 +73,12 @@ def tet_mesh(
         re-parametrised, then as it is; then 20 and 10 degrees, then the part's own
         triangles as the boundary. A surface of several closed shells is meshed one solid
         (an outer shell with its cavities) at a time.
-    timeout : float
-        Seconds one gmsh attempt may take. Each runs in a child process: a crash or a
-        hang of gmsh moves on to the next attempt instead of ending the caller.
+    timeout : float, optional
+        Seconds one gmsh attempt may take (default ``config.TET_ATTEMPT_SECONDS`` plus one
+        second per ``config.TET_ATTEMPT_RATE`` tetrahedra expected of the part's volume).
+        Each runs in a child process: a crash or a hang of gmsh moves on to the next
+        attempt instead of ending the caller; after a hang, the next surface (a hang is
+        most often in the surface mesh, which the other 3-D algorithms would mesh again).
 
     Returns
     -------
@@ -110,6 +113,9 @@ def tet_mesh(
         # the exact B-rep first; when gmsh cannot mesh it (e.g. overlapping surface meshes of
         # close faces, NIST CTC-02), the part's own closed triangulation as for a mesh part
         surfaces = [("brep", "brep", 0.0), *surfaces]
+    if timeout is None:
+        expected = 2.0 * abs(part.volume) / (size**3 / (6.0 * math.sqrt(2.0)))
+        timeout = config.TET_ATTEMPT_SECONDS + expected / config.TET_ATTEMPT_RATE
     failures: list[str] = []
     inputs = _GmshInputs(part, size)
     label = {"brep": "B-rep", "surface": "surface", "resampled": "resampled surface"}
@@ -139,7 +145,10 @@ def tet_mesh(
                             )
                         )
                         break
-                    except ExternalCrash as exc:  # gmsh itself died or hung: the next way
+                    except ExternalTimeout as exc:  # hung: the next surface, not algorithm
+                        failures.append(str(exc))
+                        break
+                    except ExternalCrash as exc:  # gmsh itself died: the next way
                         failures.append(str(exc))
                     except _GmshFailure as exc:
                         failures.append(f"{what}{piece}, {algo}: {exc}")

@@ -108,6 +108,35 @@ def test_gmsh_failure_is_parterror(cyl, monkeypatch):
     assert not gmsh.isInitialized()
 
 
+def test_a_hung_gmsh_moves_on_to_the_next_surface(cyl, monkeypatch):
+    """Regression (a lofted three-blade fan made for bench_parts --data): gmsh hung on its
+    B-rep with all three 3-D algorithms, 600 s each, so the fill timed out; the meshed
+    resampled surface takes seconds. A hang now moves on to the next surface at once, and
+    one attempt gets config.TET_ATTEMPT_SECONDS plus time for the tetrahedra expected."""
+    import conformal.tet
+    from lattice_cad.core import config
+    from lattice_cad.core.errors import ExternalTimeout
+
+    tried = []
+
+    def fake(fn, source, size, how, angle, algo, *, timeout, what):
+        tried.append((how, algo, timeout))
+        if how == "brep":
+            raise ExternalTimeout(f"{what} did not finish within {timeout:g} s")
+        return fn(source, size, how, angle, algo)
+
+    monkeypatch.setattr(conformal.tet, "run_isolated", fake)
+    with pytest.warns(LatticeWarning, match=r"gmsh could not mesh the B-rep \(gmsh \(B-rep, hxt\) "
+                      r"did not finish within"):  # fmt: skip
+        nodes, tets = tet_mesh(cyl, 5.0)
+    assert len(tets) > 0
+    assert [t[:2] for t in tried] == [("brep", "hxt"), ("reparametrized", "hxt")]
+    expected = 2 * cyl.volume / (5.0**3 / (6 * np.sqrt(2)))
+    assert tried[0][2] == pytest.approx(
+        config.TET_ATTEMPT_SECONDS + expected / config.TET_ATTEMPT_RATE
+    )
+
+
 def test_bad_size(cyl):
     with pytest.raises(ValueError, match="size"):
         tet_lattice(cyl, -1.0)

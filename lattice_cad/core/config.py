@@ -383,6 +383,12 @@ CHORD_CONTROL = 1.5
 #: the tet lattice's graph repair aims to keep every strut above it (issue 11: thinning a
 #: strut to a tenth is not a fix), and the voxel fills count theirs the same way.
 THIN_TOLERANCE = 0.7
+#: Seconds one gmsh attempt of a tet lattice may take (conformal.tet_mesh), plus one second
+#: per TET_ATTEMPT_RATE tetrahedra expected (twice the part's volume over a regular tet's
+#: of the size asked): the shared parts' attempts that succeed take 1-23 s; a lofted fan's
+#: B-rep hung in all three 3-D algorithms (600 s each, before).
+TET_ATTEMPT_SECONDS = 120.0
+TET_ATTEMPT_RATE = 2000.0
 
 #: Before several solids of a part are united, their tessellations are rounded to a common
 #: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):

@@ -65,6 +65,7 @@ __all__ = [
     "ToleranceError",
     "OCCTFailure",
     "ExternalCrash",
+    "ExternalTimeout",
     "ReferenceBuildError",
     "DirtyLatticeError",
     "InsufficientMemoryError",
@@ -173,6 +174,10 @@ class OCCTFailure(LatticeError, RuntimeError):
 
 class ExternalCrash(LatticeError, RuntimeError):
     """OpenCascade or gmsh crashed or hung in a child process (the caller's process lives)."""
+
+
+class ExternalTimeout(ExternalCrash):
+    """OpenCascade or gmsh did not finish within its time in a child process (killed)."""
 
 
 class InsufficientMemoryError(LatticeError, MemoryError):

@@ -11,7 +11,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
-from lattice_cad.core.errors import ExternalCrash
+from lattice_cad.core.errors import ExternalCrash, ExternalTimeout
 
 __all__ = ["run_isolated", "IsolatedWorker"]
 
@@ -41,7 +41,7 @@ def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) ->
         try:
             return future.result(timeout=timeout)
         except FutureTimeout:
-            raise ExternalCrash(f"{what} did not finish within {timeout:g} s") from None
+            raise ExternalTimeout(f"{what} did not finish within {timeout:g} s") from None
         except BrokenProcessPool:
             raise ExternalCrash(f"{what} crashed (the child process died)") from None
     finally:
@@ -110,7 +110,7 @@ class IsolatedWorker:
         try:
             return self._future.result(timeout=timeout)
         except FutureTimeout:
-            raise ExternalCrash(f"{what} did not finish within {timeout:g} s") from None
+            raise ExternalTimeout(f"{what} did not finish within {timeout:g} s") from None
         except BrokenProcessPool:
             raise ExternalCrash(f"{what} crashed (the child process died)") from None
         finally:
