@@ -401,7 +401,9 @@ def _occt_surfaces(
     dists = _offset_depths(thickness, mid_wall)
     out = [manifold3d.Manifold() for _ in dists]
     # volumes and meshes come from the child (meshed there, while this process stitched)
-    results = occ.fused_offsets_result(pending.worker, timeout=pending.remaining())
+    results = occ.fused_offsets_result(
+        pending.worker, timeout=pending.remaining(), budget=config.OFFSET_TIMEOUT
+    )
     for k, (vols, meshes) in enumerate(results):
         if meshes is None:
             bad = next(d for d, v in zip(dists, vols[1:], strict=True) if not 0.0 < v < vols[0])

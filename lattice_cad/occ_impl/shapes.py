@@ -651,21 +651,28 @@ def start_fused_offsets(
 
 
 def fused_offsets_result(
-    worker: Any, *, timeout: float = 120.0
+    worker: Any, *, timeout: float = 120.0, budget: float | None = None
 ) -> list[tuple[list[float], list[tuple[NDArray[np.float64], NDArray[np.int64]]] | None]]:
     """Per fused solid of :func:`start_fused_offsets`: the volumes of the solid and of its
     offsets, and the offsets' meshes (vertices (V, 3) float64, faces (F, 3) int64; None
-    when an offset's volume is not between 0 and its solid's).
+    when an offset's volume is not between 0 and its solid's). ``budget``: the seconds
+    the offsets were given in all (named when they time out; ``timeout`` is what is left).
 
     Raises
     ------
     OCCTFailure
         An offset failed, or the child crashed or timed out.
     """
-    from lattice_cad.core.errors import ExternalCrash
+    from lattice_cad.core.errors import ExternalCrash, ExternalTimeout
 
     try:
         return worker.result(timeout=timeout, what="OCCT's offset")
+    except ExternalTimeout as exc:
+        if budget is None:
+            raise OCCTFailure(str(exc)) from None
+        raise OCCTFailure(
+            f"OCCT's offset did not finish within {budget:g} s of its start"
+        ) from None
     except ExternalCrash as exc:
         raise OCCTFailure(str(exc)) from None
 
