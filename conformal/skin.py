@@ -404,6 +404,7 @@ def _occt_surfaces(
     results = occ.fused_offsets_result(
         pending.worker, timeout=pending.remaining(), budget=config.OFFSET_TIMEOUT
     )
+    _check_inset_volume(part, thickness, sum(vols[1] for vols, _ in results))
     for k, (vols, meshes) in enumerate(results):
         if meshes is None:
             bad = next(d for d, v in zip(dists, vols[1:], strict=True) if not 0.0 < v < vols[0])
@@ -423,6 +424,32 @@ def _occt_surfaces(
         pieces = [_manifold(v, f, f"solid {k} (offset)") for v, f in meshes]
         out = [a + b for a, b in zip(out, pieces, strict=True)]
     return (part_solid(part), *out)
+
+
+def _check_inset_volume(part: Any, thickness: float, inset: float) -> None:
+    """Refuse OCCT's offsets when their volume (``inset``, mm^3, all solids) is not about
+    what the part's distance field holds deeper than ``thickness``.
+
+    OCCT can return a valid solid that is the offset of a piece of the part only (a box
+    with filleted edges united with a block: the block's inset alone, 702 of the 7,300
+    mm^3 expected); each of its vertices lies at the right depth, so the per-vertex check
+    passes, and the skin would leave the rest of the part solid. The distance transform of
+    :meth:`Part.inscribed_radius`'s grid (spacing ``h``) gives the volume deeper than
+    ``thickness`` to within about one grid layer of the inset's surface, at most the
+    part's area times ``h``: a difference of more than twice that is not an offset.
+    """
+    grid = part._depth_grid(96)
+    if grid is None or not math.isfinite(inset):
+        return
+    _, h, depth = grid
+    expected = float(np.count_nonzero(depth > thickness)) * h**3
+    slack = 2.0 * float(part.area) * h
+    if abs(inset - expected) > slack:
+        raise OCCTFailure(
+            f"the offset by {-thickness:g} holds {inset:.4g} mm^3, where the part's distance "
+            f"field has about {expected:.4g} mm^3 (+- {slack:.3g}) deeper than {thickness:g} "
+            "mm: OCCT offset a piece of the part only"
+        )
 
 
 # ---------------------------------------------------------------- voxel field

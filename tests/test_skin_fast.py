@@ -212,6 +212,25 @@ def test_offsets_get_their_time_from_their_start_not_from_when_they_are_waited_f
     assert pending.remaining() == 1.0
 
 
+def test_an_offset_of_a_piece_of_the_part_is_refused():
+    """Regression (a 3 mm clip made for bench_parts --data outside shared/data): OCCT's
+    offset of a box with filleted edges united with a block is a valid solid, the block's
+    inset alone (702 of ~7,100 mm^3), every vertex at the right depth: it was taken, and
+    the skinned part stayed solid (relative density 0.93). The inset's volume is now
+    checked against the part's distance field; the skin falls back to the voxel surfaces."""
+    import cadquery as cq
+
+    box = cq.Workplane("XY").box(30, 20, 12).edges("|Z").fillet(1.5)
+    ear = cq.Workplane("XY").box(4, 20, 12).translate((17, 0, 6))
+    part = load_part(box.union(ear))
+    said = r"holds 702\.\d mm\^3, where the part's distance field has about 7\d{3} mm\^3 "
+    with pytest.raises(OCCTFailure, match=said + r".* OCCT offset a piece of the part only"):
+        skin._occt_surfaces(part, 0.377778)
+    # a whole offset passes: the same box without the block
+    surfaces = skin._occt_surfaces(load_part(box), 0.377778)
+    assert len(surfaces) == 2 and surfaces[1].volume() > 0.8 * (27 * 17 * 11.2)
+
+
 @pytest.mark.filterwarnings("ignore:.*solids were united")
 def test_early_offsets_serve_the_refined_part():
     """Lattice starts OCCT's offsets for the loaded part and cuts by its finer
