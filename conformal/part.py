@@ -744,10 +744,11 @@ def _closed_tessellation(
                 vv, ff, kept = v, f, np.ones(len(f), dtype=bool)
             else:
                 vv, ff, kept = _occ.merge_close(v, f, tol)
-            problem = _closed_problem(ff, vv)
+            problem = _closed_problem(ff)
             if not problem:
                 dev = _deviation_bound(shape) if measure else None
                 return vv, ff, report, dev
+        problem = _closed_problem(ff, vv)  # where, for the message (not in every trial)
         faces_at = np.unique(owner[kept][_open_triangles(ff)])
         if patch is not None and split is not None:
             split[k] = None  # the patches' mesh did not close: the next call meshes it whole

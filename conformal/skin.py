@@ -404,7 +404,8 @@ def _occt_surfaces(
     results = occ.fused_offsets_result(
         pending.worker, timeout=pending.remaining(), budget=config.OFFSET_TIMEOUT
     )
-    _check_inset_volume(part, thickness, sum(vols[1] for vols, _ in results))
+    if all(meshes is not None for _, meshes in results):  # else the loop says which solid
+        _check_inset_volume(part, thickness, sum(vols[1] for vols, _ in results))
     for k, (vols, meshes) in enumerate(results):
         if meshes is None:
             bad = next(d for d, v in zip(dists, vols[1:], strict=True) if not 0.0 < v < vols[0])
