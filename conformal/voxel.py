@@ -511,12 +511,11 @@ def _origin_at_deepest(
     part: Part, c: UnitCell, h: NDArray[np.float64]
 ) -> NDArray[np.float64] | None:
     """A grid origin (3,) that puts the cell's most connected node (the one nearest the
-    cell's centre among them) at the part's deepest grid point, or None (no point inside)."""
-    grid = part._depth_grid(96)
-    if grid is None:
+    cell's centre among them) at the part's deepest point (:meth:`Part.deepest_point`), or
+    None (no point inside)."""
+    deep, r_in = part.deepest_point()
+    if not r_in > 0:
         return None
-    o, step, depth = grid
-    deep = o + np.array(np.unravel_index(int(np.argmax(depth)), depth.shape)) * step
     frac = np.asarray(c.nodes, dtype=np.float64) / c.denominator
     valence = np.bincount(np.asarray(c.edges).ravel(), minlength=len(frac))
     best = np.flatnonzero(valence == valence.max())

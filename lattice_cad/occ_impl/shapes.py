@@ -250,15 +250,16 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         except Exception as exc:  # OCCT raises Standard_Failure as RuntimeError & co
             why.append(f"finding the faces whose offset vanishes: {type(exc).__name__}: {exc}")
             sets = [[], []]
-        for vanish in sets:
-            if not vanish or len(vanish) in tried:
+        too_many: list[str] = []  # one phrase for both sets (the message repeated itself)
+        for k, vanish in enumerate(sets):
+            if not vanish or len(vanish) in tried:  # (the same set again)
                 continue
+            tried.append(len(vanish))
             if len(vanish) > max(8, MAX_REMOVED_FRACTION * count(solid, TopAbs_FACE)):
                 # not small features: a defeaturing of that many faces can run for
                 # minutes (NIST CTC-02: 69 faces) and changes the part
-                why.append(f"{len(vanish)} faces' offsets vanish: too many to remove")
+                too_many.append(f"{len(vanish)}" + (" (with those barely reaching)" if k else ""))
                 continue
-            tried.append(len(vanish))
             trimmed = _without_faces(solid, vanish)
             if trimmed is None:
                 why.append(f"removing the {len(vanish)} face(s) whose offset vanishes failed")
@@ -266,6 +267,8 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
             got = _offset_ways(trimmed, distance, tol, why, f", {len(vanish)} face(s) removed")
             if got is not None:
                 return got
+        if too_many:
+            why.append(f"{' or '.join(too_many)} faces' offsets vanish: too many to remove")
     got = _offset_ways(solid, distance, tol, why, "")
     if got is not None:
         return got
