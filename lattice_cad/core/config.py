@@ -390,6 +390,13 @@ THIN_TOLERANCE = 0.7
 TET_ATTEMPT_SECONDS = 120.0
 TET_ATTEMPT_RATE = 2000.0
 
+#: Fewest nodes gmsh puts on a B-rep circle (on an arc in proportion to its angle), and
+#: on any other curve, for the tet method (gmsh's defaults: 7 and 3). At gmsh's defaults
+#: a small fillet's or hole's edges carry nodes a fraction of the size asked apart, and
+#: the struts between them must be thinned far below the radius asked.
+TET_MIN_CIRCLE_POINTS = 3
+TET_MIN_CURVE_POINTS = 2
+
 #: Before several solids of a part are united, their tessellations are rounded to a common
 #: grid of this fraction of the largest coordinate (a power of two, so the rounding is exact):
 #: solids that touch come out of their separate tessellations a float64 ulp or two apart, and
