@@ -121,12 +121,15 @@ def test_tet_lattice_of_the_seeds_table5_case_stitches():
     thinning any strut below 0.7 of the radius."""
     part = _part("step/dolfiny_ge_bracket_rotated_nonds.step")
     # the default profile polygons (profile="volume") are 10 % wider than the circle, so
-    # the fit is stricter than when this case was first fixed: a few struts (22 of ~35K)
-    # are thinned beyond 0.7 r, and the builder says so
-    with pytest.warns(LatticeWarning, match="thinner than 0.7 x the radius"):
+    # the fit is stricter than when this case was first fixed: a few struts (22-24 of ~31K)
+    # were thinned beyond 0.7 r, at nodes gmsh crowded on the bracket's small arcs; since it
+    # meshes circles with its fewest nodes (config.TET_MIN_CIRCLE_POINTS), none is
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LatticeWarning)
         g, rep = tet_lattice(part, size=5.0, radius=0.25, return_report=True)
     assert 4500 <= g.num_nodes <= 7000 and 27000 <= g.num_edges <= 40000, g
-    assert rep.thinned_beyond_tolerance <= 0.002 * g.num_edges
+    assert rep.thinned_beyond_tolerance == 0
+    assert not [w for w in caught if "thinner than 0.7 x the radius" in str(w.message)]
     assert rep.merged_nodes + rep.removed_short > 0  # the repair did something, and says so
     mesh = fast_stitch.stitch(g, segments=6)
     assert fast_stitch.check(mesh, self_intersections=False).valid
