@@ -18,10 +18,12 @@ missing: a hole in a flat or gently curved region closes as the region would; a 
 opening (the bottom of a scanned bust) closes with a flat-ish lid. The closed mesh is
 checked again like any other part (closed, 2-manifold, consistently oriented), but a patch
 is not kept from crossing the rest of the surface: where a rim lies inside another body
-(the open ends of the teapots' spouts and handles in ``shared/data/broken``) its patch
-does, and the union of the bodies removes it; a patch folding through its own body (the
-bunny's largest hole: 2 face pairs) leaves the inside ambiguous there. What is written is
-checked in full as always.
+its patch does, and the union of the bodies removes it; a patch that crosses its own body
+(a teapot's handle end entering the body, or a patch folding through it: the bunny's hole
+at (13.9, 35.3, 12.4), 2 face pairs) leaves the inside there to the winding number, which
+can take in or leave out a sliver. Those are found (``fast_stitch.check``'s exact
+intersection test on each patch and its body's faces near it) and the warning names them
+(``HoleReport.crossing``). What is written is checked in full as always.
 """
 
 from __future__ import annotations
@@ -62,17 +64,32 @@ class HoleReport:
     edges: list[int] = field(default_factory=list)
     perimeters: list[float] = field(default_factory=list)
     centres: list[tuple[float, float, float]] = field(default_factory=list)
+    #: (pairs, centre) of each hole whose patch crosses the rest of the mesh: the number of
+    #: face pairs that intersect (a patch face with any other face, by
+    #: ``fast_stitch.check``), and the hole's centre; largest first
+    crossing: list[tuple[int, tuple[float, float, float]]] = field(default_factory=list)
 
     def summary(self) -> str:
-        """One line: how many holes, and the largest with where it is."""
+        """One line: how many holes, the largest with where it is, and the patches that
+        cross the surface."""
         if not self.holes:
             return "no holes"
         x, y, z = self.centres[0]
-        return (
+        out = (
             f"{self.holes} hole(s) closed with {self.added} triangle(s); the largest has "
             f"{self.edges[0]} edges, {self.perimeters[0]:.4g} mm around, at "
             f"({x:.4g}, {y:.4g}, {z:.4g})"
         )
+        if self.crossing:
+            pairs, (x, y, z) = self.crossing[0]
+            out += (
+                f"; the patch of {len(self.crossing)} hole(s) crosses the surface (the "
+                f"most: {pairs} face pair(s), hole at ({x:.4g}, {y:.4g}, {z:.4g})): the "
+                "inside is then where the surface winds around a point (nonzero winding), "
+                "which can take in or leave out a sliver where they cross; look there, or "
+                "close that hole in a mesh editor"
+            )
+        return out
 
 
 def _boundary_loops(f: NDArray[np.int64], v: NDArray[np.float64], name: str) -> list[list[int]]:
@@ -177,10 +194,60 @@ def close_holes(
         added.append(ids[tri])
         perimeter = float(np.linalg.norm(v[np.roll(ids, -1)] - v[ids], axis=1).sum())
         rows.append((n, perimeter, (float(x), float(y), float(z))))
+    crossing = _crossings(v, f, added)
     order = sorted(range(len(rows)), key=lambda k: (-rows[k][0], -rows[k][1]))
     report.holes = len(loops)
     report.added = int(sum(len(a) for a in added))
     report.edges = [rows[k][0] for k in order]
     report.perimeters = [rows[k][1] for k in order]
     report.centres = [rows[k][2] for k in order]
+    report.crossing = sorted(
+        ((n, rows[k][2]) for k, n in enumerate(crossing) if n), key=lambda c: -c[0]
+    )
     return np.vstack([f, *added]), report
+
+
+def _crossings(
+    v: NDArray[np.float64], f: NDArray[np.int64], patches: list[NDArray[np.int64]]
+) -> list[int]:
+    """For each patch ((P_k, 3) int64 triangles of ``v``), the number of face pairs in
+    which one of its triangles intersects another triangle of its own body (the closed
+    mesh ``f`` plus the patches, connected through shared vertices), by
+    ``fast_stitch.check``'s exact test on the patch and the faces whose boxes meet its box.
+
+    A patch inside another body is left out: the union of the bodies removes it. One that
+    crosses its own body (a rim that enters it, as a teapot's handle end does, or a patch
+    folding through it, the bunny's) leaves the inside to the winding number there."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from fast_stitch.check import check
+
+    every = np.vstack([f, *patches])
+    n = len(v)
+    rows = np.concatenate([every[:, 0], every[:, 1]])
+    cols = np.concatenate([every[:, 1], every[:, 2]])
+    graph = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+    label = connected_components(graph, directed=False)[1][every[:, 0]]
+    t = v[every]
+    lo_f, hi_f = t.min(axis=1), t.max(axis=1)
+    start = np.cumsum([len(f)] + [len(q) for q in patches])
+    out = []
+    for k, patch in enumerate(patches):
+        mine = np.zeros(len(every), dtype=bool)
+        mine[start[k] : start[k] + len(patch)] = True
+        box = v[patch.ravel()]
+        lo, hi = box.min(axis=0), box.max(axis=0)
+        pad = 1e-9 * max(1.0, float(np.abs(box).max()))
+        near = (
+            ~mine
+            & (label == label[start[k]])
+            & np.all((hi_f >= lo - pad) & (lo_f <= hi + pad), axis=1)
+        )
+        sub = np.vstack([patch, every[near]])  # the patch first: its faces are 0 .. P - 1
+        pairs = check((v, sub), max_report=1_000_000).self_intersection_pairs
+        pairs = pairs[pairs.min(axis=1) < len(patch)]
+        # a patch that is its rim's triangle turned over (a sheet, refused after as one)
+        same = np.all(np.sort(sub[pairs[:, 0]], axis=1) == np.sort(sub[pairs[:, 1]], axis=1), 1)
+        out.append(int(np.count_nonzero(~same)))
+    return out
