@@ -541,16 +541,18 @@ def _thin_advice(
     tolerance: float,
 ) -> str:
     """The end of the warning about struts thinned beyond ``tolerance``: how thin (for one
-    radius asked), and what helps. Where most of their ends lie on the part's surface:
+    radius asked), and what helps:
 
-    - where the part is thinner than ``size`` about most of them (its greatest thickness
-      within ``size`` of the end, :func:`_local_thickness`), it is thin for tetrahedra of
-      that size: they lie flat between its faces, their struts meet at small angles, and a
-      larger size makes that worse, not better;
-    - else its small features (thread teeth, chamfers, fillets, small faces, smaller than
-      ``size``) are the cause: the tetrahedra follow the edges of its faces, and their
-      nodes crowd there (a STEP M10 bolt's thread and 0.8 mm chamfer: 1,068 of 2,053
-      struts, said to be "thin for tetrahedra" before).
+    - where the part is thinner than ``size`` about most of their ends (its greatest
+      thickness within ``size`` of the end, :func:`_local_thickness`), it is thin for
+      tetrahedra of that size: they lie flat between its faces, their struts meet at small
+      angles, and a larger size makes that worse, not better (the spanner, the sheet-metal
+      bracket, box_sides);
+    - else, where most of their ends lie on the part's surface, its small features
+      (thread teeth, chamfers, fillets, small faces, smaller than ``size``) are the cause:
+      the tetrahedra follow the edges of its faces, and their nodes crowd there (a STEP M10
+      bolt's thread and 0.8 mm chamfer: 1,068 of 2,053 struts, said to be "thin for
+      tetrahedra" before).
     """
     r = np.asarray(asked, dtype=np.float64)
     if not r.size or float(np.ptp(r)) > 1e-9 * float(r.max()):
@@ -567,10 +569,10 @@ def _thin_advice(
         f" (median {float(np.median(ratio[thin])):.2g} x, thinnest {float(ratio.min()):.2g} x); "
         f"{100 * on:.0f} % of their ends lie on the part's surface"
     )
-    if on < 0.8:
-        return out + "; a larger size or a thinner radius avoids it"
     local = _local_thickness(part, nodes[ends], size)
     flat = float(np.mean(local < size))
+    if flat < 0.5 and on < 0.8:
+        return out + "; a larger size or a thinner radius avoids it"
     if flat >= 0.5:
         return out + (
             f", where it is thinner than the size (median {float(np.median(local)):.3g} mm): "
