@@ -223,6 +223,18 @@ def test_voxel_fills_count_struts_thinned_beyond_the_tolerance():
         assert rep.radii_reduced == 3 and rep.thinned_beyond_tolerance == below == beyond
 
 
+def _bench_tet(name: str) -> tuple:
+    """A shared STEP part's tet lattice at the parts benchmark's setting (cell = extent /
+    15, r = cell / 12): the part, graph, report and the thinned-struts warnings."""
+    part = load_part(DATA / "step" / name)
+    h = float(part.size.max()) / 15
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LatticeWarning)
+        g, rep = tet_lattice(part, size=h, radius=h / 12, return_report=True)
+    said = [str(w.message) for w in caught if "had to be made thinner" in str(w.message)]
+    return part, g, rep, said
+
+
 def test_tet_lattice_of_small_features_is_not_called_thin():
     """Regression (s21 review): the tet lattice of a STEP M10 bolt thinned 1,068 of 2,053
     struts at its thread and 0.8 mm head chamfer, and the warning said "the part is thin
@@ -231,12 +243,7 @@ def test_tet_lattice_of_small_features_is_not_called_thin():
     the small features are named as the cause. Shared data's M6 countersunk screw is the
     same case (1,024 of 6,423 struts, all where it is thicker than the size 0.8 mm).
     """
-    part = load_part(DATA / "step" / "build123d_M6-1x12-countersunk-screw.step")
-    h = float(part.size.max()) / 15
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", LatticeWarning)
-        g, rep = tet_lattice(part, size=h, radius=h / 12, return_report=True)
-    said = [str(w.message) for w in caught if "had to be made thinner" in str(w.message)]
+    _, g, rep, said = _bench_tet("build123d_M6-1x12-countersunk-screw.step")
     assert len(said) == 1 and rep.thinned_beyond_tolerance > 0.1 * g.num_edges  # 1,024 of 6,423
     assert "the part is thin for tetrahedra" not in said[0], said[0]
     assert re.search(r"\d+ % of them where the part is thicker than the size", said[0]), said[0]
@@ -265,12 +272,8 @@ def test_tet_lattice_of_a_thin_part_says_it_is_thin():
     conform fill thins far fewer, which it does (2 of 316 struts)."""
     from lattice_cad import Lattice
 
-    part = load_part(DATA / "step" / "dolfiny_spanner25_lo.step")
+    part, g, rep, said = _bench_tet("dolfiny_spanner25_lo.step")
     h = float(part.size.max()) / 15
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", LatticeWarning)
-        g, rep = tet_lattice(part, size=h, radius=h / 12, return_report=True)
-    said = [str(w.message) for w in caught if "had to be made thinner" in str(w.message)]
     assert len(said) == 1 and rep.thinned_beyond_tolerance > 0.5 * g.num_edges
     assert "100 % of their ends lie on the part's surface" in said[0], said[0]
     assert "the part is thin for tetrahedra" in said[0] and "larger size makes" in said[0]
