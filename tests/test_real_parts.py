@@ -77,7 +77,9 @@ def test_ge_bracket_skin_takes_the_occt_path():
 def test_skin_falls_back_to_the_voxel_field_and_says_so():
     """The spanner (thin: most of its faces vanish from the offset): OCCT's offset is not
     the wall; the voxel field makes the skin, the report says why and how thick the wall
-    came out."""
+    came out. Regression: OCCT's offset of the spanner as it is ran 30-60 s (intersection
+    joins) to give a solid 3.07 mm off for 3.1; with more faces vanishing than can be
+    removed it is not tried, and the reason says so."""
     part = _part("step/dolfiny_spanner25_lo.step")
     cell = float(part.size.max()) / 15  # the parts benchmark's setting
     t = cell / 6
@@ -87,6 +89,7 @@ def test_skin_falls_back_to_the_voxel_field_and_says_so():
         mesh = lat.mesh()
     rep = lat.skin_report
     assert rep.method == "voxel" and rep.fallback, rep.summary()
+    assert "faces' offsets vanish" in rep.fallback and "would keep them" in rep.fallback
     assert abs(rep.wall["median"] - t) < 0.05 * t, rep.summary()
     assert rep.bodies == 1 and _bodies(mesh) == 1
     ours = fast_stitch.check(mesh, self_intersections=False)
