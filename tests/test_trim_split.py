@@ -96,7 +96,9 @@ def _real_fill(name: str, **kw):
         ("kcl_bracket.step", {"fill": "clip"}, False),
         # struts joined only outside the part leave loose pieces in each solid
         ("trimesh_box_sides.STEP", {"cell": "bcc"}, True),
-        ("kcl_enclosure.step", {"method": "tet"}, True),  # 12 solids
+        # 12 solids (its tet lattice left loose pieces until gmsh put fewer nodes on the
+        # B-rep's small arcs; none now: box_sides keeps the loose pieces' case)
+        ("kcl_enclosure.step", {"method": "tet"}, False),
     ],
 )
 def test_split_trim_equals_the_whole_cut_on_real_parts(name, kw, loose, monkeypatch):
