@@ -406,7 +406,8 @@ def _occt_surfaces(
     )
     if all(meshes is not None for _, meshes in results):  # else the loop says which solid
         _check_inset_volume(part, thickness, sum(vols[1] for vols, _ in results))
-        _check_deep_points_inside(part, thickness, [m[0] for _, m in results], tol + chord)
+        insets = [m[0] for _, m in results if m is not None]
+        _check_deep_points_inside(part, thickness, insets, tol + chord)
     for k, (vols, meshes) in enumerate(results):
         if meshes is None:
             bad = next(d for d, v in zip(dists, vols[1:], strict=True) if not 0.0 < v < vols[0])

@@ -254,8 +254,9 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         if len(sets[0]) > most:
             # OCCT's offset cannot drop a face, so an offset of the part as it is keeps
             # these, each more than 2 % of the depth off the wall (the caller's tolerance
-            # from 1 mm deep), and the caller's check refuses it: not tried (the spanner's intersection joins took 30-60 s to give
-            # one 3.07 mm off for 3.1; the 96-fillet block's arc joins one 25 % off)
+            # from 1 mm deep), and the caller's check refuses it: not tried (the spanner's
+            # intersection joins took 30-60 s to give one 3.07 mm off for 3.1; the
+            # 96-fillet block's arc joins one 25 % off)
             why.append(
                 f"more than {most} faces' offsets vanish (by over 2 % of the depth): too many "
                 "to remove, and OCCT's offset of the part as it is would keep them"
