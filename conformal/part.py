@@ -100,6 +100,8 @@ class Part:
         #: (``|S(u, v) - p|`` at the triangles' parameters, no projection), measured right
         #: after tessellating. None when not measured.
         self.chord_bound: float | None = None
+        #: Whether the patches of closed holes cross the surface (said by ``load_part``).
+        self._patch_crossings = False
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -148,6 +150,37 @@ class Part:
         t = self.triangles
         return float(
             0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+        )
+
+    @cached_property
+    def self_crossings(self) -> tuple[int, NDArray[np.float64]]:
+        """Where the part's surface crosses itself: ``(pairs, at)``, the number of pairs of
+        its triangles that intersect (``fast_stitch.check``'s exact test) and ``at``, (3,)
+        float64, the centroid of the first pair's first triangle (NaN when none).
+
+        A closed, oriented mesh whose triangles cross bounds no solid: the solid overlaps
+        itself (a sweep folding over its path, bodies overlapping in one shell), or two of
+        its faces come closer than the tessellation. Inside tests still hold, but a cut to
+        the surface (trim, skin, clip, conform, tet) can fail there."""
+        from fast_stitch.check import check
+
+        report = check((self.vertices, self.faces), max_report=1)
+        pairs = int(report.n_self_intersections or 0)
+        if not pairs:
+            return 0, np.full(3, np.nan)
+        face = int(report.self_intersection_pairs[0, 0])
+        return pairs, self.triangles[face].mean(axis=0)
+
+    def crossing_note(self) -> str:
+        """A sentence on :attr:`self_crossings` for messages (empty when none)."""
+        pairs, at = self.self_crossings
+        if not pairs:
+            return ""
+        return (
+            f"the part's surface crosses itself ({pairs} pair(s) of its triangles, e.g. at "
+            f"{_fmt_point(at)}): the solid overlaps itself there (a sweep folding over its "
+            "path, bodies overlapping in one shell) or two of its faces lie closer than its "
+            "tessellation"
         )
 
     def transformed(self, matrix: ArrayLike) -> Part:
@@ -576,15 +609,19 @@ def load_part(
                     f"{path}: not a readable STEP file (OCCT could not read it"
                     + (f": {why})" if why else ")")
                 )
-            return _from_shape(shape, str(path), deflection, angular_deflection, measure=True)
+            return _said_crossings(
+                _from_shape(shape, str(path), deflection, angular_deflection, measure=True)
+            )
         if suffix in _MESH_SUFFIXES:
             if suffix == ".3mf" and units is not None:
                 raise ValueError(
                     f"{path.name}: 3MF files declare their own unit (converted to mm); "
                     "do not pass units="
                 )
-            return _from_mesh_file(
-                path, _unit_scale(units), unit_given=units is not None, close_holes=close_holes
+            return _said_crossings(
+                _from_mesh_file(
+                    path, _unit_scale(units), unit_given=units is not None, close_holes=close_holes
+                )
             )
         raise PartError(
             f"{path}: unsupported file type {suffix or '(no suffix)'!r}; use STEP "
@@ -600,9 +637,24 @@ def load_part(
             "source must be a file path, a cadquery Workplane or Shape, a build123d shape or a "
             f"TopoDS_Shape; got {type(source).__name__}"
         )
-    return _from_shape(
-        shape, f"<{type(source).__name__}>", deflection, angular_deflection, measure=True
+    return _said_crossings(
+        _from_shape(
+            shape, f"<{type(source).__name__}>", deflection, angular_deflection, measure=True
+        )
     )
+
+
+def _said_crossings(part: Part) -> Part:
+    """``part``, with a warning when its surface crosses itself (:attr:`Part.self_crossings`)
+    that a closed hole's patch (said by ``conformal.holes``) does not explain."""
+    if part.self_crossings[0] and not getattr(part, "_patch_crossings", False):
+        warnings.warn(
+            f"{part.name}: {part.crossing_note()}; a cut to it (trim, skin, clip, conform, "
+            "tet) may fail there",
+            LatticeWarning,
+            stacklevel=3,
+        )
+    return part
 
 
 def _unit_scale(units: str | float | None) -> float:
@@ -941,10 +993,12 @@ def _from_mesh_file(
     degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     f = f[~degenerate]
     problem = _closed_problem(f, v)
+    closed: Any = None  # the holes' report, when they were closed
     if problem and close_holes and "open (boundary)" in problem:
         from conformal.holes import close_holes as _close
 
         f, holes = _close(v, f, name=str(path))
+        closed = holes
         warnings.warn(
             f"{path}: {holes.summary()} (close_holes: least-area patches spanning each "
             "hole's rim, not the missing shape)",
@@ -1018,7 +1072,9 @@ def _from_mesh_file(
             LatticeWarning,
             stacklevel=3,
         )
-    return Part(v, f, name=str(path))
+    part = Part(v, f, name=str(path))
+    part._patch_crossings = bool(closed and closed.crossing)
+    return part
 
 
 def _components(f: NDArray[np.int64], n_vertices: int) -> list[NDArray[np.int64]]:

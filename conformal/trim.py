@@ -64,7 +64,8 @@ class TrimReport:
     seconds : float
     failed : str
         Why the trimmed lattice could not be written (then the lattice is written uncut and
-        ``protrusion_before`` is what the file has); empty when it was.
+        ``protrusion_before`` is what the file has; the part's surface crossing itself, or
+        float32 not holding the cut); empty when it was.
     clearance : float
         When :func:`clear_inside` proved the lattice inside the part on the part's own
         tessellation: the clearance (mm) from the exact surface it proved; else 0.
@@ -88,8 +89,7 @@ class TrimReport:
     def summary(self) -> str:
         if self.failed:
             return (
-                f"trim: NOT cut to the part's surface (the cut could not be written in single "
-                f"precision: {self.failed}); the lattice reaches up to "
+                f"trim: NOT cut to the part's surface ({self.failed}); the lattice reaches up to "
                 f"{self.protrusion_before:.3g} mm outside the part"
             )
         if not self.trimmed:

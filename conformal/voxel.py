@@ -94,6 +94,8 @@ class BuildReport:
     removed_unstitchable: int = 0
     bodies: int = 0
     fill: str = ""
+    #: with ``fill="auto"``: the share of the part's volume in whole cells (NaN otherwise)
+    inside_share: float = float("nan")
     #: the grid was moved to put a node at the part's deepest point (clip or conform, when
     #: the grid as placed left no strut in a thin part)
     origin_moved: bool = False
@@ -301,10 +303,11 @@ def voxel_lattice(
         Strut radius; see :mod:`conformal.radius`. A callable receives the
         (M, 3) strut midpoints (in the part's frame).
     fill : {"inside", "clip", "conform", "auto"}
-        See the module docstring. ``"auto"``: ``"inside"`` when a whole cell fits and keeps
-        a strut once the dangling ones are pruned, else ``"conform"`` (thin parts, coils:
-        the surface nodes follow the walls, so the lattice stays connected); the report's
-        ``fill`` says which.
+        See the module docstring. ``"auto"``: ``"inside"`` when the whole cells that fit
+        fill at least ``config.AUTO_INSIDE_SHARE`` of the part's volume and keep a strut
+        once the dangling ones are pruned, else ``"conform"`` (thin parts, coils, parts
+        where a few whole cells fit: the surface nodes follow the walls, so the lattice
+        fills the part and stays connected); the report's ``fill`` says which.
     origin : (3,) float, optional
         A lattice grid point, in the lattice frame (default: centred on the
         part's bounding box in that frame).
@@ -369,7 +372,9 @@ def voxel_lattice(
     t0 = time.perf_counter()
     auto = fill == "auto"
     if auto:
-        fill = "inside" if rep.cells_inside else "conform"
+        share = rep.cells_inside * float(np.prod(h)) / max(abs(part.volume), 1e-300)
+        fill = "inside" if share >= config.AUTO_INSIDE_SHARE else "conform"
+        rep.inside_share = share
     rep.fill = fill
     occupied = vox.inside if fill == "inside" else (vox.inside | vox.cut)
     ijk = np.argwhere(occupied).astype(np.int64, copy=False)

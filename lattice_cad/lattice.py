@@ -787,9 +787,14 @@ class Lattice:
                 retry = self._retrim()
                 if retry is not None:
                     return retry
-                self.trim_report = dataclasses.replace(
-                    self.trim_report, failed=str(exc).splitlines()[0][:300]
+                crossing = self.part.crossing_note() if self.part is not None else ""
+                why = (
+                    f"{crossing}, and the cut by such a surface bounds no solid"
+                    if crossing
+                    else "the cut could not be written in single precision: "
+                    + str(exc).splitlines()[0][:300]
                 )
+                self.trim_report = dataclasses.replace(self.trim_report, failed=why)
                 return self._stitched_single_precision()
         else:
             mesh = self._stitched_single_precision()

@@ -275,6 +275,36 @@ def test_auto_fill_conforms_when_whole_cells_keep_no_strut():
         voxel_lattice(part, "bcc", cell, cell / 12, fill="inside")
 
 
+def test_auto_fill_conforms_when_whole_cells_fill_little_of_the_part():
+    """Regression (s22's parts made outside shared/data: a pulley kept 16 struts): the
+    default fill chose "inside" whenever one whole cell fitted. The rocker arm at 1/15 of
+    its length per cell has 6 whole cells, 4 % of its volume: 16 struts in its middle and
+    the rest of the part empty. Below ``config.AUTO_INSIDE_SHARE`` it now conforms; the GE
+    bracket (whole cells fill about a third of it) still gets whole cells only."""
+    from conformal import load_part, voxel_lattice
+    from lattice_cad.core import config
+    from tests.conftest import DATA
+
+    part = load_part(DATA / "meshes" / "rocker-arm.off")
+    cell = float(part.size.max()) / 15
+    with pytest.warns(LatticeWarning, match="thinned"):
+        g, rep = voxel_lattice(part, "bcc", cell, cell / 12, fill="auto", return_report=True)
+    share = rep.cells_inside * cell**3 / part.volume
+    assert rep.cells_inside == 6 and rep.inside_share == pytest.approx(share)
+    assert share < config.AUTO_INSIDE_SHARE
+    assert rep.fill == "conform" and rep.bodies == 1 and g.num_edges > 1000
+    with pytest.warns(LatticeWarning, match="loose piece"):
+        inside = voxel_lattice(part, "bcc", cell, cell / 12, fill="inside")
+    assert inside.num_edges < 50  # what the default gave before
+
+    with pytest.warns(LatticeWarning, match="5 solids were united"):
+        ge = load_part(DATA / "step" / "dolfiny_ge_bracket_rotated_nonds.step")
+    cell = float(ge.size.max()) / 15
+    g, rep = voxel_lattice(ge, "bcc", cell, cell / 12, fill="auto", return_report=True)
+    assert rep.fill == "inside" and rep.inside_share > config.AUTO_INSIDE_SHARE
+    assert rep.inside_share == pytest.approx(rep.cells_inside * cell**3 / ge.volume)
+
+
 def test_nothing_fits_says_what_would():
     """A radius larger than half the part's thickness: the error names the thickness and
     the largest radius that fits; an inside fill names the largest cell that fits whole."""

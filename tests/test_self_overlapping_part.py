@@ -1,0 +1,85 @@
+"""A part whose surface crosses itself (regression, s22's parts made outside shared/data).
+
+A pipe elbow swept by CadQuery along a path whose arc bent the wrong way (kinks at both
+ends; ``regression_folded_pipe_elbow.step``, made by a helper in s22) is a solid
+BRepCheck accepts, but its surface folds over itself. ``load_part`` said
+nothing; a fill's cut to it failed, and the lattice was written uncut with a "NOT cut"
+line blaming float32 rounding. Now the load warns where the surface crosses itself, and
+the trim's reason names the part.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conformal import load_part
+from lattice_cad import Lattice
+from lattice_cad.core.errors import LatticeWarning
+
+
+FOLDED = Path(__file__).parent / "regression_folded_pipe_elbow.step"  # made by CadQuery
+
+
+def _elbow():
+    """A tube (OD 20, wall 2) swept along a leg, a 40 mm arc tangent to it and a leg, with
+    a flange at each end: its surface does not cross itself."""
+    import cadquery as cq
+
+    path = cq.Workplane("XZ").moveTo(0, 0).lineTo(0, 30).radiusArc((40, 70), 40).lineTo(70, 70)
+    tube = cq.Workplane("XY").circle(10).circle(8).sweep(path, transition="round")
+    flange1 = cq.Workplane("XY").circle(16).circle(8).extrude(4)
+    flange2 = cq.Workplane("YZ").workplane(offset=66).center(0, 70).circle(16).circle(8).extrude(4)
+    return tube.union(flange1).union(flange2).val()
+
+
+def _pymeshlab_crossing_faces(part) -> int:
+    """Faces pymeshlab flags as self-intersecting that the exact arbiter confirms (it also
+    flags coplanar neighbours sharing a vertex: ``tests/exact_intersect.py``)."""
+    import pymeshlab
+
+    from tests.exact_intersect import confirmed_faces
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(part.vertices, part.faces.astype(np.int32)))
+    ms.compute_selection_by_self_intersections_per_face()
+    flagged = np.flatnonzero(ms.current_mesh().face_selection_array())
+    return len(confirmed_faces(part.vertices, part.faces, flagged[:300]))
+
+
+@pytest.mark.slow
+def test_a_folded_sweep_is_said_at_load_and_named_when_its_cut_fails():
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    from lattice_cad.occ_impl.step import read_step
+
+    assert BRepCheck_Analyzer(read_step(FOLDED)).IsValid()  # "valid" to OCCT
+    with pytest.warns(LatticeWarning, match=r"surface crosses itself \((\d+) pair") as said:
+        part = load_part(FOLDED)
+    pairs, at = part.self_crossings
+    assert pairs > 100 and str(pairs) in str(said[0].message)
+    assert np.isfinite(at).all() and part.contains(at[None]).size == 1
+    assert _pymeshlab_crossing_faces(part) > 100  # independent: the surface does cross
+
+    with pytest.warns(LatticeWarning, match="thinned"):
+        lat = Lattice.fill(part, cell="bcc", cell_size=8.0, radius=0.6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        mesh = lat.mesh()
+    rep = lat.trim_report
+    assert rep is not None and rep.failed, rep.summary()
+    assert rep.failed.startswith("the part's surface crosses itself")
+    assert "single precision" not in rep.summary() and "NOT cut" in rep.summary()
+    assert len(mesh.faces) > 0  # the lattice is written uncut, as the summary says
+
+
+def test_a_sweep_that_does_not_fold_loads_without_a_word():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        part = load_part(_elbow())
+    assert part.self_crossings[0] == 0 and np.isnan(part.self_crossings[1]).all()
+    assert part.crossing_note() == ""
+    assert _pymeshlab_crossing_faces(part) == 0
