@@ -20,7 +20,6 @@ from conformal import load_part
 from lattice_cad import Lattice
 from lattice_cad.core.errors import LatticeWarning
 
-
 FOLDED = Path(__file__).parent / "regression_folded_pipe_elbow.step"  # made by CadQuery
 
 
