@@ -213,8 +213,6 @@ class SplitLattice:
         """
         if len(self.caps) == 0:  # deep elements join the result at their caps only
             return (vertices, faces) if len(self.deep_faces) == 0 else None
-        if len(vertices) + len(self.deep_vertices) >= 1 << 21:
-            return None
         ring = np.unique(self.caps.ravel())
         # ring vertices of the deep part -> vertices of the result with the same coordinates
         where = _find_rows(vertices, self.deep_vertices[ring])
@@ -270,13 +268,21 @@ def pieces(
     return len(kinds), vlabel, vols / 6.0
 
 
-def _face_keys(f: NDArray[np.int64], nv: np.int64) -> NDArray[np.int64]:
-    """(F,) int64: a key of each triangle that is the same for its three rotations (and
-    differs for the reversed triangle); vertex indices below 2**21."""
+#: vertex counts up to which :func:`_face_keys` packs a triangle in one int64 (21 bits each)
+_PACKED_KEYS = 1 << 21
+
+
+def _face_keys(f: NDArray[np.int64], nv: np.int64) -> NDArray[Any]:
+    """(F,) keys, one per triangle of ``f`` (vertex indices below ``nv``), the same for its
+    three rotations and different for the reversed triangle: int64 when the indices fit 21
+    bits, else the rotated rows as 24-byte strings (for sorting and searching only)."""
     r = np.argmin(f, axis=1)
     idx = np.arange(len(f))
     a, b, c = f[idx, r], f[idx, (r + 1) % 3], f[idx, (r + 2) % 3]
-    return (a << 42) | (b << 21) | c
+    if nv <= _PACKED_KEYS:
+        return (a << 42) | (b << 21) | c
+    rows = np.ascontiguousarray(np.stack([a, b, c], axis=1), dtype=np.int64)
+    return rows.view(np.dtype((np.void, 24))).ravel()
 
 
 def _find_rows(
@@ -308,7 +314,7 @@ def _layout(graph: Any, v: NDArray[np.float64], f: NDArray[np.int64]) -> tuple[i
     from fast_stitch.stitch import _face_counts
 
     m = graph.num_edges
-    if m == 0 or len(v) >= 1 << 21:
+    if m == 0:
         return None
     for rings in (4, 2):  # banded (profile="volume") or not
         if len(v) % (rings * m):

@@ -288,6 +288,7 @@ def voxel_lattice(
     return_report: bool = False,
     segments: int = config.DEFAULT_SEGMENTS,
     profile: Profile = config.DEFAULT_PROFILE,
+    auto_fallback: Literal["conform", "clip"] = "conform",
 ) -> LatticeGraph | tuple[LatticeGraph, BuildReport]:
     """Fill a part with a lattice of unit cells.
 
@@ -331,6 +332,10 @@ def voxel_lattice(
         or nothing.
     return_report : bool
         Also return a :class:`BuildReport`.
+    auto_fallback : {"conform", "clip"}
+        The fill ``"auto"`` takes when whole cells do not: ``"clip"`` keeps every strut's
+        direction (a self-supporting orientation stays self-supporting), ``"conform"``
+        moves the surface nodes onto the walls.
     segments, profile
         The profile polygons the graph will be stitched with (``fast_stitch.stitch``'s
         P and ``profile``): the fit is for them. Fewer sides make wider polygons
@@ -372,8 +377,10 @@ def voxel_lattice(
     t0 = time.perf_counter()
     auto = fill == "auto"
     if auto:
+        if auto_fallback not in ("conform", "clip"):
+            raise ValueError(f"auto_fallback must be 'conform' or 'clip', got {auto_fallback!r}")
         share = rep.cells_inside * float(np.prod(h)) / max(abs(part.volume), 1e-300)
-        fill = "inside" if share >= config.AUTO_INSIDE_SHARE else "conform"
+        fill = "inside" if share >= config.AUTO_INSIDE_SHARE else auto_fallback
         rep.inside_share = share
     rep.fill = fill
     occupied = vox.inside if fill == "inside" else (vox.inside | vox.cut)
@@ -409,7 +416,7 @@ def voxel_lattice(
         # whole cells fit, but none keeps a strut once the dangling ones are pruned (cells
         # alone in a thin coil or rod): the conforming fill, as when no cell fits
         return voxel_lattice(
-            part, c, h, radius, fill="conform", origin=origin, rotation=rotation,
+            part, c, h, radius, fill=auto_fallback, origin=origin, rotation=rotation,
             min_strut=min_strut, prune=prune, min_radius=min_radius, fit=fit,
             return_report=return_report, segments=segments, profile=profile,
         )  # fmt: skip

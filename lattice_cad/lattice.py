@@ -81,6 +81,7 @@ def _fill_graph(
     segments: int = config.DEFAULT_SEGMENTS,
     min_radius: float | None = None,
     profile: Profile = "volume",
+    auto_fallback: Literal["conform", "clip"] = "conform",
 ) -> tuple[LatticeGraph, Any]:
     """Call the conformal engine (imported lazily) for ``method``: the graph and its report.
 
@@ -103,6 +104,7 @@ def _fill_graph(
             segments=segments,
             min_radius=min_radius,
             profile=profile,
+            auto_fallback=auto_fallback,
         )
     else:
         built = conformal.tet_lattice(
@@ -451,8 +453,9 @@ class Lattice:
         fill : {"auto", "inside", "clip", "conform"}, optional
             How the voxel lattice meets the boundary (see ``conformal.voxel_lattice``);
             default ``"clip"`` with a skin or ``keep`` zones (struts reach into the wall
-            and the zones), else ``"auto"``
-            (``"inside"``, or ``"conform"`` when no whole cell fits, as in thin parts).
+            and the zones), else ``"auto"`` (``"inside"`` when whole cells fill at least
+            ``config.AUTO_INSIDE_SHARE`` of the part, else ``"conform"``, or ``"clip"``
+            with ``self_supporting``, whose struts keep their directions).
             Voxel only: a tet lattice always conforms (its surface nodes lie on the
             part's surface), so passing ``fill`` with ``method="tet"`` is an error.
         skin : float, optional
@@ -588,6 +591,8 @@ class Lattice:
                 segments=segments,
                 min_radius=min_radius,
                 profile=profile,
+                # a self-supporting grid stays so only if the struts keep their directions
+                auto_fallback="clip" if self_supporting else "conform",
             )
             removal = None
             if remove_overhangs:

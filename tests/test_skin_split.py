@@ -87,6 +87,43 @@ def test_glue_refuses_a_result_without_its_caps():
     assert split.glue(v, np.delete(f, hit, axis=0)) is None
 
 
+def test_glue_past_21_bit_vertex_indices_equals_the_packed_keys(monkeypatch):
+    """Regression (s22's 2 mm micro cube STL, conform): glue packed a triangle's vertex
+    indices in 21 bits each and gave up above 2**21 (2,097,152) vertices, so the whole
+    lattice was trimmed again (122 s against 32 s for the same cube from STEP). Past it,
+    the keys are the rows themselves; forced here, they glue the same mesh."""
+    lat = _fill("step/kcl_flange-with-patterns.step", 10)
+    from conformal import skin
+    from conformal.part import Part
+
+    p = lat.part
+    h = skin._grid_spacing(p.size, lat.skin)
+    inner = skin._voxel_surfaces(p, lat.skin, h)[1]
+    m = lat._lattice_mesh
+    split = skin_split.split_lattice(
+        lat.graph, m.vertices, m.faces, Part(*skin.to_arrays(inner)), margin=0.02
+    )
+    assert split is not None and len(split.caps)
+    v, f = split.near_vertices, split.near_faces
+    packed = split.glue(v, f)
+    assert packed is not None
+    monkeypatch.setattr(skin_split, "_PACKED_KEYS", 0)
+    keys = skin_split._face_keys(f, np.int64(len(v)))
+    assert keys.dtype.kind == "V"
+    # the three rotations of a triangle share a key, the reversed triangle has its own
+    rolled = skin_split._face_keys(np.roll(f, 1, axis=1), np.int64(len(v)))
+    assert np.array_equal(keys, rolled)
+    assert not np.any(keys == skin_split._face_keys(f[:, ::-1], np.int64(len(v))))
+    rows = split.glue(v, f)
+    assert rows is not None
+    np.testing.assert_array_equal(rows[0], packed[0])
+    np.testing.assert_array_equal(rows[1], packed[1])
+    # a cap missing: None with either key
+    cap = np.sort(split.deep_vertices[split.caps[0]], axis=0)
+    hit = np.flatnonzero(np.all(np.sort(v[f], axis=1) == cap[None], axis=(1, 2)))
+    assert split.glue(v, np.delete(f, hit, axis=0)) is None
+
+
 def test_split_refuses_a_mesh_that_is_not_the_stitchers():
     lat = _fill("step/kcl_flange-with-patterns.step", 10)
     m = lat._lattice_mesh
