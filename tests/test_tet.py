@@ -55,11 +55,13 @@ def test_tet_stitches(cyl):
 
 
 def test_tet_realistic_radius_stitches(cyl):
-    # 6 mm tets at radius 0.4 (polygons; the default stitch's hexagons have the circle's
+    # 3 mm tets at radius 0.4 (polygons; the default stitch's hexagons have the circle's
     # area, circumradius 1.0996 r, so r = 0.364): flat tets put opposite edges closer than
-    # 0.8, which used to pass the fit check and then fail in stitch's clearance check
+    # 0.8, which used to pass the fit check and then fail in stitch's clearance check.
+    # (Asked for 6 mm, gmsh gave this cylinder 258 nodes, as for 3 mm, while it took sizes
+    # from the B-rep's points; it gives 66 now, without such clashes.)
     r = 0.4 / area_factor(6)
-    raw = tet_lattice(cyl, 6.0, r, fit="off", repair=False)
+    raw = tet_lattice(cyl, 3.0, r, fit="off", repair=False)
     old, unfit = fit_radii(raw.nodes, raw.edges, raw.radii, min_radius=0.04, clearance=False)
     assert len(unfit) == 0
     g0 = LatticeGraph(raw.nodes, raw.edges, old)  # what the node-only fit check gave
@@ -68,12 +70,34 @@ def test_tet_realistic_radius_stitches(cyl):
     with pytest.raises(fast_stitch.StitchError, match="share no node"):
         fast_stitch.stitch(g0)
     # with the graph repair (the default) no strut is thinner than 0.7 of the radius
-    g, rep = tet_lattice(cyl, 6.0, r, return_report=True)
+    g, rep = tet_lattice(cyl, 3.0, r, return_report=True)
     assert check_fit(g) == []
     assert rep.thinned_beyond_tolerance == 0 and g.radii.min() >= 0.7 * r - 1e-12
     assert g.radii.max() == pytest.approx(r)
     assert np.median(g.radii) == pytest.approx(r)  # only the crowded struts are thinned
     assert_valid(fast_stitch.stitch(g))
+
+
+def test_tet_mesh_of_a_small_round_part_has_the_size_asked(cyl):
+    """Regression (s22's cone with a sharp apex, made outside shared/data): gmsh took mesh
+    sizes from the B-rep's points, so a 20 mm cylinder got 258 nodes whether 4 or 7 mm
+    was asked, and the cone's edges were 0.68 of the size (3,686 nodes against 789)."""
+    import cadquery as cq
+
+    counts = []
+    for size in (4.0, 7.0):
+        nodes, tets = tet_mesh(cyl, size)
+        e = tet_edges(tets)
+        length = np.median(np.linalg.norm(nodes[e[:, 1]] - nodes[e[:, 0]], axis=1))
+        assert 0.8 * size <= length <= 1.3 * size, (size, length)
+        counts.append(len(nodes))
+    assert counts[0] > 2 * counts[1]
+    cone = load_part(cq.Solid.makeCone(20.0, 0.0, 50.0))
+    size = 50.0 / 15
+    nodes, tets = tet_mesh(cone, size)
+    e = tet_edges(tets)
+    length = np.median(np.linalg.norm(nodes[e[:, 1]] - nodes[e[:, 0]], axis=1))
+    assert 0.8 * size <= length <= 1.3 * size, length
 
 
 def test_mesh_part_tet():
