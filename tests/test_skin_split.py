@@ -59,19 +59,26 @@ def test_split_skin_equals_the_skin_of_the_whole_lattice(name, per, monkeypatch)
     np.testing.assert_array_equal(_triangles(mesh), _triangles(ref))
 
 
-def test_glue_refuses_a_result_without_its_caps():
+@pytest.fixture(scope="module")
+def flange_split():
+    """The flange's skinned lattice split at its voxel inner wall (struts near it, caps)."""
     lat = _fill("step/kcl_flange-with-patterns.step", 10)
     from conformal import skin
     from conformal.part import Part
 
     p = lat.part
     h = skin._grid_spacing(p.size, lat.skin)
-    outer, inner = skin._voxel_surfaces(p, lat.skin, h)
+    inner = skin._voxel_surfaces(p, lat.skin, h)[1]
     m = lat._lattice_mesh
     split = skin_split.split_lattice(
         lat.graph, m.vertices, m.faces, Part(*skin.to_arrays(inner)), margin=0.02
     )
     assert split is not None and len(split.caps)
+    return split
+
+
+def test_glue_refuses_a_result_without_its_caps(flange_split):
+    split = flange_split
     # the near part alone, as a boolean that changed nothing would give it back
     v, f = split.near_vertices, split.near_faces
     glued = split.glue(v, f)
@@ -87,23 +94,12 @@ def test_glue_refuses_a_result_without_its_caps():
     assert split.glue(v, np.delete(f, hit, axis=0)) is None
 
 
-def test_glue_past_21_bit_vertex_indices_equals_the_packed_keys(monkeypatch):
+def test_glue_past_21_bit_vertex_indices_equals_the_packed_keys(flange_split, monkeypatch):
     """Regression (s22's 2 mm micro cube STL, conform): glue packed a triangle's vertex
     indices in 21 bits each and gave up above 2**21 (2,097,152) vertices, so the whole
     lattice was trimmed again (122 s against 32 s for the same cube from STEP). Past it,
     the keys are the rows themselves; forced here, they glue the same mesh."""
-    lat = _fill("step/kcl_flange-with-patterns.step", 10)
-    from conformal import skin
-    from conformal.part import Part
-
-    p = lat.part
-    h = skin._grid_spacing(p.size, lat.skin)
-    inner = skin._voxel_surfaces(p, lat.skin, h)[1]
-    m = lat._lattice_mesh
-    split = skin_split.split_lattice(
-        lat.graph, m.vertices, m.faces, Part(*skin.to_arrays(inner)), margin=0.02
-    )
-    assert split is not None and len(split.caps)
+    split = flange_split
     v, f = split.near_vertices, split.near_faces
     packed = split.glue(v, f)
     assert packed is not None
