@@ -576,7 +576,12 @@ def _thin_advice(
     local = _local_thickness(part, nodes[ends], size)
     flat = float(np.mean(local < size))
     if flat < 0.5 and on < 0.8:
-        return out + "; a larger size or a thinner radius avoids it"
+        # neither cause dominates (scans: the hammer, 1,380 of 1,382 struts, the dragon
+        # 3,858 of 3,901); the conform fill thinned 57 of 663 and 57 of 3,128 on them
+        return out + (
+            "; a larger size or a thinner radius avoids it, and the voxel method's conform "
+            "fill (--fill conform) often thins far fewer struts"
+        )
     if flat >= 0.5:
         return out + (
             f", where it is thinner than the size (median {float(np.median(local)):.3g} mm): "

@@ -100,6 +100,23 @@ def test_tet_mesh_of_a_small_round_part_has_the_size_asked(cyl):
     assert 0.8 * size <= length <= 1.3 * size, length
 
 
+@pytest.mark.slow
+def test_thinned_tet_struts_of_a_scan_point_to_the_conform_fill():
+    """The hammer scan at the benchmark's size: nearly every tet strut is thinned beyond
+    0.7 r, neither because the part is thinner than the size about them nor because of
+    small features; the warning names the conform fill, which thins far fewer there."""
+    from conformal import voxel_lattice
+
+    part = load_part(DATA / "meshes" / "hammer.obj")
+    h = float(part.size.max()) / 15
+    with pytest.warns(LatticeWarning, match=r"conform fill \(--fill conform\) often thins"):
+        g, rep = tet_lattice(part, h, h / 12, return_report=True)
+    assert rep.thinned_beyond_tolerance > 0.9 * g.num_edges
+    with pytest.warns(LatticeWarning, match="thinned"):
+        v, vrep = voxel_lattice(part, "kelvin", h, h / 12, fill="conform", return_report=True)
+    assert vrep.thinned_beyond_tolerance < 0.2 * v.num_edges
+
+
 def test_mesh_part_tet():
     part = load_part(DATA / "meshes" / "bunny_closed_odedstein.obj", units=100)
     with warnings.catch_warnings():
