@@ -647,7 +647,7 @@ def load_part(
 def _said_crossings(part: Part) -> Part:
     """``part``, with a warning when its surface crosses itself (:attr:`Part.self_crossings`)
     that a closed hole's patch (said by ``conformal.holes``) does not explain."""
-    if part.self_crossings[0] and not getattr(part, "_patch_crossings", False):
+    if part.self_crossings[0] and not part._patch_crossings:
         warnings.warn(
             f"{part.name}: {part.crossing_note()}; a cut to it (trim, skin, clip, conform, "
             "tet) may fail there",
@@ -993,12 +993,12 @@ def _from_mesh_file(
     degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     f = f[~degenerate]
     problem = _closed_problem(f, v)
-    closed: Any = None  # the holes' report, when they were closed
+    patch_crossings = False  # a closed hole's patch crosses the surface (said there)
     if problem and close_holes and "open (boundary)" in problem:
         from conformal.holes import close_holes as _close
 
         f, holes = _close(v, f, name=str(path))
-        closed = holes
+        patch_crossings = bool(holes.crossing)
         warnings.warn(
             f"{path}: {holes.summary()} (close_holes: least-area patches spanning each "
             "hole's rim, not the missing shape)",
@@ -1073,7 +1073,7 @@ def _from_mesh_file(
             stacklevel=3,
         )
     part = Part(v, f, name=str(path))
-    part._patch_crossings = bool(closed and closed.crossing)
+    part._patch_crossings = patch_crossings
     return part
 
 

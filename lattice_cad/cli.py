@@ -339,7 +339,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     rep = lat.build_report
     if rep is not None:
         notes = [f"fill {rep.fill}"] if rep.fill else []
-        if rep.fill != "inside" and rep.inside_share == rep.inside_share:  # auto's choice
+        if rep.fill != "inside" and not math.isnan(rep.inside_share):  # auto's choice
             notes[0] += (
                 f" (whole cells would fill {100 * rep.inside_share:.2g} % of the part)"
                 if rep.inside_share
