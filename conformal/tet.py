@@ -46,6 +46,15 @@ __all__ = ["tet_lattice", "tet_mesh", "tet_edges", "boundary_nodes"]
 Algorithm = Literal["hxt", "delaunay", "frontal"]
 _ALGO = {"hxt": 10, "delaunay": 1, "frontal": 4}
 
+#: A part at most this many times the tetrahedra's size thick has no tet nodes inside it
+#: (a node inside needs a tetrahedron's height, about 0.8 x size, to either face): its
+#: tetrahedra lie flat between its faces (the thinned-struts warning, :func:`_thin_advice`).
+THIN_FOR_TETS = 1.5
+
+#: The feature angle (degrees) that marks no edge as a feature: a mesh surface is then
+#: re-parametrised in the patches gmsh cuts it into itself.
+NO_FEATURES = 180.0
+
 
 def tet_mesh(
     part: Part,
@@ -68,10 +77,11 @@ def tet_mesh(
     surface_angle : float
         For mesh parts (and B-rep parts whose B-rep gmsh cannot mesh): dihedral angle
         (degrees) above which a mesh edge is a feature edge that the re-meshed surface
-        keeps. When the surface cannot be re-parametrised at that angle, a resampled
-        surface (the zero level of the signed distance, spacing ``size / 1.5``) is tried,
-        re-parametrised, then as it is; then 20 and 10 degrees, then the part's own
-        triangles as the boundary. A surface of several closed shells is meshed one solid
+        keeps. When the surface cannot be re-parametrised at that angle, it is tried with
+        no feature edges (:data:`NO_FEATURES`); then a resampled surface (the zero level
+        of the signed distance, spacing ``size / 1.5``), re-parametrised at the same two
+        angles, then as it is; then 20 and 10 degrees, then the part's own triangles as
+        the boundary. A surface of several closed shells is meshed one solid
         (an outer shell with its cavities) at a time.
     timeout : float, optional
         Seconds one gmsh attempt may take (default ``config.TET_ATTEMPT_SECONDS`` plus one
@@ -105,8 +115,16 @@ def tet_mesh(
     # re-parametrised (gmsh re-meshes it at ``size``), then taken as it is (its triangles,
     # a fraction of ``size`` and some slivers, then bound the tetrahedra: the teapot gave
     # 46,527 tetrahedra where 1,911 of the size asked fill it)
-    surfaces = [("surface", "reparametrized", surface_angle)]
-    surfaces += [("resampled", "reparametrized", surface_angle), ("resampled", "discrete", 0.0)]
+    # each surface is re-parametrised with feature edges at ``surface_angle``, then with
+    # none (NO_FEATURES: gmsh cuts the surface into patches it can parametrise where it
+    # needs to): the creases a scan's noise marks at 40 deg bound patches gmsh cannot
+    # parametrise ("Wrong topology of boundary mesh"), and the resampled surface taken as
+    # it is bounds tetrahedra with edges a tenth of the size (the dragon: median 0.48 x
+    # size, 10 % under 0.08 x size; 3,858 of 3,901 struts thinned)
+    angles = list(dict.fromkeys((float(surface_angle), NO_FEATURES)))
+    surfaces = [("surface", "reparametrized", a) for a in angles]
+    surfaces += [("resampled", "reparametrized", a) for a in angles]
+    surfaces += [("resampled", "discrete", 0.0)]
     surfaces += [("surface", "reparametrized", a) for a in (20.0, 10.0)]
     surfaces += [("surface", "discrete", 0.0)]
     if part.shape is not None:
@@ -547,11 +565,12 @@ def _thin_advice(
     """The end of the warning about struts thinned beyond ``tolerance``: how thin (for one
     radius asked), and what helps:
 
-    - where the part is thinner than ``size`` about most of their ends (its greatest
-      thickness within ``size`` of the end, :func:`_local_thickness`), it is thin for
-      tetrahedra of that size: they lie flat between its faces, their struts meet at small
-      angles, and a larger size makes that worse, not better (the spanner, the sheet-metal
-      bracket, box_sides);
+    - where the part is at most ``THIN_FOR_TETS`` times ``size`` thick about most of
+      their ends (its greatest thickness within ``size`` of the end,
+      :func:`_local_thickness`), it is thin for tetrahedra of that size: they have no nodes
+      inside it, lie flat between its faces, their struts meet at small angles, and a
+      larger size makes that worse, not better (the spanner, the sheet-metal bracket,
+      box_sides; the hammer scan, 0.64 mm thick at size 0.55);
     - else, where most of their ends lie on the part's surface, its small features
       (thread teeth, chamfers, fillets, small faces, smaller than ``size``) are the cause:
       the tetrahedra follow the edges of its faces, and their nodes crowd there (a STEP M10
@@ -574,18 +593,20 @@ def _thin_advice(
         f"{100 * on:.0f} % of their ends lie on the part's surface"
     )
     local = _local_thickness(part, nodes[ends], size)
-    flat = float(np.mean(local < size))
+    flat = float(np.mean(local < THIN_FOR_TETS * size))
     if flat < 0.5 and on < 0.8:
-        # neither cause dominates (scans: the hammer, 1,380 of 1,382 struts, the dragon
-        # 3,858 of 3,901); the conform fill thinned 57 of 663 and 57 of 3,128 on them
+        # neither cause dominates (the hammer and the dragon scans came here, when their
+        # tetrahedra were bounded by a resampled surface's triangles: 1,380 of 1,382 and
+        # 3,858 of 3,901 struts; the conform fill thinned 57 of 663 and 57 of 3,128)
         return out + (
             "; a larger size or a thinner radius avoids it, and the voxel method's conform "
             "fill (--fill conform) often thins far fewer struts"
         )
     if flat >= 0.5:
         return out + (
-            f", where it is thinner than the size (median {float(np.median(local)):.3g} mm): "
-            f"the part is thin for tetrahedra of size {size:.3g}, which lie flat between "
+            f", where it is at most {THIN_FOR_TETS:g} x the size thick (median "
+            f"{float(np.median(local)):.3g} mm): the part is thin for tetrahedra of size "
+            f"{size:.3g}, which have no nodes inside it there and lie flat between "
             "its faces with struts meeting at small angles (a larger size makes that worse, a "
             "thinner radius helps less than it seems); the voxel method's conform fill "
             "(--fill conform) thins far fewer struts there"

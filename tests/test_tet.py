@@ -101,20 +101,30 @@ def test_tet_mesh_of_a_small_round_part_has_the_size_asked(cyl):
 
 
 @pytest.mark.slow
-def test_thinned_tet_struts_of_a_scan_point_to_the_conform_fill():
-    """The hammer scan at the benchmark's size: nearly every tet strut is thinned beyond
-    0.7 r, neither because the part is thinner than the size about them nor because of
-    small features; the warning names the conform fill, which thins far fewer there."""
+def test_thinned_tet_struts_of_the_hammer_scan_are_called_thin():
+    """The hammer scan at the benchmark's size (0.55 mm; the part is 0.64 mm thick): its
+    tet nodes all lie on its two faces, so the tetrahedra lie flat between them and many
+    struts are thinned beyond 0.7 r. Before, the part counted as thin only where it was
+    thinner than the size, and the warning said neither cause dominated (and, before the
+    surface was re-parametrised with no feature edges, 1,380 of 1,382 struts were thinned).
+    The warning now says the part is thin for tetrahedra and names the conform fill, which
+    thins a far smaller share there."""
     from conformal import voxel_lattice
 
     part = load_part(DATA / "meshes" / "hammer.obj")
     h = float(part.size.max()) / 15
-    with pytest.warns(LatticeWarning, match=r"conform fill \(--fill conform\) often thins"):
+    with pytest.warns(LatticeWarning, match="had to be made thinner") as caught:
         g, rep = tet_lattice(part, h, h / 12, return_report=True)
-    assert rep.thinned_beyond_tolerance > 0.9 * g.num_edges
+    said = [str(w.message) for w in caught if "had to be made thinner" in str(w.message)]
+    assert len(said) == 1, said
+    assert "the part is thin for tetrahedra" in said[0], said[0]
+    assert "at most 1.5 x the size thick" in said[0] and "--fill conform" in said[0], said[0]
+    assert rep.thinned_beyond_tolerance > 0.2 * g.num_edges  # 363 of 656 measured
     with pytest.warns(LatticeWarning, match="thinned"):
         v, vrep = voxel_lattice(part, "kelvin", h, h / 12, fill="conform", return_report=True)
-    assert vrep.thinned_beyond_tolerance < 0.2 * v.num_edges
+    assert vrep.thinned_beyond_tolerance < 0.2 * v.num_edges  # 57 of 663 measured
+    share = rep.thinned_beyond_tolerance / g.num_edges
+    assert vrep.thinned_beyond_tolerance / v.num_edges < 0.5 * share
 
 
 def test_mesh_part_tet():
