@@ -217,6 +217,13 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
         return _checked_single_precision_once(Mesh(vertices=v, faces=f), name)
 
 
+def _crosses_itself(mesh: Mesh) -> bool:
+    """Whether two of the (float64) mesh's triangles intersect (``fast_stitch.check``)."""
+    import fast_stitch
+
+    return bool(fast_stitch.check(mesh, max_report=1).n_self_intersections)
+
+
 def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
     """:func:`_checked_single_precision` without the sliver collapse."""
     import fast_stitch
@@ -744,7 +751,19 @@ class Lattice:
         # a stitched lattice keeps its clearances through the rounding; a skin or a trim
         # (manifold3d booleans) can have surfaces a float32 step apart: checked in full
         if solid is not self._lattice_mesh:
+            # a trim by a surface that crosses itself: where its crossings pass into the cut,
+            # before any rounding, the cut bounds no solid, and neither the collapses of
+            # float32's folds nor a second cut off the surface repair it (the folded pipe
+            # elbow: 73 s of them before the uncut lattice was written)
+            hopeless = (
+                self.skin is None
+                and self.part is not None
+                and self.part.self_crossings[0] > 0
+                and _crosses_itself(solid)
+            )
             try:
+                if hopeless:
+                    raise ExportError("the cut crosses itself")
                 mesh = _checked_single_precision(solid, "the lattice")
                 mesh = self._glue_deep(mesh)
             except ExportError as exc:
@@ -789,7 +808,7 @@ class Lattice:
                 # the cut by the part's surface left slivers that float32 cannot hold (tiny
                 # struts lying in the surface): cut once more a quarter of the tolerance
                 # off the surface, else write the lattice uncut and say so in the report
-                retry = self._retrim()
+                retry = None if hopeless else self._retrim()
                 if retry is not None:
                     return retry
                 crossing = self.part.crossing_note() if self.part is not None else ""
