@@ -69,6 +69,7 @@ def test_a_folded_sweep_is_said_at_load_and_named_when_its_cut_fails(monkeypatch
 
     with pytest.warns(LatticeWarning, match="thinned"):
         lat = Lattice.fill(part, cell="bcc", cell_size=8.0, radius=0.6)
+
     def futile(*args, **kwargs):
         raise AssertionError("a cut that crosses itself was rounded, collapsed or cut again")
 
