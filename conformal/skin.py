@@ -1007,6 +1007,15 @@ def build_skin(
             split = None
         else:
             bodies, islands = n_bodies, 0
+    if split is None and surface.self_crossings[0] > 0:
+        # the booleans on the whole lattice with an outer wall that crosses itself (a
+        # folded pipe elbow, too thin for the split) ran for more than 10 minutes; that
+        # wall bounds no solid, so their result could not be written anyway
+        raise SkinError(
+            f"{p.name}: {surface.crossing_note()}; the skin's outer wall is that surface, "
+            "so a skin of this part cannot be one solid until the part is repaired (its "
+            "overlapping bodies united); fill it without a skin, or repair it and fill again"
+        )
     if split is None:
         lat = as_manifold(lattice, name="lattice mesh")
         # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only

@@ -92,3 +92,27 @@ def test_a_sweep_that_does_not_fold_loads_without_a_word():
     assert part.self_crossings[0] == 0 and np.isnan(part.self_crossings[1]).all()
     assert part.crossing_note() == ""
     assert _pymeshlab_crossing_faces(part) == 0
+
+
+@pytest.mark.slow
+def test_a_skin_of_a_folded_sweep_is_refused_with_the_reason():
+    """Regression: a skin of the folded elbow (the parts benchmark's setting: octet, cell
+    extent / 15, skin cell / 6) ran the booleans on the whole lattice (the tube is too
+    thin for the split) with an outer wall that crosses itself: more than 10 minutes, then
+    the benchmark's timeout. That wall bounds no solid, so the skin now stops there with
+    the reason and what to do."""
+    from conformal import skin as _skin
+    from conformal import voxel_lattice
+    from lattice_cad.core.errors import SkinError
+
+    with pytest.warns(LatticeWarning, match="surface crosses itself"):
+        part = load_part(FOLDED)
+    cell = float(part.size.max()) / 15
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        graph = voxel_lattice(part, "octet", cell, cell / 12, fill="clip")
+    import fast_stitch
+
+    lattice = fast_stitch.stitch(graph)
+    with pytest.raises(SkinError, match=r"surface crosses itself \(\d+ pair.*repair"):
+        _skin.build_skin(lattice, part, cell / 6, method="voxel", check=False)
