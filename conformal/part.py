@@ -1014,8 +1014,9 @@ def _from_mesh_file(
         )
         raise PartError(f"{path}: the mesh is not a closed solid: {problem}{hint}")
     bodies = _components(f, len(v))
-    pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
-    repaired: list[str] = []
+    shells: list[NDArray[np.int64]] = []
+    volumes: list[float] = []
+    turned: list[bool] = []
     for body in bodies:
         fb = f[body]
         fixed = False
@@ -1024,24 +1025,41 @@ def _from_mesh_file(
             fb = _orient(fb)
             if _closed_problem(fb):
                 raise PartError(
-                    f"{path}: body {len(pieces)} cannot be oriented consistently "
+                    f"{path}: body {len(shells)} cannot be oriented consistently "
                     f"({_closed_problem(fb, v)}); repair the mesh"
                 )
         vol = _mesh_volume(v[fb])
         if vol == 0.0:
             x, y, z = v[np.unique(fb)].mean(axis=0)
             raise PartError(
-                f"{path}: body {len(pieces)} ({len(fb)} triangle(s) about ({x:.4g}, {y:.4g}, "
+                f"{path}: body {len(shells)} ({len(fb)} triangle(s) about ({x:.4g}, {y:.4g}, "
                 f"{z:.4g})) encloses no volume: a sheet, not a solid"
             )
-        if vol < 0:
+        shells.append(fb)
+        volumes.append(vol)
+        turned.append(fixed)
+    # a shell facing inward inside an odd number of the others bounds a cavity (a hollow
+    # box's inner wall): it stays as it is and goes with the smallest shell holding it;
+    # any other shell facing inward is turned outward (a mirrored body)
+    holder = _cavity_holders(v, shells, volumes)
+    pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
+    repaired: list[str] = []
+    grouped: dict[int, list[NDArray[np.int64]]] = {}
+    for k, fb in enumerate(shells):
+        if holder[k] >= 0:
+            continue
+        if volumes[k] < 0:
             fb = fb[:, ::-1]
-            fixed = True
-        if fixed:
+            turned[k] = True
+        if turned[k]:
             repaired.append("body {} at ({:.4g}, {:.4g}, {:.4g})".format(
-                len(pieces), *v[np.unique(fb)].mean(axis=0)
+                k, *v[np.unique(fb)].mean(axis=0)
             ))  # fmt: skip
-        pieces.append((v, fb))
+        grouped[k] = [fb]
+    for k, h in enumerate(holder):
+        if h >= 0:
+            grouped[h].append(shells[k])
+    pieces = [(v, np.concatenate(g)) for g in grouped.values()]
     if repaired:
         which = "; ".join(repaired[:5]) + (" ..." if len(repaired) > 5 else "")
         warnings.warn(
@@ -1050,10 +1068,10 @@ def _from_mesh_file(
             LatticeWarning,
             stacklevel=3,
         )
-    if len(bodies) > 1:
+    if len(pieces) > 1:
         v, f = _union_meshes(pieces, str(path))
         warnings.warn(
-            f"{path}: {len(bodies)} bodies were united into one part",
+            f"{path}: {len(pieces)} bodies were united into one part",
             LatticeWarning,
             stacklevel=3,
         )
@@ -1127,6 +1145,26 @@ def _orient(f: NDArray[np.int64]) -> NDArray[np.int64]:
                 done[b] = True
                 stack.append(b)
     return out
+
+
+def _cavity_holders(
+    v: NDArray[np.float64], shells: list[NDArray[np.int64]], volumes: list[float]
+) -> list[int]:
+    """For each closed, consistently oriented shell (faces ``shells[k]`` into the (V, 3)
+    vertices ``v``, signed volume ``volumes[k]``): the index of the smallest other shell
+    holding it when it faces inward and lies inside an odd number of the others (a
+    cavity's wall), else -1."""
+    holder = [-1] * len(shells)
+    inward = [k for k, vol in enumerate(volumes) if vol < 0]
+    if not inward or len(shells) == 1:
+        return holder
+    solids = [Part(v, fb if volumes[j] > 0 else fb[:, ::-1]) for j, fb in enumerate(shells)]
+    for k in inward:
+        point = v[shells[k][0, 0]][None]
+        around = [j for j in range(len(shells)) if j != k and solids[j].contains(point)[0]]
+        if len(around) % 2 == 1:
+            holder[k] = min(around, key=lambda j: abs(volumes[j]))
+    return holder
 
 
 def _union_meshes(

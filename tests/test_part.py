@@ -458,3 +458,45 @@ def test_3mf_part_is_read_as_built_in_its_unit(tmp_path):
     np.testing.assert_allclose(part.bounds[0], np.array([9.5, 19.0, 28.5]) * inch, rtol=1e-6)
     np.testing.assert_allclose(part.bounds[1], np.array([14.5, 21.0, 31.5]) * inch, rtol=1e-6)
     assert part.volume == pytest.approx(2 * 6.0 * inch**3, rel=1e-6)
+
+
+def test_a_closed_cavity_in_a_mesh_stays_a_cavity(tmp_path):
+    """Regression (s24's parts made outside shared/data): a hollow box saved as one STL, its
+    outer shell facing out and its closed inner shell facing in (a valid void), loaded as
+    the full box: each shell was oriented on its own by the sign of its volume, so the
+    cavity's wall was "flipped" outward (a warning said so) and the union filled it; every
+    fill then lay in the cavity and none in the 1 mm walls. A shell facing inward inside an
+    odd number of others is now a cavity."""
+    from conformal import voxel_lattice
+
+    outer = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
+    inner = trimesh.creation.box(extents=(38.0, 28.0, 18.0))
+    inner.invert()  # the cavity's wall faces into the cavity
+    path = tmp_path / "hollow_box.stl"
+    trimesh.util.concatenate([outer, inner]).export(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing flipped, nothing united
+        part = load_part(path)
+    assert part.volume == pytest.approx(40 * 30 * 20 - 38 * 28 * 18)  # 4,848 mm^3
+    assert not part.contains(np.array([[0.0, 0.0, 0.0], [15.0, 10.0, 5.0]])).any()
+    assert part.contains(np.array([[19.5, 0.0, 0.0], [0.0, 0.0, -9.5]])).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        graph = voxel_lattice(part, "bcc", 2.66667, 0.222222, fill="conform")
+    deep = np.all(np.abs(graph.nodes) < np.array([19.0, 14.0, 9.0]) - 0.5, axis=1)
+    assert graph.num_edges > 1000 and not deep.any()  # the walls hold it, the void does not
+
+    # a mirrored body (all faces inward, nothing around it) is still turned outward, and
+    # two overlapping bodies still united
+    flipped = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
+    flipped.invert()
+    flipped.export(tmp_path / "mirrored.stl")
+    with pytest.warns(LatticeWarning, match="re-oriented outward"):
+        assert load_part(tmp_path / "mirrored.stl").volume == pytest.approx(1000.0)
+    other = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
+    other.apply_translation((5.0, 0.0, 0.0))
+    trimesh.util.concatenate([trimesh.creation.box(extents=(10.0, 10.0, 10.0)), other]).export(
+        tmp_path / "overlap.stl"
+    )
+    with pytest.warns(LatticeWarning, match="2 bodies were united"):
+        assert load_part(tmp_path / "overlap.stl").volume == pytest.approx(1500.0)
