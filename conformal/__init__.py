@@ -75,3 +75,7 @@ __all__ = [
     "self_supporting_cells",
     "best_orientation",
 ]
+
+from lattice_cad.core import config as _config  # noqa: E402
+
+_config.prefer_numba_threading()  # before any parallel kernel runs (see there)

@@ -1007,10 +1007,10 @@ def build_skin(
             split = None
         else:
             bodies, islands = n_bodies, 0
-    if split is None and surface.self_crossings[0] > 0:
-        # the booleans on the whole lattice with an outer wall that crosses itself (a
-        # folded pipe elbow, too thin for the split) ran for more than 10 minutes; that
-        # wall bounds no solid, so their result could not be written anyway
+    if split is None and surface.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
+        # the booleans on the whole lattice with an outer wall that folds over itself (a
+        # pipe elbow swept past its path, too thin for the split) ran for more than 10
+        # minutes; that wall bounds no solid, so their result could not be written anyway
         raise SkinError(
             f"{p.name}: {surface.crossing_note()}; the skin's outer wall is that surface, "
             "so a skin of this part cannot be one solid until the part is repaired (its "

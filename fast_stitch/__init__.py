@@ -29,3 +29,7 @@ __all__ = [
     "StitchError",
     "ExportError",
 ]
+
+from lattice_cad.core import config as _config  # noqa: E402
+
+_config.prefer_numba_threading()  # before any parallel kernel runs (see there)

@@ -52,3 +52,7 @@ __all__ = [
     "HubSolids",
     "count_hubs",
 ]
+
+from lattice_cad.core import config as _config  # noqa: E402
+
+_config.prefer_numba_threading()  # before any parallel kernel runs (see there)

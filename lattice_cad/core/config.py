@@ -449,3 +449,35 @@ MAX_HUB_SCALE = 1.25
 #: ring (offset ``s d``) to the band ring at ``s d + sqrt(((1 - s) d)^2 + g^2)``, so it is
 #: never flat where ``s_n`` is 1 (leaves) and nearly the hub's cone where ``s_n < 1``.
 HUB_BAND_GAP = 0.05
+
+#: A skin's outer wall (the part's cutting tessellation) whose triangles cross in at least
+#: this many pairs folds over itself (the folded pipe elbow: 2,378 pairs), and a skin of it
+#: is refused before manifold3d's booleans on the whole lattice, which ran for more than 10
+#: minutes there (``conformal.skin.build_skin``). Fewer pairs are faces grazing within the
+#: tessellation, which the booleans resolve: 3 on the cycloidal gear's and the wingnut's.
+SKIN_FOLD_PAIRS = 100
+
+#: numba's threading layers in the order the engines ask for them (unless the user set
+#: ``NUMBA_THREADING_LAYER`` or ``NUMBA_THREADING_LAYER_PRIORITY``): OpenMP first. numba's
+#: own order puts TBB first, which it finds wherever a system libtbb is installed (Debian's
+#: PrusaSlicer and CuraEngine packages bring one); with it, a CLI run that ended in an error
+#: after numba's parallel kernels had run (``--close-holes`` on a triangle soup) spun in
+#: TBB's finalize at interpreter exit for minutes (over 300 s, twice), and exits in 3.4 s
+#: with OpenMP, which numba uses anyway on machines without libtbb.
+NUMBA_THREADING_PRIORITY = ("omp", "tbb", "workqueue")
+
+
+def prefer_numba_threading() -> None:
+    """Apply :data:`NUMBA_THREADING_PRIORITY` (the engines call this when imported; it must
+    come before numba's first parallel kernel runs, which fixes the layer for the process).
+    An environment that names a layer or an order keeps it."""
+    import os
+    import sys
+
+    env = os.environ
+    if "NUMBA_THREADING_LAYER" in env or "NUMBA_THREADING_LAYER_PRIORITY" in env:
+        return
+    env["NUMBA_THREADING_LAYER_PRIORITY"] = " ".join(NUMBA_THREADING_PRIORITY)  # children
+    numba = sys.modules.get("numba")  # (not imported here: the core floor is numpy only)
+    if numba is not None:
+        numba.config.THREADING_LAYER_PRIORITY = list(NUMBA_THREADING_PRIORITY)
