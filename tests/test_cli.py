@@ -394,3 +394,32 @@ def test_tet_fill_output_has_no_gmsh_debugging_or_cursor_codes(tmp_path):
     assert "el1 = np" not in out and "duplicated facets" not in out, out[:2000]
     assert "\x1b[A" not in out and "hub/s" not in out
     assert "wrote" in r.stdout and len(out.splitlines()) < 40, out
+
+
+def test_an_error_after_parallel_kernels_exits_at_once(tmp_path):
+    """Regression (s24's parts made outside shared/data): ``--close-holes`` on a triangle
+    soup runs numba's parallel kernels, then fails ("encloses no volume"). With numba on
+    TBB (found wherever a system libtbb is installed, as CI's slicer packages bring one),
+    the process then spun in TBB's finalize at interpreter exit: 64 s on this sphere, more
+    than 300 s on a larger soup. The engines now ask numba for OpenMP first
+    (``config.NUMBA_THREADING_PRIORITY``): 4-6 s."""
+    import os
+    import time
+
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=3, radius=20.0)
+    rng = np.random.default_rng(0)
+    v = m.vertices[m.faces].reshape(-1, 3) + rng.normal(scale=1e-6, size=(3 * len(m.faces), 3))
+    soup = tmp_path / "soup.obj"  # every triangle its own vertices: 1,280 "holes"
+    trimesh.Trimesh(v, np.arange(len(v)).reshape(-1, 3), process=False).export(soup)
+    env = {k: x for k, x in os.environ.items() if not k.startswith("NUMBA_THREADING")}
+    out = str(tmp_path / "x.stl")
+    argv = [sys.executable, "-m", "lattice_cad.cli", "fill", str(soup), "-o", out,
+            "--cell-size", "3", "--radius", "0.25", "--close-holes"]  # fmt: skip
+    t0 = time.perf_counter()
+    done = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=300)
+    took = time.perf_counter() - t0
+    assert done.returncode == 1 and "encloses no volume" in done.stderr, done.stderr
+    assert took < 30.0, took
+    assert not (tmp_path / "x.stl").exists()
