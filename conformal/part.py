@@ -1164,7 +1164,9 @@ def _cavity_holders(
         around = [j for j in range(len(shells)) if j != k and solids[j].contains(point)[0]]
         if len(around) % 2 == 1:
             holder[k] = min(around, key=lambda j: abs(volumes[j]))
-    return holder
+    # (shells nested properly never hold a cavity in a cavity; overlapping ones might:
+    # such a shell is then turned outward like any other)
+    return [h if h < 0 or holder[h] < 0 else -1 for h in holder]
 
 
 def _union_meshes(
