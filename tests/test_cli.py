@@ -402,7 +402,7 @@ def test_an_error_after_parallel_kernels_exits_at_once(tmp_path):
     TBB (found wherever a system libtbb is installed, as CI's slicer packages bring one),
     the process then spun in TBB's finalize at interpreter exit: 64 s on this sphere, more
     than 300 s on a larger soup. The engines now ask numba for OpenMP first
-    (``config.NUMBA_THREADING_PRIORITY``): 4-6 s."""
+    (``config.NUMBA_THREADING_PRIORITY``): it exits as soon as it has said the error."""
     import os
     import time
 
@@ -417,9 +417,44 @@ def test_an_error_after_parallel_kernels_exits_at_once(tmp_path):
     out = str(tmp_path / "x.stl")
     argv = [sys.executable, "-m", "lattice_cad.cli", "fill", str(soup), "-o", out,
             "--cell-size", "3", "--radius", "0.25", "--close-holes"]  # fmt: skip
-    t0 = time.perf_counter()
-    done = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=300)
-    took = time.perf_counter() - t0
-    assert done.returncode == 1 and "encloses no volume" in done.stderr, done.stderr
-    assert took < 30.0, took
+    # the time from the error to the end of the process (its first run may compile
+    # kernels the warm-up does not: 40 s in a CI run, and not what is measured here)
+    said, said_at = [], None
+    with subprocess.Popen(
+        argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env
+    ) as proc:
+        assert proc.stderr is not None
+        for line in proc.stderr:  # stderr is line-buffered: each line as it is printed
+            said.append(line)
+            if line.startswith("error:") and said_at is None:
+                said_at = time.perf_counter()
+        returncode = proc.wait(timeout=300)
+        gone_at = time.perf_counter()
+    assert returncode == 1 and said_at is not None, said
+    assert "encloses no volume" in "".join(said), said
+    assert gone_at - said_at < 15.0, gone_at - said_at
     assert not (tmp_path / "x.stl").exists()
+    # how long TBB spun depends on the machine's load (64-148 s beside CI, a few seconds
+    # when it is quiet): the layer itself, where OpenMP is there to be had
+    probe = (
+        "import numpy as np, numba, conformal\n"
+        "@numba.njit(parallel=True)\n"
+        "def f(a):\n"
+        "    s = 0.0\n"
+        "    for i in numba.prange(len(a)):\n"
+        "        s += a[i]\n"
+        "    return s\n"
+        "f(np.ones(64))\n"
+        "try:\n"
+        "    import numba.np.ufunc.omppool\n"
+        "    omp = 'omp there'\n"
+        "except ImportError:\n"
+        "    omp = 'no omp'\n"
+        "print(numba.threading_layer(), omp)\n"
+    )
+    layer = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert layer.returncode == 0, layer.stderr
+    used, there = layer.stdout.split(maxsplit=1)
+    assert used == "omp" or there.strip() == "no omp", layer.stdout
