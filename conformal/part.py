@@ -1042,7 +1042,6 @@ def _from_mesh_file(
     # box's inner wall): it stays as it is and goes with the smallest shell holding it;
     # any other shell facing inward is turned outward (a mirrored body)
     holder = _cavity_holders(v, shells, volumes)
-    pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = []
     repaired: list[str] = []
     grouped: dict[int, list[NDArray[np.int64]]] = {}
     for k, fb in enumerate(shells):
@@ -1059,7 +1058,9 @@ def _from_mesh_file(
     for k, h in enumerate(holder):
         if h >= 0:
             grouped[h].append(shells[k])
-    pieces = [(v, np.concatenate(g)) for g in grouped.values()]
+    pieces: list[tuple[NDArray[np.float64], NDArray[np.int64]]] = [
+        (v, np.concatenate(g)) for g in grouped.values()
+    ]
     if repaired:
         which = "; ".join(repaired[:5]) + (" ..." if len(repaired) > 5 else "")
         warnings.warn(
