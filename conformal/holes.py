@@ -6,8 +6,9 @@ edges are; with ``close_holes=True`` (``lattice-cad fill --close-holes``) each h
 closed first and a warning says how many, how large and where:
 
 1. the faces are oriented consistently (breadth-first over shared edges);
-2. the boundary half-edges (edges used by one triangle) are chained into loops; a vertex
-   where two loops touch (two boundary edges leave it) is refused, naming it;
+2. the boundary half-edges (edges used by one triangle) are chained into loops; where two
+   loops touch at a vertex (two boundary edges leave it: a pinched, bow-tie rim) the walk
+   is cut there into simple loops, each closed on its own;
 3. each loop is triangulated by the triangulation of least total area (dynamic
    programming over its vertices, O(n^3): ``conformal._kernels.min_area_fill``), using no
    chord that is an edge of the mesh already (it would be shared by three triangles).
@@ -93,7 +94,12 @@ class HoleReport:
 
 
 def _boundary_loops(f: NDArray[np.int64], v: NDArray[np.float64], name: str) -> list[list[int]]:
-    """The loops of boundary half-edges of ``f`` (each in the direction its face runs)."""
+    """The loops of boundary half-edges of ``f`` (each in the direction its face runs).
+
+    Where holes touch at a vertex (two open edges leave it: a pinched, bow-tie rim), the
+    walk is cut there into simple loops, each closed on its own: a loop is emitted as soon
+    as the walk comes back to a vertex it has passed.
+    """
     he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     _, inv, cnt = unique_rows(np.sort(he, axis=1), return_inverse=True, return_counts=True)
     if (cnt > 2).any():
@@ -101,34 +107,39 @@ def _boundary_loops(f: NDArray[np.int64], v: NDArray[np.float64], name: str) -> 
     bnd = he[(cnt == 1)[inv.reshape(-1)]]
     if not len(bnd):
         return []
-    starts, n_out = np.unique(bnd[:, 0], return_counts=True)
-    if (n_out > 1).any():
-        x, y, z = v[starts[np.argmax(n_out > 1)]]
+    out: dict[int, list[int]] = {}
+    for a, b in bnd.tolist():
+        out.setdefault(a, []).append(b)
+    n_in = np.bincount(bnd[:, 1], minlength=len(v))
+    n_out = np.bincount(bnd[:, 0], minlength=len(v))
+    if (n_in != n_out).any():
+        x, y, z = v[int(np.argmax(n_in != n_out))]
         raise PartError(
-            f"{name}: holes touch at the vertex ({x:.4g}, {y:.4g}, {z:.4g}) (two open edges "
-            "leave it in the same direction), so they cannot be closed one by one; repair "
-            "the mesh"
+            f"{name}: the open edges at ({x:.4g}, {y:.4g}, {z:.4g}) do not close "
+            "into a loop; repair the mesh"
         )
-    nxt = dict(zip(bnd[:, 0].tolist(), bnd[:, 1].tolist(), strict=True))
     loops: list[list[int]] = []
-    seen: set[int] = set()
     for s in bnd[:, 0].tolist():
-        if s in seen:
+        if not out.get(s):
             continue
-        loop = [s]
-        seen.add(s)
-        a = nxt[s]
-        while a != s:
-            if a in seen or a not in nxt:
-                x, y, z = v[a]
-                raise PartError(
-                    f"{name}: the open edges at ({x:.4g}, {y:.4g}, {z:.4g}) do not close "
-                    "into a loop; repair the mesh"
-                )
-            loop.append(a)
-            seen.add(a)
-            a = nxt[a]
-        loops.append(loop)
+        path = [s]
+        at = {s: 0}  # position of each vertex on the current walk
+        a = s
+        while path:
+            b = out[a].pop()
+            if b in at:  # back at a vertex of the walk: the part after it is a loop
+                k = at[b]
+                loops.append(path[k:])
+                for w in path[k + 1 :]:
+                    del at[w]
+                del path[k + 1 :]
+                if not out[b]:  # the walk's start, its open edges all used
+                    break
+                a = b
+            else:
+                at[b] = len(path)
+                path.append(b)
+                a = b
     return loops
 
 
@@ -155,7 +166,7 @@ def close_holes(
     Raises
     ------
     PartError
-        Holes touching at a vertex, a loop of more than ``config.CLOSE_HOLES_MAX_EDGES``
+        Open edges that do not form loops, a loop of more than ``config.CLOSE_HOLES_MAX_EDGES``
         edges, or one that every triangulation would join to an existing edge.
     """
     from conformal.part import _orient
@@ -192,6 +203,8 @@ def close_holes(
                 "closed without joining edges the mesh has already; repair the mesh"
             )
         added.append(ids[tri])
+        # loops that touch at a vertex: no chord of this patch may be another's too
+        und = np.vstack([und, np.sort(ids[tri][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)])
         perimeter = float(np.linalg.norm(v[np.roll(ids, -1)] - v[ids], axis=1).sum())
         rows.append((n, perimeter, (float(x), float(y), float(z))))
     crossing = _crossings(v, f, added)

@@ -927,14 +927,16 @@ def _closed_problem(f: NDArray[np.int64], v: NDArray[np.float64] | None = None) 
 
 
 def _edge_loops(edges: NDArray[np.int64]) -> int:
-    """How many connected pieces the edges ``(E, 2) int64`` form (the holes they bound)."""
+    """How many holes the open edges ``(E, 2) int64`` bound: the loops they form, E - V + C
+    (a bow-tie rim, two holes touching at a vertex, is two, as ``close_holes`` closes it)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     used, local = np.unique(edges, return_inverse=True)
     local = local.reshape(-1, 2)
     g = coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])), shape=(len(used),) * 2)
-    return int(connected_components(g, directed=False)[0])
+    pieces = int(connected_components(g, directed=False)[0])
+    return max(pieces, len(edges) - len(used) + pieces)
 
 
 def _edges_at(edges: NDArray[np.int64], v: NDArray[np.float64] | None, most: int = 3) -> str:
@@ -947,6 +949,78 @@ def _edges_at(edges: NDArray[np.int64], v: NDArray[np.float64] | None, most: int
     )
     more = f" and {len(edges) - most} more" if len(edges) > most else ""
     return f", e.g. the edge {shown}{more}"
+
+
+def _weld_open_rims(
+    v: NDArray[np.float64], f: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64], int, float] | None:
+    """The mesh with the end points of its open edges welded where they lie within a small
+    distance of one another (``config.WELD_OPEN_RTOLS`` of the bounding-box diagonal), or
+    None if no step closes any open edge.
+
+    A triangle soup whose copies of a vertex differ in the last digits (an exporter that
+    rounds each triangle's coordinates) reads as a mesh of holes; welding its open edges'
+    end points makes it the closed mesh it stands for. Only vertices on open edges move,
+    to the first of each group within the distance (transitively); a step is tried only
+    below half the mesh's shortest edge and kept only if it leaves no edge shared by more
+    than two triangles; the step that leaves the fewest open edges is returned.
+
+    v : (V, 3) float64, f : (F, 3) int64 (exact duplicates merged already).
+
+    Returns
+    -------
+    (vertices (V', 3) float64, faces (F', 3) int64, welded vertices, distance mm) or None.
+    Triangles that become degenerate are dropped, a triangle repeated is kept once, and
+    vertices no triangle uses are dropped.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    def open_edges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], int]:
+        und = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+        rows, cnt = unique_rows(und, return_counts=True)
+        return rows[cnt == 1], int((cnt > 2).sum())
+
+    rims, _ = open_edges(f)
+    if not len(rims):
+        return None
+    lengths = np.linalg.norm(np.diff(v[np.concatenate([f, f[:, :1]], axis=1)], axis=1), axis=2)
+    shortest = float(lengths[lengths > 0].min()) if (lengths > 0).any() else 0.0
+    diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    ends = np.unique(rims)
+    tree = cKDTree(v[ends])
+    best: tuple[NDArray[np.float64], NDArray[np.int64], int, float] | None = None
+    fewest = len(rims)
+    for rtol in config.WELD_OPEN_RTOLS:
+        tol = rtol * diag
+        if tol >= 0.5 * shortest:
+            break
+        pairs = tree.query_pairs(tol, output_type="ndarray")
+        if not len(pairs):
+            continue
+        n = len(ends)
+        g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        _, label = connected_components(g, directed=False)
+        first = np.full(label.max() + 1, n, dtype=np.int64)
+        np.minimum.at(first, label, np.arange(n))
+        to = np.arange(len(v))
+        to[ends] = ends[first[label]]
+        f2 = to[f]
+        f2 = f2[(f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])]
+        _, once = unique_rows(np.sort(f2, axis=1), return_index=True)
+        f2 = f2[np.sort(once)]
+        left, nonmanifold = open_edges(f2)
+        if nonmanifold:
+            break  # a larger distance joins more: no better
+        if len(left) < fewest:
+            used, f3 = np.unique(f2, return_inverse=True)
+            welded = int(np.count_nonzero(to[ends] != ends))
+            best = (v[used], f3.reshape(-1, 3).astype(np.int64), welded, tol)
+            fewest = len(left)
+        if not len(left):
+            break
+    return best
 
 
 def _from_mesh_file(
@@ -992,7 +1066,24 @@ def _from_mesh_file(
     v = uniq
     degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     f = f[~degenerate]
-    problem = _closed_problem(f, v)
+    problem = _closed_problem(f)
+    if "open (boundary)" in problem:
+        welded = _weld_open_rims(v, f)
+        if welded is not None:
+            open_before = problem.split(" ", 1)[0]
+            v, f, n_welded, tol = welded
+            problem = _closed_problem(f)
+            left = problem.split(" ", 1)[0] if "open (boundary)" in problem else "no"
+            warnings.warn(
+                f"{path}: {n_welded} end point(s) of open edges lay within {tol:.3g} mm of "
+                f"another and were welded ({open_before} open edge(s) before, {left} after): "
+                "the file stores copies of its vertices that differ in the last digits (a "
+                "triangle soup, or coordinates rounded by the exporter)",
+                LatticeWarning,
+                stacklevel=3,
+            )
+    if problem:
+        problem = _closed_problem(f, v)  # where, for the messages
     patch_crossings = False  # a closed hole's patch crosses the surface (said there)
     if problem and close_holes and "open (boundary)" in problem:
         from conformal.holes import close_holes as _close

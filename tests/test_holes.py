@@ -133,8 +133,8 @@ def test_a_triangle_soup_is_still_refused():
             load_part(BROKEN / "trimesh_soup.stl", close_holes=True)
 
 
-def test_holes_touching_at_a_vertex_are_refused_naming_it():
-    # an octahedron without two faces that share only the vertex (0, 0, 1)
+def test_holes_touching_at_a_vertex_are_closed_each():
+    # an octahedron without two faces that share only the vertex (0, 0, 1): a bow-tie rim
     v = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
     f = []
     for k in range(4):
@@ -143,11 +143,53 @@ def test_holes_touching_at_a_vertex_are_refused_naming_it():
     f = np.array(f, dtype=np.int64)
     keep = np.ones(len(f), dtype=bool)
     keep[[0, 4]] = False  # faces (0, 1, top) and (2, 3, top)
-    with pytest.raises(PartError, match=r"holes touch at the vertex \(0, 0, 1\)"):
-        close_holes(v, f[keep], name="octahedron")
+    # the load error and the closing count the same holes (it used to say 1, then refuse)
+    assert "6 open (boundary) edge(s) around 2 hole(s)" in _closed_problem(f[keep], v)
+    f2, rep = close_holes(v, f[keep], name="octahedron")
+    assert rep.holes == 2 and rep.added == 2 and _closed_problem(f2, v) == ""
+    assert sorted(map(sorted, f2[-2:].tolist())) == [[0, 1, 4], [2, 3, 4]]
     keep[[0, 4]] = [False, True]  # one hole: closes back to the octahedron
     f2, rep = close_holes(v, f[keep], name="octahedron")
     assert rep.holes == 1 and _closed_problem(f2, v) == ""
+
+
+def _fan(f, x):
+    """The faces around vertex ``x`` of a closed, consistently oriented mesh, in order."""
+    by_first = {}  # each face as (x, a, b): the one after it starts at b
+    for i in np.flatnonzero((f == x).any(axis=1)).tolist():
+        a, b, c = f[i].tolist()
+        rot = {a: (b, c), b: (c, a), c: (a, b)}[x]
+        by_first[rot[0]] = (i, rot[1])
+    first = next(iter(by_first))
+    order, at = [], first
+    while True:
+        i, at = by_first[at]
+        order.append(i)
+        if at == first:
+            return order
+
+
+def test_a_pinched_hole_in_a_real_scan_closes():
+    """Two gaps in the fan of one bunny vertex: the rim passes through it twice. It was
+    refused ('holes touch at the vertex'), after the load error had called it one hole."""
+    import trimesh
+
+    path = DATA / "meshes" / "bunny_closed_odedstein.obj"
+    part = load_part(path)
+    v, f = np.asarray(part.vertices, float), np.asarray(part.faces, np.int64)
+    whole = trimesh.Trimesh(v, f, process=False)
+    valence = np.bincount(f.ravel())
+    x = int(np.flatnonzero(valence >= 6)[0])
+    fan = _fan(f, x)
+    drop = [fan[0], fan[1], fan[3], fan[4]]  # fan[2] and fan[5:] stay: two gaps at x
+    f_open = np.delete(f, drop, axis=0)
+    problem = _closed_problem(f_open, v)
+    assert "around 2 hole(s)" in problem, problem
+    f2, rep = close_holes(v, f_open, name="bunny")
+    assert rep.holes == 2 and rep.added == 4 and _closed_problem(f2, v) == ""
+    closed = trimesh.Trimesh(v, f2, process=False)
+    assert closed.is_watertight and closed.is_winding_consistent
+    assert closed.volume == pytest.approx(whole.volume, rel=1e-3)
 
 
 def test_a_hole_larger_than_the_limit_is_refused(monkeypatch):

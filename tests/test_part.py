@@ -500,3 +500,52 @@ def test_a_closed_cavity_in_a_mesh_stays_a_cavity(tmp_path):
     )
     with pytest.warns(LatticeWarning, match="2 bodies were united"):
         assert load_part(tmp_path / "overlap.stl").volume == pytest.approx(1500.0)
+
+
+def _soup_obj(path, v, f, jitter, seed=0):
+    """Write ``f`` as an OBJ triangle soup: each triangle its own three vertices, moved by
+    up to ``jitter`` mm per coordinate (an exporter that rounds each triangle's own)."""
+    rng = np.random.default_rng(seed)
+    corners = v[f.ravel()] + rng.uniform(-jitter, jitter, size=(3 * len(f), 3))
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in corners.tolist()]
+    lines += [f"f {3 * i + 1} {3 * i + 2} {3 * i + 3}" for i in range(len(f))]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_a_triangle_soup_with_jittered_copies_loads_welded(tmp_path):
+    """A soup whose copies of a vertex differ in the last digits was '3156 open edges
+    around 1052 holes', and --close-holes made it 1052 sheets (s24's helper part)."""
+    whole = load_part(DATA / "meshes" / "fandisk.obj")
+    v, f = np.asarray(whole.vertices), np.asarray(whole.faces)
+    diag = float(np.linalg.norm(np.ptp(v, axis=0)))
+    soup = tmp_path / "fandisk_soup.obj"
+    _soup_obj(soup, v, f, jitter=1e-8 * diag)
+    with pytest.warns(
+        LatticeWarning,
+        match=r"end point\(s\) of open edges lay within .* mm of "
+        r"another and were welded \(\d+ open edge\(s\) before, no after\)",
+    ):
+        part = load_part(soup)
+    assert len(part.faces) == len(f) and len(part.vertices) == len(v)
+    mesh = trimesh.Trimesh(part.vertices, part.faces, process=False)
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    assert mesh.volume == pytest.approx(whole.volume, rel=1e-6)
+    # copies farther apart than the weld goes stay holes: refused, as before
+    _soup_obj(soup, v, f, jitter=1e-3 * diag)
+    with pytest.raises(PartError, match=r"the mesh is not a closed solid: \d+ open"):
+        load_part(soup)
+
+
+def test_welding_moves_only_the_end_points_of_open_edges(tmp_path):
+    """A closed cube with an open one (no bottom) standing on it, 1e-8 of the size above:
+    the open cube's rim is closer to the closed cube's top corners than any weld step, but
+    only open edges' end points are welded (among themselves), so it stays one hole."""
+    cube = trimesh.creation.box((10, 10, 10))
+    v, f = np.asarray(cube.vertices), np.asarray(cube.faces)
+    bottom = np.all(v[f][:, :, 2] < 0, axis=1)
+    v2 = np.vstack([v, v + [0, 0, 10 + 1e-7]])
+    f2 = np.vstack([f, f[~bottom] + len(v)])
+    path = tmp_path / "open_cube_on_a_cube.obj"
+    trimesh.Trimesh(v2, f2, process=False).export(path)
+    with pytest.raises(PartError, match=r"4 open \(boundary\) edge\(s\) around 1 hole"):
+        load_part(path)

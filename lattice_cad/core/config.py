@@ -23,6 +23,11 @@ SMALL_MESH_MM = 1.0
 #: Holes of a mesh part are closed (``close_holes=True``) up to this many rim edges each:
 #: the minimal-area patch is O(n^3) in time (1000 edges: about 1.5 s) and O(n^2) in memory.
 CLOSE_HOLES_MAX_EDGES = 1000
+#: A mesh part file whose open edges' end points lie this close to one another (as
+#: fractions of its bounding-box diagonal, tried in order) has them welded at load: a
+#: triangle soup, or coordinates an exporter rounded per triangle. A step is taken only
+#: below half the mesh's shortest edge, and kept only if it makes no edge non-manifold.
+WELD_OPEN_RTOLS = (1e-9, 1e-7, 1e-6, 1e-5)
 
 
 # --------------------------------------------------------- Printability (conformal.printability)
