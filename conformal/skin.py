@@ -64,12 +64,19 @@ __all__ = [
     "marching_tets",
     "wall_thickness",
     "outer_chord",
+    "wall_tolerance",
 ]
 
 #: A wall is accurate when every measured thickness is within this fraction of ``t`` or
 #: this many mm of it, whichever is larger.
 WALL_RTOL = 0.02
 WALL_ATOL = 0.02
+#: ... but a wall thinner than ``WALL_ATOL / WALL_ATOL_SHARE`` (0.08 mm: below what prints)
+#: has this share of its thickness as the absolute part, so that the tolerance, the chord
+#: of the part's surface and the split's margin scale with a part read in the wrong unit
+#: (a flange in metres read as mm, 0.05 mm across: 0.02 mm was 36 x its 0.56 um wall, and
+#: the split's margin took in every element: 340 s in ``skin_split._refine_near``).
+WALL_ATOL_SHARE = 0.25
 #: Exact distances of the voxel method's band are computed in chunks of this many points,
 #: so that :func:`_surfaces`, computing it while OCCT's offsets run, sees their end soon
 #: after it (the GE bracket's band, 0.7 M points, took 2.4 s in one piece).
@@ -113,7 +120,7 @@ class SkinReport:
         Measured wall thickness (mm): ``min``, ``p01``, ``median``, ``p99``, ``max`` over
         the inner surface's vertices and face centres (distance to the outer surface).
     accurate : bool
-        Every measured thickness is within ``max(WALL_RTOL * t, WALL_ATOL)`` of ``t``.
+        Every measured thickness is within ``wall_tolerance(t)`` of ``t``.
     bodies : int
         Separate solids of the result (one per connected solid of the part).
     islands_removed : int
@@ -172,13 +179,21 @@ class SkinResult:
 _GRID_SHIFT = 0.5017
 
 
+def wall_tolerance(thickness: float) -> float:
+    """How far (mm) a measured wall thickness may be from ``thickness``: ``WALL_RTOL`` of it
+    or ``WALL_ATOL``, whichever is larger (the absolute part at most ``WALL_ATOL_SHARE`` of
+    the thickness)."""
+    t = float(thickness)
+    return max(WALL_RTOL * t, min(WALL_ATOL, WALL_ATOL_SHARE * t))
+
+
 def outer_chord(thickness: float) -> float:
     """The chord error (mm) of the part's tessellation a skin of ``thickness`` is built on:
-    ``OUTER_CHORD_FRACTION`` of the wall's tolerance ``max(WALL_RTOL * t, WALL_ATOL)``
+    ``OUTER_CHORD_FRACTION`` of the wall's tolerance (:func:`wall_tolerance`)
     (0.0075 mm for t = 1.5). The struts are cut by the skin's inner wall, not by the
     part's surface, so the strut radius does not enter (a trim cuts by the part's
     surface, with ``config.CUT_DEFLECTION_RTOL`` of the radius: 0.0025 mm for r = 0.5)."""
-    return OUTER_CHORD_FRACTION * max(WALL_RTOL * float(thickness), WALL_ATOL)
+    return OUTER_CHORD_FRACTION * wall_tolerance(thickness)
 
 
 # ------------------------------------------------------------------ conversion
@@ -396,7 +411,7 @@ def _occt_surfaces(
         pending = None
     if pending is None:
         pending = start_offsets(part, thickness, mid_wall=mid_wall)
-    tol = max(WALL_RTOL * thickness, WALL_ATOL)
+    tol = wall_tolerance(thickness)
     chord = max(float(getattr(part, "deflection", 0.0)), getattr(part, "chord_error", None) or 0.0)
     dists = _offset_depths(thickness, mid_wall)
     out = [manifold3d.Manifold() for _ in dists]
@@ -630,7 +645,7 @@ def _project_to_offset(
     # faces turned over (or flattened): their vertices go back
     v = revert_flips(v0, _newton_to_offset(v0, surface, thickness, steps), f)
     if refine:  # (the voxel method's creases do not converge: measured no better there)
-        tol = 0.5 * max(WALL_RTOL * thickness, WALL_ATOL)
+        tol = 0.5 * wall_tolerance(thickness)
         v, f = _refine_to_offset(v, f, surface, thickness, tol)
     return _manifold(v, f, "the inner surface")
 
@@ -1029,7 +1044,7 @@ def build_skin(
         "p99": float(np.percentile(wall, 99)),
         "max": float(wall.max()),
     }
-    tol = max(WALL_RTOL * thickness, WALL_ATOL)
+    tol = wall_tolerance(thickness)
     report = SkinReport(
         thickness=float(thickness),
         method=used,
@@ -1094,7 +1109,7 @@ def _split(lattice: Any, graph: Any, inner: Any, thickness: float) -> Any:
     arrays = mesh_arrays(lattice)
     if arrays is None:
         return None
-    margin = max(WALL_ATOL, 0.01 * thickness)
+    margin = max(min(WALL_ATOL, WALL_ATOL_SHARE * thickness), 0.01 * thickness)
     split = split_lattice(graph, *arrays, Part(*to_arrays(inner), name="inner"), margin=margin)
     if split is None or split.counts["near"] == 0:
         return None  # (all of it deep: an island in the cavity, for the whole booleans)

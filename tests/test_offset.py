@@ -43,7 +43,7 @@ def test_cycloidal_gear_skin_by_occt_offset():
         cut = cutting_part(part, cell / 12)
     res = S.build_skin(manifold3d.Manifold(), cut, t, method="occt", check=False)
     rep = res.report
-    tol = max(S.WALL_RTOL * t, S.WALL_ATOL)
+    tol = S.wall_tolerance(t)
     assert rep.method == "occt" and not rep.fallback, rep.summary()
     assert rep.accurate, rep.summary()
     assert abs(rep.wall["min"] - t) <= tol and abs(rep.wall["max"] - t) <= tol
@@ -231,7 +231,7 @@ def test_ge_bracket_skin_by_occt_offset():
         assert occ.is_valid(inner)
         v, f = occ.tessellate(inner, 0.01 * t, 0.1)
         d = fine.distance(np.vstack([v, v[f].mean(axis=1)]))
-        tol = max(S.WALL_RTOL * t, S.WALL_ATOL)
+        tol = S.wall_tolerance(t)
         assert np.all(np.abs(d - t) <= tol), (t, d.min(), d.max())
     res = S.build_skin(manifold3d.Manifold(), part, 1.5, method="auto", check=False)
     rep = res.report

@@ -365,3 +365,35 @@ def test_clip_fill_of_a_thin_part_says_most_of_it_fell_apart():
         gc, rep_c = voxel_lattice(part, "bcc", h, r, fill="conform", return_report=True)
     assert rep_c.bodies == 1 and gc.num_edges > 10 * g.num_edges
     assert rep_c.removed_islands < 0.5 * (rep_c.removed_islands + gc.num_edges)
+
+
+@pytest.mark.slow
+def test_a_voxel_skin_is_the_same_in_any_unit(tmp_path):
+    """fandisk.obj, and the same mesh in metres read as mm (1e-3 of it): the absolute
+    floor of the wall tolerance (0.02 mm) was larger than the whole part there, so the
+    split's margin took in every element and the booleans ran on the whole lattice (s24's
+    flange in metres: 568 s, 340 s of them measuring that margin). The floor is now at most
+    a quarter of the wall (``skin.WALL_ATOL_SHARE``): the split, the verdict and the wall,
+    scaled, are the same at both scales."""
+    import trimesh
+
+    src = _part("meshes/fandisk.obj")
+    extent = float(src.size.max())
+    got = []
+    for k in (1.0, 1e-3):
+        path = tmp_path / f"fandisk_{k}.stl"
+        trimesh.Trimesh(src.vertices * k, src.faces, process=False).export(path)
+        cell = extent * k / 15
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LatticeWarning)  # thinned struts, tiny part
+            lat = Lattice.fill(str(path), "octet", cell, cell / 12, skin=cell / 6)
+            mesh = lat.mesh()
+        rep = lat.skin_report
+        assert rep.method == "voxel" and rep.bodies == 1 and _bodies(mesh) == 1
+        got.append((rep, len(mesh.faces)))
+    (big, n_big), (small, n_small) = got
+    assert big.split and small.split == big.split  # the same elements near the wall
+    assert small.accurate == big.accurate
+    for key, value in big.wall.items():
+        assert small.wall[key] == pytest.approx(1e-3 * value, rel=1e-3), key
+    assert n_small == pytest.approx(n_big, rel=1e-3)

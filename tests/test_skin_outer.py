@@ -59,7 +59,7 @@ def test_skinned_real_part_is_cut_by_the_walls_chord_and_exact_against_the_brep(
     vi, fi = S.to_arrays(inner)
     pts = trimesh.Trimesh(vi, fi, process=False).sample(3000, seed=11)
     depth = -signed_distance(solids, pts)
-    tol = max(S.WALL_RTOL * t, S.WALL_ATOL)
+    tol = S.wall_tolerance(t)
     assert np.all(np.abs(depth - t) <= tol), (depth.min(), depth.max())
 
 

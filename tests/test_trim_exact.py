@@ -137,7 +137,7 @@ def test_skin_wall_and_outer_surface_follow_the_exact_brep():
     # random points on the inner surface (not its vertices): the wall to the exact B-rep
     pts, _ = trimesh.sample.sample_surface(trimesh.Trimesh(iv, fi, process=False), 400, seed=5)
     wall = -signed_distance(part.shape, pts)
-    tol = max(S.WALL_RTOL * t, S.WALL_ATOL)
+    tol = S.wall_tolerance(t)
     assert np.abs(wall - t).max() <= tol, (wall.min() / t, wall.max() / t)
     # the skin's outer surface stands out of the exact B-rep by less than 1 % r
     ov, _ = S.to_arrays(surfaces[0])
