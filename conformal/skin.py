@@ -134,6 +134,8 @@ class SkinReport:
     voxel: float = float("nan")
     wall: dict[str, float] = field(default_factory=dict)
     accurate: bool = False
+    #: The tolerance ``accurate`` was judged with (mm, :func:`wall_tolerance`).
+    tolerance: float = float("nan")
     bodies: int = 0
     islands_removed: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
@@ -156,7 +158,7 @@ class SkinReport:
             if w
             else "wall not measured"
         )
-        ok = "within tolerance" if self.accurate else "NOT within 2 % / 0.02 mm"
+        ok = f"{'within' if self.accurate else 'NOT within'} {self.tolerance:.3g} mm"
         islands = f", {self.islands_removed} island(s) removed" if self.islands_removed else ""
         return f"skin by {how}: {wall}, {ok}; {self.bodies} body(ies){islands}"
 
@@ -1045,13 +1047,30 @@ def build_skin(
         "max": float(wall.max()),
     }
     tol = wall_tolerance(thickness)
+    off = np.abs(wall - thickness)
+    accurate = bool(np.all(off <= tol))
+    if not accurate:
+        iv, fi = to_arrays(inner)
+        k = int(np.argmax(off))
+        x, y, z = iv[k] if k < len(iv) else iv[fi[k - len(iv)]].mean(axis=0)
+        how = "OpenCascade's offset" if used == "occt" else f"the voxel field (h={h:.3g} mm)"
+        warnings.warn(
+            f"the skin's wall, by {how}, is {stats['min']:.4g} .. {stats['max']:.4g} mm "
+            f"thick for {thickness:g} asked: {int(np.count_nonzero(off > tol)):,} of "
+            f"{len(wall):,} points measured on its inner surface are more than "
+            f"{tol:.3g} mm off (the tolerance), the most at ({x:.4g}, {y:.4g}, {z:.4g}), "
+            f"{float(wall[k]):.4g} mm",
+            LatticeWarning,
+            stacklevel=2,
+        )
     report = SkinReport(
         thickness=float(thickness),
         method=used,
         fallback=fallback,
         voxel=h,
         wall=stats,
-        accurate=bool(np.all(np.abs(wall - thickness) <= tol)),
+        accurate=accurate,
+        tolerance=tol,
         bodies=bodies,
         islands_removed=islands,
         split=dict(split.counts) if split is not None else {},

@@ -23,7 +23,9 @@ when ``--tolerance`` or ``--tolerance-volume`` is given, 2 wrong usage, 130 inte
 from __future__ import annotations
 
 import argparse
+import functools
 import math
+import re
 import sys
 import time
 import traceback
@@ -59,7 +61,7 @@ class _Console:
 
     def say(self, msg: str) -> None:
         if not self.quiet:
-            print(msg, flush=True)
+            print(_cli_words(msg), flush=True)
 
     @contextmanager
     def step(self, desc: str) -> Iterator[Callable[[str, int, int], None]]:
@@ -1017,7 +1019,51 @@ def _one_line(exc: BaseException) -> str:
     msg = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, FileNotFoundError) and exc.filename and str(exc.filename) not in msg:
         msg = f"{msg}: {exc.filename}"
-    return f"error: {msg}"
+    return f"error: {_cli_words(msg)}"
+
+
+@functools.lru_cache(maxsize=1)
+def _options() -> frozenset[str]:
+    """Every ``--option`` of every command (``--fill``, ``--close-holes``, ...)."""
+    found: set[str] = set()
+    parser = build_parser()
+    todo = [parser]
+    while todo:
+        p = todo.pop()
+        for action in p._actions:
+            found.update(o for o in action.option_strings if o.startswith("--"))
+            if isinstance(action, argparse._SubParsersAction):
+                todo.extend(action.choices.values())
+    return frozenset(found)
+
+
+_KEYWORD = re.compile(r"\b([a-z][a-z0-9_]*)=(?:'([^']*)'|\"([^\"]*)\"|(True)\b)")
+
+
+def _cli_words(msg: str) -> str:
+    """``msg`` with the library's keyword syntax put as the command line's options.
+
+    The library's messages name its keywords (``fill='conform'``, ``close_holes=True``,
+    ``units='m'``); where a keyword is an option of the command line, the command line
+    says the option instead (``--fill conform``, ``--close-holes``, ``--units m``), once
+    (a message that already adds it in brackets or after "or" keeps one)."""
+    options = _options()
+
+    def option(m: re.Match[str]) -> str:
+        name = "--" + m.group(1).replace("_", "-")
+        if name not in options:
+            return m.group(0)
+        value = m.group(2) if m.group(2) is not None else m.group(3)
+        return name if value is None else f"{name} {value}"
+
+    def bare(m: re.Match[str]) -> str:  # self_supporting, close_holes: as names
+        name = "--" + m.group(1).replace("_", "-")
+        return name if name in options else m.group(0)
+
+    out = _KEYWORD.sub(option, msg)
+    out = re.sub(r"(?<![\w/.=-])([a-z]+(?:_[a-z]+)+)(?![\w/.=-])", bare, out)
+    # "--close-holes (--close-holes)", "--units m, or --units m": said twice now
+    return re.sub(r"(--[a-z][a-z0-9-]*(?: [\w.]+)?)(?: \(\1\)|, or \1)", r"\1", out)
 
 
 #: numpy's environment variable for its huge-page advice (read when numpy is imported).
@@ -1082,7 +1128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _show_warning(message: Any, category: Any, filename: str, lineno: int, *a: Any) -> None:
-    print(f"warning: {message}", file=sys.stderr)
+    print(f"warning: {_cli_words(str(message))}", file=sys.stderr)
 
 
 def _entry() -> None:  # pragma: no cover - console script

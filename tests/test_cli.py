@@ -230,7 +230,7 @@ def test_fill_tet_rejects_fill_mode(capsys, tmp_path):
         capsys, "fill", BRACKET, "-o", tmp_path / "x.stl", "--method", "tet", "--fill", "clip"
     )
     assert code == 1 and err.count("\n") == 1
-    assert "fill only applies to method='voxel'" in err
+    assert "fill only applies to --method voxel" in err  # the CLI's words
     assert not (tmp_path / "x.stl").exists()
 
 
@@ -460,3 +460,31 @@ def test_an_error_after_parallel_kernels_exits_at_once(tmp_path):
     assert layer.returncode == 0, layer.stderr
     used, there = layer.stdout.split(maxsplit=1)
     assert used == "omp" or there.strip() == "no omp", layer.stdout
+
+
+def test_messages_name_the_command_lines_options(capsys, tmp_path):
+    """The library's messages name its keywords (``close_holes=True``, ``units='m'``,
+    ``fill='conform'``); the command line says its own options instead, once."""
+    import trimesh
+
+    from lattice_cad.cli import _cli_words
+
+    out = str(tmp_path / "x.stl")
+    assert main(["fill", str(DATA / "broken" / "cube_no_bottom.obj"), "-o", out]) == 1
+    err = capsys.readouterr().err
+    assert "--close-holes closes them" in err and "close_holes" not in err, err
+    # a mesh 0.05 mm across (a part in metres read as mm)
+    tiny = tmp_path / "tiny.stl"
+    trimesh.creation.box((0.05, 0.04, 0.02)).export(tiny)
+    main(["fill", str(tiny), "-o", out, "--cell-size", "0.01", "--radius", "0.001"])
+    err = capsys.readouterr().err
+    assert "pass it (--units m)" in err and "units=" not in err, err
+    # each form the library uses, and what is not an option stays as it is
+    assert _cli_words("fill='conform' joins them (fill='clip' too)") == (
+        "--fill conform joins them (--fill clip too)"
+    )
+    assert _cli_words('self_supporting applies to method="voxel"') == (
+        "--self-supporting applies to --method voxel"
+    )
+    kept = "/tmp/close_holes/a_b.stl: Lattice(..., skin=MM), inside_share, x='y'"
+    assert _cli_words(kept) == kept
