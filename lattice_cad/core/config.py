@@ -401,6 +401,12 @@ THIN_TOLERANCE = 0.7
 #: B-rep hung in all three 3-D algorithms (600 s each, before).
 TET_ATTEMPT_SECONDS = 120.0
 TET_ATTEMPT_RATE = 2000.0
+#: A mesh part's surface is not re-parametrised with feature edges at an angle when those
+#: edges cut it into more patches than this share of its area in squares of the size: a
+#: scan's noise, not its features, at that size (a noisy capsule: 11,007 patches at 40 deg
+#: against 320 squares; gmsh failed on it after 37 s; CAD meshes: at most 0.02, the
+#: smooth scans 0.04-0.12; the dragon 0.73 and the hammer 0.81, which gmsh fails on too).
+TET_FEATURE_PATCH_SHARE = 0.5
 
 #: Fewest nodes gmsh puts on a B-rep circle (on an arc in proportion to its angle), and
 #: on any other curve, for the tet method (gmsh's defaults: 7 and 3). At gmsh's defaults
