@@ -389,6 +389,15 @@ CHORD_CONTROL = 1.5
 #: 10 % of the face-recognition part at the benchmark's size (largest extent / 15), 25-60 %
 #: of the other parts where any fits (session 23).
 AUTO_INSIDE_SHARE = 0.2
+#: When most of a voxel fill falls apart into loose pieces, the warning says what keeps it
+#: joined, tried: the conform fill at the same size (for inside and clip), then cells of
+#: JOINED_SHRINK, JOINED_SHRINK^2, ... of the size (JOINED_TRIALS sizes at most), each
+#: built as a graph while it is expected to have at most JOINED_TRIAL_STRUTS struts; the
+#: first that keeps at least JOINED_KEPT of its struts in the main pieces ends the trials.
+JOINED_SHRINK = 0.75
+JOINED_TRIALS = 4
+JOINED_TRIAL_STRUTS = 200_000
+JOINED_KEPT = 0.9
 
 #: A strut fitted thinner than this fraction of the radius asked is counted apart
 #: (``BuildReport.thinned_beyond_tolerance``, the CLI's "N below 0.7 x the radius asked"):
