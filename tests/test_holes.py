@@ -273,3 +273,31 @@ def test_a_patch_crossing_another_body_only_is_not_said_to_cross():
     # sides, which cross it too)
     before = _meshlab_self_intersecting_faces(v, f)
     assert _meshlab_self_intersecting_faces(v, faces) > before
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_random_holes_in_a_real_scan_close_to_a_closed_solid(seed):
+    """Faces removed from the bunny at random, scattered (odd seeds: most of the fans of a
+    few vertices, so that holes touch at vertices): every mesh closes, watertight with a
+    consistent winding (trimesh) and the bunny's volume within 0.1 %. The old loop
+    walker refused 155 of 300 such meshes ("holes touch at the vertex")."""
+    import trimesh
+
+    part = load_part(DATA / "meshes" / "bunny_closed_odedstein.obj")
+    v, f = np.asarray(part.vertices), np.asarray(part.faces)
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(1, 40))
+    if seed % 2:
+        drop_set: set[int] = set()
+        for x in rng.choice(len(v), size=max(1, k // 6), replace=False):
+            fan = np.flatnonzero((f == x).any(axis=1))
+            drop_set.update(fan[rng.random(len(fan)) < 0.6].tolist())
+        drop = np.array(sorted(drop_set), dtype=np.int64)
+    else:
+        drop = rng.choice(len(f), size=k, replace=False)
+    f2, rep = close_holes(v, np.delete(f, drop, axis=0), name="bunny")
+    assert rep.holes >= 1 and _closed_problem(f2, v) == ""
+    closed = trimesh.Trimesh(v, f2, process=False)
+    assert closed.is_watertight and closed.is_winding_consistent
+    whole = trimesh.Trimesh(v, f, process=False)
+    assert closed.volume == pytest.approx(whole.volume, rel=1e-3)
