@@ -1023,6 +1023,27 @@ def _weld_open_rims(
     return best
 
 
+def _soup_note(v: NDArray[np.float64], f: NDArray[np.int64]) -> str:
+    """'; most of its edges are open ...' for a mesh most of whose edges are open (a
+    triangle soup whose copies of a vertex are farther apart than the weld goes), with how
+    far apart they are; '' otherwise."""
+    from scipy.spatial import cKDTree
+
+    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    rows, cnt = unique_rows(und, return_counts=True)
+    if (cnt == 1).sum() <= 0.5 * len(rows):
+        return ""
+    ends = np.unique(rows[cnt == 1])
+    dist = cKDTree(v[ends]).query(v[ends], k=2)[0][:, 1]
+    diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    return (
+        f"; most of its edges are open: a triangle soup whose copies of a vertex lie "
+        f"{float(np.median(dist)):.3g} mm apart (median; welded up to "
+        f"{config.WELD_OPEN_RTOLS[-1] * diag:.3g} mm, {config.WELD_OPEN_RTOLS[-1]:g} of its "
+        "size)? export it again with more digits, or weld it in a mesh editor"
+    )
+
+
 def _from_mesh_file(
     path: Path, scale: float, *, unit_given: bool = False, close_holes: bool = False
 ) -> Part:
@@ -1103,7 +1124,9 @@ def _from_mesh_file(
             if "open (boundary)" in problem and not close_holes
             else ""
         )
-        raise PartError(f"{path}: the mesh is not a closed solid: {problem}{hint}")
+        soup = _soup_note(v, f) if "open (boundary)" in problem else ""
+        hint = "" if soup else hint  # patches would make each triangle a sheet
+        raise PartError(f"{path}: the mesh is not a closed solid: {problem}{soup}{hint}")
     bodies = _components(f, len(v))
     shells: list[NDArray[np.int64]] = []
     volumes: list[float] = []

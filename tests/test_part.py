@@ -530,10 +530,13 @@ def test_a_triangle_soup_with_jittered_copies_loads_welded(tmp_path):
     mesh = trimesh.Trimesh(part.vertices, part.faces, process=False)
     assert mesh.is_watertight and mesh.is_winding_consistent
     assert mesh.volume == pytest.approx(whole.volume, rel=1e-6)
-    # copies farther apart than the weld goes stay holes: refused, as before
+    # copies farther apart than the weld goes stay holes: refused, saying how far apart
+    # they are, and not advising --close-holes (it would make each triangle a sheet)
     _soup_obj(soup, v, f, jitter=1e-3 * diag)
-    with pytest.raises(PartError, match=r"the mesh is not a closed solid: \d+ open"):
+    with pytest.raises(PartError, match=r"the mesh is not a closed solid: \d+ open") as info:
         load_part(soup)
+    said = str(info.value)
+    assert "a triangle soup whose copies of a vertex lie" in said and "close_holes" not in said
 
 
 def test_welding_moves_only_the_end_points_of_open_edges(tmp_path):
