@@ -389,6 +389,11 @@ CHORD_CONTROL = 1.5
 #: 10 % of the face-recognition part at the benchmark's size (largest extent / 15), 25-60 %
 #: of the other parts where any fits (session 23).
 AUTO_INSIDE_SHARE = 0.2
+#: A trim of a part whose surface crosses itself is given up at once (the lattice written
+#: uncut, and said) when more than this share of the cut's triangles cross another before
+#: any rounding: the folded pipe elbow 4.9 % (9,139 pairs), never repaired; a noisy scan's
+#: cut 0.03 % (32 pairs) or a noisy bunny's 0.003 % (4), repaired by the fold collapses.
+TRIM_HOPELESS_SHARE = 0.01
 #: When most of a voxel fill falls apart into loose pieces, the warning says what keeps it
 #: joined, tried: the conform fill at the same size (for inside and clip), then cells of
 #: JOINED_SHRINK, JOINED_SHRINK^2, ... of the size (JOINED_TRIALS sizes at most), each
