@@ -223,7 +223,7 @@ def _crosses_itself(mesh: Mesh) -> bool:
     of float32's folds to repair."""
     import fast_stitch
 
-    pairs = fast_stitch.check(mesh, max_report=1).n_self_intersections
+    pairs = fast_stitch.check(mesh, max_report=1).n_self_intersections or 0
     return bool(pairs > config.TRIM_HOPELESS_SHARE * len(mesh.faces))
 
 
