@@ -951,6 +951,13 @@ def _edges_at(edges: NDArray[np.int64], v: NDArray[np.float64] | None, most: int
     return f", e.g. the edge {shown}{more}"
 
 
+def _edge_counts(f: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The undirected edges ``(E, 2) int64`` of triangles ``f`` and how many use each."""
+    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    rows, cnt = unique_rows(und, return_counts=True)
+    return rows, cnt
+
+
 def _weld_open_rims(
     v: NDArray[np.float64], f: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], int, float] | None:
@@ -961,9 +968,10 @@ def _weld_open_rims(
     A triangle soup whose copies of a vertex differ in the last digits (an exporter that
     rounds each triangle's coordinates) reads as a mesh of holes; welding its open edges'
     end points makes it the closed mesh it stands for. Only vertices on open edges move,
-    to the first of each group within the distance (transitively); a step is tried only
-    below half the mesh's shortest edge and kept only if it leaves no edge shared by more
-    than two triangles; the step that leaves the fewest open edges is returned.
+    to the first of each group within the distance (transitively, ``merge_close``); a step
+    is tried only below half the mesh's shortest edge and kept only if it leaves no edge
+    shared by more than two triangles; the step that leaves the fewest open edges is
+    returned.
 
     v : (V, 3) float64, f : (F, 3) int64 (exact duplicates merged already).
 
@@ -973,52 +981,35 @@ def _weld_open_rims(
     Triangles that become degenerate are dropped, a triangle repeated is kept once, and
     vertices no triangle uses are dropped.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
+    from lattice_cad.occ_impl.merge import merge_close
 
-    def open_edges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], int]:
-        und = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
-        rows, cnt = unique_rows(und, return_counts=True)
-        return rows[cnt == 1], int((cnt > 2).sum())
-
-    rims, _ = open_edges(f)
-    if not len(rims):
+    rows, cnt = _edge_counts(f)
+    if not (cnt == 1).any():
         return None
-    lengths = np.linalg.norm(np.diff(v[np.concatenate([f, f[:, :1]], axis=1)], axis=1), axis=2)
+    lengths = np.linalg.norm(v[rows[:, 1]] - v[rows[:, 0]], axis=1)
     shortest = float(lengths[lengths > 0].min()) if (lengths > 0).any() else 0.0
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    ends = np.unique(rims)
-    tree = cKDTree(v[ends])
+    ends = np.unique(rows[cnt == 1])
     best: tuple[NDArray[np.float64], NDArray[np.int64], int, float] | None = None
-    fewest = len(rims)
+    fewest = int((cnt == 1).sum())
     for rtol in config.WELD_OPEN_RTOLS:
         tol = rtol * diag
         if tol >= 0.5 * shortest:
             break
-        pairs = tree.query_pairs(tol, output_type="ndarray")
-        if not len(pairs):
-            continue
-        n = len(ends)
-        g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-        _, label = connected_components(g, directed=False)
-        first = np.full(label.max() + 1, n, dtype=np.int64)
-        np.minimum.at(first, label, np.arange(n))
-        to = np.arange(len(v))
-        to[ends] = ends[first[label]]
-        f2 = to[f]
-        f2 = f2[(f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])]
+        v2, f2, _ = merge_close(v, f, tol, only=ends)
+        if len(v2) == len(v):
+            continue  # nothing within this distance
         _, once = unique_rows(np.sort(f2, axis=1), return_index=True)
         f2 = f2[np.sort(once)]
-        left, nonmanifold = open_edges(f2)
-        if nonmanifold:
+        _, cnt2 = _edge_counts(f2)
+        if (cnt2 > 2).any():
             break  # a larger distance joins more: no better
-        if len(left) < fewest:
+        left = int((cnt2 == 1).sum())
+        if left < fewest:
             used, f3 = np.unique(f2, return_inverse=True)
-            welded = int(np.count_nonzero(to[ends] != ends))
-            best = (v[used], f3.reshape(-1, 3).astype(np.int64), welded, tol)
-            fewest = len(left)
-        if not len(left):
+            best = (v2[used], f3.reshape(-1, 3).astype(np.int64), len(v) - len(v2), tol)
+            fewest = left
+        if not left:
             break
     return best
 
@@ -1029,8 +1020,7 @@ def _soup_note(v: NDArray[np.float64], f: NDArray[np.int64]) -> str:
     far apart they are; '' otherwise."""
     from scipy.spatial import cKDTree
 
-    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    rows, cnt = unique_rows(und, return_counts=True)
+    rows, cnt = _edge_counts(f)
     if (cnt == 1).sum() <= 0.5 * len(rows):
         return ""
     ends = np.unique(rows[cnt == 1])

@@ -185,8 +185,13 @@ def wall_tolerance(thickness: float) -> float:
     """How far (mm) a measured wall thickness may be from ``thickness``: ``WALL_RTOL`` of it
     or ``WALL_ATOL``, whichever is larger (the absolute part at most ``WALL_ATOL_SHARE`` of
     the thickness)."""
-    t = float(thickness)
-    return max(WALL_RTOL * t, min(WALL_ATOL, WALL_ATOL_SHARE * t))
+    return max(WALL_RTOL * float(thickness), _wall_atol(thickness))
+
+
+def _wall_atol(thickness: float) -> float:
+    """The absolute part of :func:`wall_tolerance` (mm): ``WALL_ATOL``, at most
+    ``WALL_ATOL_SHARE`` of the thickness."""
+    return min(WALL_ATOL, WALL_ATOL_SHARE * float(thickness))
 
 
 def outer_chord(thickness: float) -> float:
@@ -1128,7 +1133,7 @@ def _split(lattice: Any, graph: Any, inner: Any, thickness: float) -> Any:
     arrays = mesh_arrays(lattice)
     if arrays is None:
         return None
-    margin = max(min(WALL_ATOL, WALL_ATOL_SHARE * thickness), 0.01 * thickness)
+    margin = max(_wall_atol(thickness), 0.01 * thickness)
     split = split_lattice(graph, *arrays, Part(*to_arrays(inner), name="inner"), margin=margin)
     if split is None or split.counts["near"] == 0:
         return None  # (all of it deep: an island in the cavity, for the whole booleans)

@@ -214,25 +214,12 @@ def _feature_patches(part: Part, size: float, angle: float) -> tuple[int, float]
     noisy scan thousands, far below the size (it then fails after tens of seconds, "Wrong
     topology of boundary mesh"); on a CAD mesh a few, each many squares of the size.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    import trimesh
 
-    v, f = part.vertices, part.faces
-    tri = v[f]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area2 = np.linalg.norm(normal, axis=1)
-    unit = normal / np.where(area2 > 0, area2, 1.0)[:, None]
-    he = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    face = np.tile(np.arange(len(f)), 3)
-    order = np.lexsort((he[:, 1], he[:, 0]))
-    he, face = he[order], face[order]
-    pair = np.flatnonzero(np.all(he[1:] == he[:-1], axis=1))  # the two faces of an edge
-    a, b = face[pair], face[pair + 1]
-    smooth = np.einsum("ij,ij->i", unit[a], unit[b]) >= math.cos(math.radians(angle))
-    n = len(f)
-    g = coo_matrix((np.ones(int(smooth.sum())), (a[smooth], b[smooth])), shape=(n, n))
-    patches = int(connected_components(g, directed=False)[0])
-    return patches, float(0.5 * area2.sum() / size**2)
+    mesh = trimesh.Trimesh(part.vertices, part.faces, process=False)
+    smooth = mesh.face_adjacency[mesh.face_adjacency_angles <= math.radians(angle)]
+    labels = trimesh.graph.connected_component_labels(smooth, node_count=len(mesh.faces))
+    return int(labels.max()) + 1, float(mesh.area / size**2)
 
 
 class _GmshFailure(Exception):

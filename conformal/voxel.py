@@ -1109,13 +1109,15 @@ JOINED_CAUSE = {
     "clip": "the part is thin for cells of this size, which the clip cuts into separate pieces",
     "conform": "",
 }
-#: What keeps a fill's lattice joined when most of it fell into loose pieces.
-JOINED_ADVICE = {
-    "inside": "the part's narrow parts hold no whole cell; fill='conform' joins the cells "
-    "along the surface, or use smaller cells",
-    "clip": "the part is thin for cells of this size, which the clip cuts into separate "
-    "pieces; fill='conform' joins them along the surface, or use smaller cells",
+#: What keeps a fill's lattice joined when most of it fell into loose pieces (when no
+#: trial found it, and in the sharded fill, which tries nothing): its cause, then this.
+_JOINED_GUESS = {
+    "inside": "fill='conform' joins the cells along the surface, or use smaller cells",
+    "clip": "fill='conform' joins them along the surface, or use smaller cells",
     "conform": "use smaller cells",
+}
+JOINED_ADVICE = {
+    k: "; ".join(p for p in (JOINED_CAUSE[k], guess) if p) for k, guess in _JOINED_GUESS.items()
 }
 
 

@@ -217,7 +217,7 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
         return _checked_single_precision_once(Mesh(vertices=v, faces=f), name)
 
 
-def _crosses_itself(mesh: Mesh) -> bool:
+def _too_folded(mesh: Mesh) -> bool:
     """Whether more than ``config.TRIM_HOPELESS_SHARE`` of the (float64) mesh's triangles
     intersect another, in pairs (``fast_stitch.check``): a cut too folded for the collapses
     of float32's folds to repair."""
@@ -764,7 +764,7 @@ class Lattice:
                 self.skin is None
                 and self.part is not None
                 and self.part.self_crossings[0] > 0
-                and _crosses_itself(solid)
+                and _too_folded(solid)
             )
             try:
                 if hopeless:

@@ -9,10 +9,12 @@ front call these functions, which take and return OCCT shapes or plain numpy arr
   exploration, BRepCheck and builder checks, the one fuse, volume, bounds, tessellation
   with shared edge nodes, binary BREP.
 - :mod:`~lattice_cad.occ_impl.step`: STEP read/write with unit cross-checks.
+- :mod:`~lattice_cad.occ_impl.merge`: merging vertices within a distance (OCCT's copies of
+  edge nodes, a mesh file's triangle soup); numpy and scipy only, no OCP.
 - :mod:`~lattice_cad.occ_impl.truss`: the exact unit truss of one node (Wang, Chen & Rosen:
   a sphere plus half-struts), built, checked, measured and tessellated.
 
-Importing this package is cheap; its submodules import OCP (about a second).
+Importing this package is cheap; its submodules but ``merge`` import OCP (about a second).
 """
 
 from lattice_cad.occ_impl import stack

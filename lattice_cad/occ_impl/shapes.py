@@ -43,6 +43,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
 from OCP.TopTools import TopTools_ListOfShape
 
 from lattice_cad.core.errors import OCCTFailure
+from lattice_cad.occ_impl.merge import merge_close
 
 __all__ = [
     "as_topods",
@@ -1003,41 +1004,6 @@ def tessellate(
     if face_ids:
         out = (*out, ids)
     return (*out, report) if control > 0 else out
-
-
-def merge_close(
-    vertices: NDArray[np.float64], faces: NDArray[np.int64], tol: float
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]:
-    """Merge vertices closer than ``tol`` (transitively), as OCCT's edge tolerances allow.
-
-    Per-face triangulations carry their own copies of edge nodes; on a B-rep whose edges
-    have a tolerance, the copies can differ by up to that tolerance.
-
-    Returns
-    -------
-    vertices : (V', 3) float64
-        The first vertex of each merged group.
-    faces : (F', 3) int64
-        Faces that still have three distinct vertices.
-    kept : (F,) bool
-        Which input faces were kept.
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    n = len(vertices)
-    pairs = cKDTree(vertices).query_pairs(tol, output_type="ndarray")
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, label = connected_components(g, directed=False)
-    first = np.full(label.max() + 1, n, dtype=np.int64)
-    np.minimum.at(first, label, np.arange(n))
-    keep = np.sort(first)
-    new_id = np.empty(label.max() + 1, dtype=np.int64)
-    new_id[label[keep]] = np.arange(len(keep))
-    f2 = new_id[label[faces]]
-    good = (f2[:, 0] != f2[:, 1]) & (f2[:, 1] != f2[:, 2]) & (f2[:, 0] != f2[:, 2])
-    return vertices[keep], f2[good], good
 
 
 def heal(shape: TopoDS_Shape) -> TopoDS_Shape:
