@@ -58,6 +58,7 @@ __all__ = [
     "inset",
     "hollow",
     "build_skin",
+    "folded_wall",
     "start_offsets",
     "PendingOffsets",
     "add_skin",
@@ -1029,15 +1030,12 @@ def build_skin(
             split = None
         else:
             bodies, islands = n_bodies, 0
-    if split is None and surface.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
+    folded = folded_wall(surface, name=p.name) if split is None else None
+    if folded is not None:
         # the booleans on the whole lattice with an outer wall that folds over itself (a
         # pipe elbow swept past its path, too thin for the split) ran for more than 10
         # minutes; that wall bounds no solid, so their result could not be written anyway
-        raise SkinError(
-            f"{p.name}: {surface.crossing_note()}; the skin's outer wall is that surface, "
-            "so a skin of this part cannot be one solid until the part is repaired (its "
-            "overlapping bodies united); fill it without a skin, or repair it and fill again"
-        )
+        raise folded
     if split is None:
         lat = as_manifold(lattice, name="lattice mesh")
         # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
@@ -1089,6 +1087,23 @@ def build_skin(
     if check:
         solid = checked(solid, "the skinned lattice")
     return SkinResult(solid=solid, report=report, split=split)
+
+
+def folded_wall(surface: Any, *, name: str | None = None) -> SkinError | None:
+    """The error for a skin whose outer wall, ``surface`` (a ``conformal.Part``: the part's
+    tessellation the skin is built on), crosses itself in at least
+    ``config.SKIN_FOLD_PAIRS`` pairs of its triangles, or None.
+
+    Such a wall bounds no solid, and a skin keeps it as it is, so the skinned mesh would
+    cross itself too: no skin of the part can be written until the part is repaired.
+    """
+    if surface.self_crossings[0] < config.SKIN_FOLD_PAIRS:
+        return None
+    return SkinError(
+        f"{name or surface.name}: {surface.crossing_note()}; the skin's outer wall is that "
+        "surface, so a skin of this part cannot be one solid until the part is repaired "
+        "(its overlapping bodies united); fill it without a skin, or repair it and fill again"
+    )
 
 
 #: The skin's outer surface and the lattice's cavity (inner surface minus lattice) are joined

@@ -729,9 +729,20 @@ class Lattice:
         # the booleans on the struts near the wall only, the deep ones glued back after the
         # float32 check (conformal.skin_split): for the stitched lattice as it is
         local = split and lattice is self._lattice_mesh and self.escape_holes is None
+        cut = self.part if coarse else self._cutting_part
+        if self.part is not None and self.part.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
+            # the part's tessellation folds over itself (said at load): when the one the
+            # skin is built on folds too, its outer wall would, and the skinned mesh could
+            # not be written; refused before OCCT's offsets and the walls are waited for
+            # (the folded pipe elbow: 30 s, 67 s beside the parts benchmark)
+            folded = _skin.folded_wall(cut, name=getattr(self.part, "name", None))
+            if folded is not None:
+                if pending is not None:
+                    pending.worker.close()
+                raise folded
         result = _skin.build_skin(
             lattice,
-            self.part if coarse else self._cutting_part,
+            cut,
             self.skin,
             check=False,
             mid_wall=mid_wall,

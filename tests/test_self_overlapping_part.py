@@ -118,6 +118,32 @@ def test_a_skin_of_a_folded_sweep_is_refused_with_the_reason():
         _skin.build_skin(lattice, part, cell / 6, method="voxel", check=False)
 
 
+def test_a_skin_of_a_folded_part_is_refused_before_its_walls_are_built(monkeypatch):
+    """Regression (s26): ``Lattice.fill(skin=)`` of the folded elbow waited for OCCT's
+    offset attempts and the voxel walls (21 of the run's 30 s) before ``build_skin``
+    refused it. Both tessellations a skin can be built on (the load's: 557 pairs; the
+    cutting one: about 2,378) cross themselves, so the skinned mesh could never be written:
+    it is refused before any wall is built, OCCT's child closed."""
+    from conformal import skin as _skin
+    from lattice_cad.core.errors import SkinError
+
+    def no_walls(*args, **kwargs):
+        raise AssertionError("the walls were built for a skin that cannot be written")
+
+    monkeypatch.setattr(_skin, "_surfaces", no_walls)
+    with pytest.warns(LatticeWarning, match="surface crosses itself"):
+        part = load_part(FOLDED)
+    cell = float(part.size.max()) / 15
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(part, cell="octet", cell_size=cell, radius=cell / 12, skin=cell / 6)
+        pending = lat._pending_offsets  # OCCT's offsets, started in a child at the fill
+        assert pending is not None and pending.worker.submitted
+        with pytest.raises(SkinError, match=r"surface crosses itself \(\d+ pair.*repair"):
+            lat.mesh()
+    assert pending.worker._pool is None  # closed, not left to finish its attempts
+
+
 def test_a_scan_that_crosses_itself_in_a_few_places_is_still_cut(tmp_path):
     """The shared hi-res bunny with vertex noise of 0.2 of its edges crosses itself in 25
     triangle pairs; its clip's cut crosses itself in 4 of 140,520 triangles before any
