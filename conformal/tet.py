@@ -19,6 +19,7 @@ import signal
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Literal
 
@@ -63,6 +64,7 @@ def tet_mesh(
     algorithm: Algorithm = "hxt",
     surface_angle: float = 40.0,
     timeout: float | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """A tetrahedral mesh of ``part`` with gmsh.
 
@@ -89,6 +91,10 @@ def tet_mesh(
         Each runs in a child process: a crash or a hang of gmsh moves on to the next
         attempt instead of ending the caller; after a hang, the next surface (a hang is
         most often in the surface mesh, which the other 3-D algorithms would mesh again).
+    progress : callable, optional
+        ``progress(stage, done, total)`` is called before each gmsh attempt: ``stage``
+        names it (the surface strategy, the piece, the 3-D algorithm), ``done`` counts
+        the strategies tried of ``total`` (a CLI bar shows which attempt runs).
 
     Returns
     -------
@@ -138,7 +144,7 @@ def tet_mesh(
     inputs = _GmshInputs(part, size)
     label = {"brep": "B-rep", "surface": "surface", "resampled": "resampled surface"}
     with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
-        for source, how, angle in surfaces:
+        for step, (source, how, angle) in enumerate(surfaces):
             sources = inputs.files(source, Path(tmp))
             if sources is None:
                 failures.append("the solids could not be fused into one B-rep")
@@ -158,6 +164,8 @@ def tet_mesh(
             for k, file in enumerate(sources):
                 piece = f" piece {k + 1} of {len(sources)}" if len(sources) > 1 else ""
                 for algo in order:
+                    if progress is not None:
+                        progress(f"gmsh, {what}{piece}, {algo}", step, len(surfaces))
                     try:
                         got.append(
                             run_isolated(
@@ -493,6 +501,7 @@ def tet_lattice(
     return_report: bool = False,
     segments: int = config.DEFAULT_SEGMENTS,
     profile: Profile = config.DEFAULT_PROFILE,
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> LatticeGraph | tuple[LatticeGraph, BuildReport]:
     """A lattice whose nodes and struts are the vertices and edges of a tet mesh of ``part``.
 
@@ -522,6 +531,9 @@ def tet_lattice(
         The profile polygons the graph will be stitched with (as in
         :func:`conformal.voxel_lattice`): the repair and the fit are for them (P = 3 or 4
         needs thinner struts, or more repair, than the default P = 6).
+    progress : callable, optional
+        ``progress(stage, done, total)``: which gmsh attempt runs (:func:`tet_mesh`), then
+        the graph repair.
 
     Returns
     -------
@@ -545,8 +557,10 @@ def tet_lattice(
     segments, profile = check_stitch_profile(segments, profile)
     rep = BuildReport()
     t0 = time.perf_counter()
-    nodes, tets = tet_mesh(part, size, algorithm=algorithm)
+    nodes, tets = tet_mesh(part, size, algorithm=algorithm, progress=progress)
     rep.seconds["mesh"] = time.perf_counter() - t0
+    if progress is not None:
+        progress("graph repair and radii", 0, 1)
     t0 = time.perf_counter()
     edges = tet_edges(tets)
     if repair:

@@ -77,7 +77,7 @@ class _Console:
 
         def progress(stage: str, done: int, total: int) -> None:
             if bar is not None:
-                bar.set_description(f"{desc}: {stage}")
+                bar.set_description(f"{desc}: {stage}", refresh=False)
                 bar.total = max(int(total), 1)
                 bar.n = int(done)
                 bar.refresh()
@@ -317,7 +317,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
         resolve(out, Kind.BEAM_LATTICE)
     _check_output(out)
     _first_run_note(con)
-    with con.step("load + lattice"):
+    with con.step("load + lattice") as progress:
         lat = Lattice.fill(
             args.part,
             args.cell,
@@ -335,6 +335,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             keep=args.keep,
             units=args.units,
             close_holes=args.close_holes,
+            progress=progress,
         )
     lat.progress = con.bars
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")

@@ -19,7 +19,7 @@ import dataclasses
 import math
 import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, cast
@@ -82,6 +82,7 @@ def _fill_graph(
     min_radius: float | None = None,
     profile: Profile = "volume",
     auto_fallback: Literal["conform", "clip"] = "conform",
+    progress: Any = None,
 ) -> tuple[LatticeGraph, Any]:
     """Call the conformal engine (imported lazily) for ``method``: the graph and its report.
 
@@ -115,6 +116,7 @@ def _fill_graph(
             segments=segments,
             min_radius=min_radius,
             profile=profile,
+            progress=progress,
         )
     graph, report = built
     if not isinstance(graph, LatticeGraph):
@@ -444,6 +446,7 @@ class Lattice:
         keep: Any = None,
         units: str | float | None = None,
         close_holes: bool = False,
+        progress: Callable[[str, int, int], None] | None = None,
     ) -> Lattice:
         """Fill a part with a lattice.
 
@@ -520,6 +523,9 @@ class Lattice:
         close_holes : bool
             Close the holes of an open mesh file with least-area patches, with a warning
             (see :func:`conformal.load_part`), instead of refusing it.
+        progress : callable, optional
+            ``progress(stage, done, total)`` says which step of the fill runs (for
+            ``method="tet"``: which gmsh attempt; see ``conformal.tet_mesh``).
 
         Returns
         -------
@@ -603,6 +609,7 @@ class Lattice:
                 profile=profile,
                 # a self-supporting grid stays so only if the struts keep their directions
                 auto_fallback="clip" if self_supporting else "conform",
+                progress=progress,
             )
             removal = None
             if remove_overhangs:

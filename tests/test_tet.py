@@ -191,6 +191,41 @@ def test_a_hung_gmsh_moves_on_to_the_next_surface(cyl, monkeypatch):
     )
 
 
+def test_progress_names_each_gmsh_attempt(cyl, monkeypatch):
+    """A tet fill's progress bar stood at "load + lattice" for the whole of gmsh's attempts
+    (a minute and more on a scan); ``progress`` now names each attempt."""
+    import conformal.tet
+    from lattice_cad.core.errors import ExternalTimeout
+
+    def fake(fn, source, size, how, angle, algo, *, timeout, what):
+        if how == "brep":
+            raise ExternalTimeout(f"{what} did not finish within {timeout:g} s")
+        return fn(source, size, how, angle, algo)
+
+    seen = []
+    monkeypatch.setattr(conformal.tet, "run_isolated", fake)
+    with pytest.warns(LatticeWarning, match="gmsh could not mesh the B-rep"):
+        tet_mesh(cyl, 5.0, progress=lambda *a: seen.append(a))
+    assert seen == [
+        ("gmsh, B-rep, hxt", 0, 9),
+        ("gmsh, surface, reparametrized 40 deg, hxt", 1, 9),
+    ]
+
+
+def test_a_tet_fill_of_a_real_part_reports_its_progress():
+    from lattice_cad import Lattice
+
+    seen = []
+    part = DATA / "step" / "kcl_socket-head-cap-screw.step"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(part, cell_size=3.0, radius=0.25, method="tet",
+                           progress=lambda *a: seen.append(a))  # fmt: skip
+    assert lat.graph.num_edges > 0
+    assert seen[0] == ("gmsh, B-rep, hxt", 0, 9)
+    assert seen[-1] == ("graph repair and radii", 0, 1)
+
+
 def test_bad_size(cyl):
     with pytest.raises(ValueError, match="size"):
         tet_lattice(cyl, -1.0)
