@@ -909,6 +909,11 @@ def _closed_problem(f: NDArray[np.int64], v: NDArray[np.float64] | None = None) 
     open_edges = int((cnt == 1).sum())
     nonman = int((cnt > 2).sum())
     if open_edges:
+        if open_edges > 0.5 * len(rows):  # a soup (the caller says so): about one "hole"
+            # per triangle would be counted, which helps nobody
+            return f"{open_edges} open (boundary) edge(s) of its {len(rows)} edges" + (
+                _edges_at(rows[cnt == 1], v)
+            )
         holes = _edge_loops(rows[cnt == 1])
         return (
             f"{open_edges} open (boundary) edge(s) around {holes} hole(s): it has holes"

@@ -537,6 +537,7 @@ def test_a_triangle_soup_with_jittered_copies_loads_welded(tmp_path):
         load_part(soup)
     said = str(info.value)
     assert "a triangle soup whose copies of a vertex lie" in said and "close_holes" not in said
+    assert "hole(s)" not in said  # not "12908 holes" for 12,946 triangles (s26)
 
 
 def test_welding_moves_only_the_end_points_of_open_edges(tmp_path):
