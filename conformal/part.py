@@ -1042,7 +1042,6 @@ def _soup_note(v: NDArray[np.float64], f: NDArray[np.int64]) -> str:
 def _from_mesh_file(
     path: Path, scale: float, *, unit_given: bool = False, close_holes: bool = False
 ) -> Part:
-    import trimesh
 
     from lattice_cad.core.errors import InputFileError
     from lattice_cad.io.exchange import check_mesh_file
@@ -1060,15 +1059,14 @@ def _from_mesh_file(
             v, f = read_mesh(path)
         except InputFileError as exc:
             raise PartError(str(exc)) from None
-    else:
+    else:  # trimesh, with polygon faces split as polygons (lattice_cad.io.polygons)
+        from lattice_cad.core.formats import Kind, format_for
+        from lattice_cad.io.exchange import read_mesh_faces
+
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                loaded = trimesh.load(str(path), force="mesh", process=False)
-        except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds
-            raise PartError(f"{path}: cannot read the mesh: {exc}") from None
-        v = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
-        f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
+            v, f = read_mesh_faces(path, format_for(path, Kind.MESH, action="read").name)
+        except InputFileError as exc:
+            raise PartError(str(exc)) from None
     v, f = v.reshape(-1, 3), f.reshape(-1, 3)
     if len(f) == 0:
         raise PartError(f"{path}: the mesh has no triangles (empty file)")

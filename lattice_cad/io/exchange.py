@@ -46,6 +46,7 @@ from lattice_cad.core.errors import (
     ExportError,
     ExportWarning,
     InputFileError,
+    LatticeWarning,
     MissingFileError,
     OutputError,
 )
@@ -1036,16 +1037,62 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArra
             np.vstack([v for v, _ in pieces]),
             np.vstack([f + b for (_, f), b in zip(pieces, base, strict=True)]),
         )
-    import trimesh
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            loaded: Any = trimesh.load(str(p), force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many types for bad files
-        raise InputFileError(f"{p}: cannot read the mesh: {exc}") from None
-    v = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
-    f = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
+    v, f = read_mesh_faces(p, fmt.name)
     if fmt.name == "stl" and len(v):
         v, f = weld(v, f, tol=1e-12, drop_degenerate=False)
     return v, f
+
+
+def read_mesh_faces(path: Path, fmt: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The vertices (V, 3) float64 and triangles (F, 3) int64 of a mesh file (not 3MF) as
+    it stores them: trimesh's reading, except that faces of more than three vertices
+    (OBJ, OFF, PLY) are split as the polygons they are (:mod:`lattice_cad.io.polygons`;
+    trimesh fans them from their first vertex, which overlaps for a concave polygon).
+
+    Raises
+    ------
+    InputFileError
+        trimesh cannot read it, or a face names a vertex the file does not have.
+    """
+    import trimesh
+
+    from lattice_cad.io.polygons import mesh_polygons, triangulate
+
+    p = Path(path)
+    polygons = None
+    try:
+        if fmt in ("obj", "off"):  # faces of 4+ vertices: split as polygons, not fans
+            polygons = mesh_polygons(p, fmt)
+        if polygons is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                loaded: Any = trimesh.load(str(p), force="mesh", process=False)
+            if fmt == "ply":
+                polygons = mesh_polygons(p, fmt, loaded)
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise InputFileError(f"{p}: cannot read the mesh: {exc}") from None
+    if polygons is not None:
+        v, polys = polygons
+        for which, idx in polys[0]:
+            wrong = np.flatnonzero((idx < 0).any(axis=1) | (idx >= len(v)).any(axis=1))
+            if len(wrong):
+                k = int(wrong[0])
+                raise InputFileError(
+                    f"{p}: face {int(which[k])} ({', '.join(map(str, idx[k][:8]))}) names a "
+                    f"vertex the file does not have ({len(v)} vertices)"
+                )
+        try:
+            f, crossing = triangulate(v, polys)
+        except ValueError as exc:  # a face of fewer than three vertices
+            raise InputFileError(f"{p}: {exc}") from None
+        if crossing:
+            warnings.warn(
+                f"{p}: {crossing} polygon face(s) cross themselves; they were split as fans "
+                "from their first vertex",
+                LatticeWarning,
+                stacklevel=3,
+            )
+        return v, f
+    v = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+    f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
+    return v.reshape(-1, 3), f.reshape(-1, 3)
