@@ -1019,6 +1019,60 @@ def _weld_open_rims(
     return best
 
 
+def _mended_seams(
+    v: NDArray[np.float64], f: NDArray[np.int64], diag: float, name: str
+) -> tuple[NDArray[np.int64], str]:
+    """``f`` with the seams that do not match mended (:mod:`conformal.seams`: triangles
+    stored twice, T-junctions, zero-area slivers over T-junctions), each said in a
+    warning, and :func:`_closed_problem` of the result. A mesh without such seams is
+    returned as it is."""
+    from conformal import seams
+
+    tol = config.SEAM_RTOL * diag
+    problem = _closed_problem(f)
+    said: list[str] = []
+    if "non-manifold" in problem:
+        g, same, opposite = seams.drop_duplicate_faces(f)
+        if same or opposite:
+            f, problem = g, _closed_problem(g)
+            if same:
+                said.append(f"{same} triangle(s) stored twice were kept once")
+            if opposite:
+                said.append(
+                    f"{opposite} pair(s) of coincident triangles facing opposite ways (a wall "
+                    "of no thickness between two bodies) were removed"
+                )
+    if "open (boundary)" in problem:
+        rows, cnt = _edge_counts(f)
+        if (cnt == 1).sum() <= 0.5 * len(rows):  # (a soup's copies are welded instead)
+            g, n = seams.split_t_junctions(v, f, tol)
+            if n:
+                f, problem = g, _closed_problem(g)
+                said.append(
+                    f"{n} triangle(s) were split at vertices of their neighbours lying on "
+                    "their edges (T-junctions)"
+                )
+    elif not problem:
+        g, slivers = seams.drop_slivers(v, f, tol)
+        if slivers:
+            g, n = seams.split_t_junctions(v, g, tol)
+            if not _closed_problem(g):  # else the file is kept as it is
+                f = g
+                said.append(
+                    f"{slivers} zero-area triangle(s) with a vertex on their opposite edge "
+                    f"(slivers patching T-junctions) were removed and {n} neighbour(s) split "
+                    "there"
+                )
+    if said:
+        warnings.warn(
+            f"{name}: {'; '.join(said)}: the surface is the same, its triangles now meet "
+            "edge to edge",
+            LatticeWarning,
+            stacklevel=4,
+        )
+    return f, problem
+
+
 def _soup_note(v: NDArray[np.float64], f: NDArray[np.int64]) -> str:
     """'; most of its edges are open ...' for a mesh most of whose edges are open (a
     triangle soup whose copies of a vertex are farther apart than the weld goes), with how
@@ -1080,7 +1134,7 @@ def _from_mesh_file(
     v = uniq
     degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     f = f[~degenerate]
-    problem = _closed_problem(f)
+    f, problem = _mended_seams(v, f, diag, str(path))
     if "open (boundary)" in problem:
         welded = _weld_open_rims(v, f)
         if welded is not None:

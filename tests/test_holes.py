@@ -122,7 +122,7 @@ def test_open_mesh_error_says_how_to_close_it():
         load_part(BROKEN / "cube_no_bottom.obj")
     # non-manifold edges are no hole: refused as before, without the hint
     with pytest.raises(PartError, match=r"non-manifold edge") as info:
-        load_part(BROKEN / "trimesh_wallhole_open.obj", close_holes=True)
+        load_part(BROKEN / "trimesh_shared_nonmanifold_edge.STL", close_holes=True)
     assert "close-holes" not in str(info.value)
 
 

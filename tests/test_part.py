@@ -46,7 +46,6 @@ BROKEN = {
     ),
     "plane_holes.obj": r"not a closed solid: 341 open \(boundary\) edge\(s\) around 27 hole",
     "stanford-bunny_original_with_holes.obj": r"not a closed solid: \d+ open",
-    "trimesh_wallhole_open.obj": r"non-manifold edge",
     "trimesh_shared_nonmanifold_edge.STL": (
         r"1 non-manifold edge\(s\) shared by more than two triangles, "
         r"e\.g\. the edge \(0\.5, 0\.5, -0\.5\) - \(0\.5, 0\.5, 0\.5\)$"

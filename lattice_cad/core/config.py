@@ -475,6 +475,11 @@ MAX_HUB_SCALE = 1.25
 #: never flat where ``s_n`` is 1 (leaves) and nearly the hub's cone where ``s_n < 1``.
 HUB_BAND_GAP = 0.05
 
+#: Mesh files: a vertex within this fraction of the bounding-box diagonal of an edge, strictly
+#: between its ends, lies on it (a T-junction, or a zero-area sliver's middle vertex;
+#: ``conformal.seams``): 0.1 um on a 100 mm part.
+SEAM_RTOL = 1e-6
+
 #: A skin's outer wall (the part's cutting tessellation) whose triangles cross in at least
 #: this many pairs folds over itself (the folded pipe elbow: 2,378 pairs), and a skin of it
 #: is refused before manifold3d's booleans on the whole lattice, which ran for more than 10
