@@ -320,6 +320,44 @@ def test_nothing_fits_says_what_would():
         voxel_lattice(part, "bcc", 15.0, 0.3, fill="inside")
 
 
+def test_a_fill_whose_struts_are_thicker_than_the_part_is_refused(tmp_path):
+    """Regression (s26, a 2 m I-beam of 5-8 mm walls made outside shared/data, with the
+    benchmark's 133 mm cells and 11.1 mm struts): the default fill conformed, the trim cut
+    away 99.8 % of the lattice and wrote a 76-triangle fragment as a success, where the
+    clip refused with the radius that fits. Clip and conform now refuse alike when most
+    fitted struts are thicker than the part anywhere; the sheet-metal bracket's struts,
+    thinned where they meet so that they lie in its 2.28 mm tabs, are still built."""
+    import trimesh
+
+    from conformal import load_part, voxel_lattice
+    from lattice_cad.core.errors import FillError
+    from tests.conftest import DATA
+
+    with pytest.warns(LatticeWarning, match="3 solids were united"):
+        part = load_part(DATA / "step" / "kcl_sheet-metal-bracket.step")  # 2.28 mm tabs
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", LatticeWarning)
+        g = voxel_lattice(part, "bcc", 15.24, 1.27, fill="conform")  # the benchmark's
+    assert any("thinned" in str(w.message) for w in said)
+    assert g.num_edges > 500 and 2 * float(np.median(g.radii)) < 2.28
+    # an I-beam (2 m, 8 mm flanges, 5 mm web) with the benchmark's cells and struts
+    web = trimesh.creation.box((2000, 5, 84))
+    top = trimesh.creation.box((2000, 100, 8))
+    top.apply_translation((0, 0, 46))
+    bottom = top.copy()
+    bottom.apply_translation((0, 0, -92))
+    path = tmp_path / "beam.stl"
+    trimesh.util.concatenate([web, top, bottom]).export(path)
+    with pytest.warns(LatticeWarning, match="united"):
+        beam = load_part(path)
+    for fill in ("auto", "conform", "clip"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LatticeWarning)  # (loose pieces before the fit)
+            said = r"about [\d.]+ mm, too thin for struts of radius 11\.1\d*: use a radius below"
+            with pytest.raises(FillError, match=said):
+                voxel_lattice(beam, "bcc", 133.33, 11.11, fill=fill)
+
+
 def test_conform_moves_the_grid_when_a_thin_rod_lies_between_its_nodes():
     """Regression (a 200 x 4 x 4 mm rod made for bench_parts --data outside shared/data):
     Kelvin cells of 13.3 mm conformed to it kept no strut (none had an end inside the
