@@ -1073,6 +1073,46 @@ def _mended_seams(
     return f, problem
 
 
+def _without_debris(
+    v: NDArray[np.float64],
+    shells: list[NDArray[np.int64]],
+    volumes: list[float],
+    turned: list[bool],
+    name: str,
+) -> tuple[list[NDArray[np.int64]], list[float], list[bool]]:
+    """The closed shells of a mesh file without its debris: shells smaller than
+    ``config.DEBRIS_SIZE`` of the part's diagonal whose volume is below
+    ``config.DEBRIS_VOLUME`` of the largest shell's (a speck an exporter or a scan left
+    beside the part: a skin kept it as a second, unprintable body), with a warning."""
+    if len(shells) < 2:
+        return shells, volumes, turned
+    diag = float(np.linalg.norm(np.ptp(v[np.unique(np.concatenate(shells))], axis=0)))
+    big = max(abs(x) for x in volumes)
+    size = [float(np.linalg.norm(np.ptp(v[np.unique(fb)], axis=0))) for fb in shells]
+    debris = [
+        k
+        for k in range(len(shells))
+        if size[k] < config.DEBRIS_SIZE * diag and 0 < volumes[k] < config.DEBRIS_VOLUME * big
+    ]  # (a shell facing inward may be a cavity's wall: kept)
+    if not debris or len(debris) == len(shells):
+        return shells, volumes, turned
+    where = "; ".join(
+        "{:.3g} mm across at ({:.4g}, {:.4g}, {:.4g})".format(
+            size[k], *v[np.unique(shells[k])].mean(axis=0)
+        )
+        for k in debris[:3]
+    ) + (" ..." if len(debris) > 3 else "")
+    warnings.warn(
+        f"{name}: {len(debris)} tiny closed shell(s) beside the part were left out as debris "
+        f"({where}; each under {config.DEBRIS_SIZE:g} of the part's size and "
+        f"{config.DEBRIS_VOLUME:g} of its volume)",
+        LatticeWarning,
+        stacklevel=4,
+    )
+    keep = [k for k in range(len(shells)) if k not in set(debris)]
+    return [shells[k] for k in keep], [volumes[k] for k in keep], [turned[k] for k in keep]
+
+
 def _soup_note(v: NDArray[np.float64], f: NDArray[np.int64]) -> str:
     """'; most of its edges are open ...' for a mesh most of whose edges are open (a
     triangle soup whose copies of a vertex are farther apart than the weld goes), with how
@@ -1199,6 +1239,7 @@ def _from_mesh_file(
         shells.append(fb)
         volumes.append(vol)
         turned.append(fixed)
+    shells, volumes, turned = _without_debris(v, shells, volumes, turned, str(path))
     # a shell facing inward inside an odd number of the others bounds a cavity (a hollow
     # box's inner wall): it stays as it is and goes with the smallest shell holding it;
     # any other shell facing inward is turned outward (a mirrored body)

@@ -129,3 +129,30 @@ def test_a_vertex_off_the_edge_is_no_t_junction():
     assert n == 0
     g, n = drop_slivers(v, np.array([[1, 0, 3]]), 1e-6)
     assert n == 0 and len(g) == 1
+
+
+def test_a_speck_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
+    """Regression (s26, a bracket STL with a 0.05 mm tetrahedron 4 mm beside it, made
+    outside shared/data): the speck was united with the part, and a skin wrote it as a
+    second, unprintable body. A closed shell under 1 % of the part's size and 1e-6 of its
+    volume is left out with a warning; a small body that is not debris stays."""
+    v, f, vol = fandisk
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    size = float(np.linalg.norm(hi - lo))
+    tet = trimesh.creation.box(extents=[2e-3 * size] * 3)
+    tet.apply_translation(hi + 0.05 * size)
+    path = tmp_path / "speck.stl"
+    trimesh.util.concatenate([trimesh.Trimesh(v, f), tet]).export(path)
+    with pytest.warns(LatticeWarning, match=r"1 tiny closed shell\(s\) beside the part were left "
+                      r"out as debris \([\d.e-]+ mm across at"):  # fmt: skip
+        part = load_part(path)
+    assert len(part.faces) == len(f)
+    assert part.volume == pytest.approx(vol, rel=1e-9)
+    # a body of 5 % of the part's size is kept (and united with it, as before)
+    block = trimesh.creation.box(extents=[0.05 * size] * 3)
+    block.apply_translation(hi + 0.1 * size)
+    path = tmp_path / "two.stl"
+    trimesh.util.concatenate([trimesh.Trimesh(v, f), block]).export(path)
+    with pytest.warns(LatticeWarning, match="2 bodies were united"):
+        part = load_part(path)
+    assert part.volume == pytest.approx(vol + block.volume, rel=1e-6)

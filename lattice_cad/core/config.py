@@ -475,6 +475,12 @@ MAX_HUB_SCALE = 1.25
 #: never flat where ``s_n`` is 1 (leaves) and nearly the hub's cone where ``s_n < 1``.
 HUB_BAND_GAP = 0.05
 
+#: Mesh files: a closed shell smaller than DEBRIS_SIZE of the part's diagonal with less than
+#: DEBRIS_VOLUME of the largest shell's volume is debris (a 0.05 mm speck beside a 70 mm
+#: bracket: 6e-4 of its size, 1e-9 of its volume), left out with a warning.
+DEBRIS_SIZE = 0.01
+DEBRIS_VOLUME = 1e-6
+
 #: Mesh files: a vertex within this fraction of the bounding-box diagonal of an edge, strictly
 #: between its ends, lies on it (a T-junction, or a zero-area sliver's middle vertex;
 #: ``conformal.seams``): 0.1 um on a 100 mm part.
