@@ -77,7 +77,11 @@ def _obj_polygons(data: bytes) -> tuple[NDArray[np.float64], Groups]:
     block = b"\n".join(lines)
     if b"/" in block:
         block = _REFS.sub(b"", block)  # "7/3/7" -> "7"
-    block = _EDGES.sub(b"\n", _SPACES.sub(b" ", block)).strip()
+    if b"\t" in block or b"  " in block:  # (most exporters write single spaces)
+        block = _SPACES.sub(b" ", block)
+    if b" \n" in block or b"\n " in block:
+        block = _EDGES.sub(b"\n", block)
+    block = block.strip()
     counts = np.fromiter(
         (ln.count(b" ") + 1 for ln in block.split(b"\n")), dtype=np.int64, count=len(lines)
     )
