@@ -335,7 +335,7 @@ def _layout(graph: Any, v: NDArray[np.float64], f: NDArray[np.int64]) -> tuple[i
             np.array_equal(tubes[:, :, 0, 0], base + k)
             and np.array_equal(tubes[:, :, 1, 0], base + k)
         ):
-            return None
+            continue  # (the counts of P unbanded and P / 2 banded can agree: try both)
         start = 2 * m * P + np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
         return P, (start, counts, bbase if rings == 4 else -1)
     return None

@@ -26,20 +26,27 @@ def _triangles(mesh) -> np.ndarray:
     return rot[np.lexsort(rot.T[::-1])]
 
 
-def _fill(name: str, per: float):
+def _fill(name: str, per: float, profile: str = "volume"):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)  # solids united, struts thinned
         part = load_part(DATA / name)
         cell = float(part.size.max()) / per
-        return Lattice.fill(part, "octet", cell, cell / 12, skin=cell / 6)
+        return Lattice.fill(part, "octet", cell, cell / 12, skin=cell / 6, profile=profile)
 
 
 @pytest.mark.parametrize(
-    ("name", "per"),
-    [("step/kcl_flange-with-patterns.step", 10), ("meshes/bunny_closed_odedstein.obj", 10)],
+    ("name", "per", "profile"),
+    [
+        ("step/kcl_flange-with-patterns.step", 10, "volume"),
+        ("meshes/bunny_closed_odedstein.obj", 10, "volume"),
+        # unbanded struts: the split was never used (its layout test read P = 6 as a
+        # banded P = 3, whose counts agree for every even P) and the whole lattice went
+        # through the booleans
+        ("step/kcl_flange-with-patterns.step", 10, "area"),
+    ],
 )
-def test_split_skin_equals_the_skin_of_the_whole_lattice(name, per, monkeypatch):
-    lat = _fill(name, per)
+def test_split_skin_equals_the_skin_of_the_whole_lattice(name, per, profile, monkeypatch):
+    lat = _fill(name, per, profile)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
         mesh = lat.mesh()
@@ -50,7 +57,7 @@ def test_split_skin_equals_the_skin_of_the_whole_lattice(name, per, monkeypatch)
     assert lat.skin_report.bodies == 1
     # the same lattice with the booleans on all of it
     monkeypatch.setattr(skin_split, "split_lattice", lambda *a, **k: None)
-    whole = _fill(name, per)
+    whole = _fill(name, per, profile)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
         ref = whole.mesh()
@@ -128,6 +135,28 @@ def test_split_refuses_a_mesh_that_is_not_the_stitchers():
     part = Part(lat.part.vertices, lat.part.faces)
     assert skin_split.split_lattice(lat.graph, m.vertices, m.faces[::-1], part, margin=0.02) is None
     assert skin_split.split_lattice(lat.graph, m.vertices[:-6], m.faces, part, margin=0.02) is None
+
+
+@pytest.fixture(scope="module")
+def flange_graph():
+    """An octet lattice graph of the flange (clipped at its surface: leaves, hubs of every
+    degree)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        part = load_part(DATA / "step/kcl_flange-with-patterns.step")
+        cell = float(part.size.max()) / 6
+        return Lattice.fill(part, "octet", cell, cell / 16).graph
+
+
+@pytest.mark.parametrize("segments", [5, 6, 8])
+@pytest.mark.parametrize("profile", ["volume", "area", "inscribed", "circumscribed"])
+def test_the_layout_of_every_profile_is_read_with_its_segments(flange_graph, segments, profile):
+    """The stitcher's layout is recognised for every profile, with its own P: unbanded
+    (2 M P vertices) at an even P has the counts of banded at P / 2."""
+    m = fast_stitch.stitch(flange_graph, segments, profile=profile)
+    lay = skin_split._layout(flange_graph, m.vertices, m.faces)
+    assert lay is not None and lay[0] == segments
+    assert (lay[1][2] >= 0) == (profile == "volume")  # the first band row, or -1
 
 
 def test_isolated_worker_result_error_and_crash():
