@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Callable
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -538,6 +539,7 @@ def load_part(
     deflection: float | None = None,
     angular_deflection: float = 0.3,
     close_holes: bool = False,
+    on_solids: Callable[[list[Any]], None] | None = None,
 ) -> Part:
     """Load a part to fill with a lattice.
 
@@ -563,6 +565,11 @@ def load_part(
         how many, the largest and where; see :mod:`conformal.holes`) instead of refusing
         it. Meshes with non-manifold edges are still refused. Ignored for B-rep parts
         (their open faces are sewn and healed anyway).
+    on_solids : callable, optional
+        For a B-rep part: called with its solids (the list that becomes ``Part.shape``)
+        as soon as they are known, before they are tessellated and checked; e.g.
+        ``lattice_cad.Lattice.fill`` starts OCCT's skin offsets there, in a child
+        process, so that they compute while this one tessellates.
 
     Returns
     -------
@@ -610,7 +617,14 @@ def load_part(
                     + (f": {why})" if why else ")")
                 )
             return _said_crossings(
-                _from_shape(shape, str(path), deflection, angular_deflection, measure=True)
+                _from_shape(
+                    shape,
+                    str(path),
+                    deflection,
+                    angular_deflection,
+                    measure=True,
+                    on_solids=on_solids,
+                )
             )
         if suffix in _MESH_SUFFIXES:
             if suffix == ".3mf" and units is not None:
@@ -639,8 +653,13 @@ def load_part(
         )
     return _said_crossings(
         _from_shape(
-            shape, f"<{type(source).__name__}>", deflection, angular_deflection, measure=True
-        )
+            shape,
+            f"<{type(source).__name__}>",
+            deflection,
+            angular_deflection,
+            measure=True,
+            on_solids=on_solids,
+        )  # fmt: skip
     )
 
 
@@ -693,16 +712,20 @@ def _from_shape(
     reuse: bool = False,
     measure: bool = False,
     split: dict[int, Any] | None = None,
+    on_solids: Callable[[list[Any]], None] | None = None,
 ) -> Part:
     """The part of a B-rep ``shape``; ``measure`` (an unchecked tessellation): also bound its
     chord error (``Part.chord_bound``). With ``split`` (solid index: what
     ``occ_impl.chord.split_dense_faces`` gave for it, filled in when missing), dense faces
-    are meshed as patches; the part's ``shape`` stays the solids as they were."""
+    are meshed as patches; the part's ``shape`` stays the solids as they were.
+    ``on_solids``: see :func:`load_part`."""
     from lattice_cad.occ_impl import shapes as _occ
 
     solids = _occ.solids(shape)
     if not solids:
         solids = _solids_of_surfaces(shape, name)
+    if on_solids is not None:
+        on_solids(solids)
     box = _occ.bounds(_occ.compound(solids) if len(solids) > 1 else solids[0])
     diag = float(np.linalg.norm(box[1] - box[0]))
     defl = 1e-3 * diag if deflection is None else float(deflection)

@@ -60,6 +60,7 @@ __all__ = [
     "build_skin",
     "folded_wall",
     "start_offsets",
+    "start_solid_offsets",
     "PendingOffsets",
     "add_skin",
     "marching_tets",
@@ -342,10 +343,25 @@ class PendingOffsets:
     mid_wall: bool
     #: ``time.monotonic()`` when the offsets were started
     started: float = field(default_factory=time.monotonic)
+    #: the solids the offsets were started from, until :meth:`adopt` names their part
+    solids: list[Any] | None = None
 
     def remaining(self) -> float:
         """Seconds left of ``config.OFFSET_TIMEOUT`` (counted from the start; at least 1)."""
         return max(1.0, config.OFFSET_TIMEOUT - (time.monotonic() - self.started))
+
+    def adopt(self, part: Any) -> bool:
+        """Make these the offsets of ``part`` when they were started from its solids
+        (:func:`start_solid_offsets` with the list that became ``part.shape``, the same
+        objects); else False (the caller closes them)."""
+        solids = self.solids
+        shape = getattr(part, "shape", None)
+        if solids is None or shape is None or len(shape) != len(solids):
+            return False
+        if not all(a is b for a, b in zip(shape, solids, strict=True)):
+            return False
+        self.part, self.solids = part, None
+        return True
 
 
 def _offset_depths(thickness: float, mid_wall: bool) -> tuple[float, ...]:
@@ -363,23 +379,36 @@ def start_offsets(
     machine's GE bracket that hides the child's start-up (importing OpenCascade) and the
     offset behind the lattice fill and stitch.
     """
+    if part.shape is None:
+        raise SkinError("OCCT offsets need a B-rep part (STEP, CadQuery or build123d)")
+    pending = start_solid_offsets(list(part.shape), thickness, mid_wall=mid_wall, worker=worker)
+    pending.part, pending.solids = part, None
+    return pending
+
+
+def start_solid_offsets(
+    solids: list[Any], thickness: float, *, mid_wall: bool = False, worker: Any = None
+) -> PendingOffsets:
+    """:func:`start_offsets` of a part's solids, before the part is made of them (they are
+    tessellated and checked meanwhile: ``conformal.load_part(on_solids=)``); then
+    :meth:`PendingOffsets.adopt` names the part."""
     from lattice_cad.core.isolate import IsolatedWorker
     from lattice_cad.occ_impl import shapes as occ
 
-    if part.shape is None:
-        raise SkinError("OCCT offsets need a B-rep part (STEP, CadQuery or build123d)")
     worker = IsolatedWorker() if worker is None else worker
     depths = _offset_depths(thickness, mid_wall)
     deflection, angular, merge_tol = _offset_meshing(thickness)
     occ.start_fused_offsets(
-        list(part.shape),
+        list(solids),
         tuple(-d for d in depths),
         worker,
         deflection=deflection,
         angular=angular,
         merge_tol=merge_tol,
     )
-    return PendingOffsets(worker, part, float(thickness), bool(mid_wall))
+    pending = PendingOffsets(worker, None, float(thickness), bool(mid_wall))
+    pending.solids = list(solids)
+    return pending
 
 
 def _offset_meshing(thickness: float) -> tuple[float, float, float]:

@@ -57,15 +57,21 @@ def load_graph(path: str | os.PathLike[str]) -> LatticeGraph:
     return LatticeGraph.load(path)
 
 
-def _load_part(source: Any, units: str | float | None = None, close_holes: bool = False) -> Any:
-    """A ``conformal.Part`` from anything :func:`conformal.load_part` accepts."""
+def _load_part(
+    source: Any,
+    units: str | float | None = None,
+    close_holes: bool = False,
+    on_solids: Any = None,
+) -> Any:
+    """A ``conformal.Part`` from anything :func:`conformal.load_part` accepts (``on_solids``:
+    see there)."""
     from conformal.part import Part, load_part
 
     if isinstance(source, Part):
         if units is not None:
             raise ValueError("units= applies to mesh files; a loaded Part is in millimetres")
         return source
-    return load_part(source, units=units, close_holes=close_holes)
+    return load_part(source, units=units, close_holes=close_holes, on_solids=on_solids)
 
 
 def _fill_graph(
@@ -173,14 +179,41 @@ def _offset_worker(part: Any, skin: float | None) -> Any:
     return IsolatedWorker(warm="lattice_cad.occ_impl.shapes")
 
 
-def _start_offsets(worker: Any, part: Any, skin: float | None) -> Any:
+class _EarlyOffsets:
+    """``conformal.load_part(on_solids=)`` for a skin: OCCT's offsets started in ``worker``
+    from the part's solids as soon as they are read, while the part is tessellated and
+    checked (on the GE bracket 1.2 s earlier than after the load, so that they are in
+    when the lattice is stitched)."""
+
+    def __init__(self, worker: Any, skin: float) -> None:
+        self.worker, self.skin = worker, skin
+        self.pending: Any = None
+
+    def __call__(self, solids: list[Any]) -> None:
+        from conformal.skin import start_solid_offsets
+
+        if self.pending is not None or self.worker.submitted:
+            return  # (one call per worker)
+        try:
+            self.pending = start_solid_offsets(solids, self.skin, worker=self.worker)
+        except Exception:  # noqa: BLE001 - started again after the load, or by build_skin
+            self.pending = None
+
+
+def _start_offsets(worker: Any, part: Any, skin: float | None, early: Any = None) -> Any:
     """OCCT's offsets of a B-rep part started in ``worker`` (``conformal.skin.start_offsets``),
-    or None (the worker closed) when the part is a mesh."""
+    or None (the worker closed) when the part is a mesh; ``early``: an :class:`_EarlyOffsets`
+    whose offsets, started during the load, are used when they are of this part's solids."""
     if worker is None:
         return None
     if skin is None or part.shape is None:
         worker.close()
         return None
+    if early is not None and early.pending is not None:
+        if early.pending.adopt(part):
+            return early.pending
+        worker.close()
+        return None  # (build_skin starts them again)
     from conformal.skin import start_offsets
 
     try:
@@ -581,14 +614,15 @@ class Lattice:
         if self_supporting:
             rotation = _self_supporting_rotation(method, cell, rotation, direction, crit)
         worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
+        early = _EarlyOffsets(worker, skin) if worker is not None and skin is not None else None
         try:
-            the_part = _load_part(part, units, close_holes)
+            the_part = _load_part(part, units, close_holes, on_solids=early)
         except BaseException:
             if worker is not None:
                 worker.close()
             raise
         # the child offsets the part while this process builds and stitches the lattice
-        pending = _start_offsets(worker, the_part, skin)
+        pending = _start_offsets(worker, the_part, skin, early)
         try:
             zones = None
             if keep is not None:  # resolved before the lattice: a wrong selector fails fast

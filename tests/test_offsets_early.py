@@ -1,6 +1,7 @@
-"""``Lattice.fill`` with a skin starts OpenCascade's offsets as soon as the part is loaded
-(the child offsets while this process builds the lattice graph and stitches it), and a fill
-that fails ends that child instead of leaving it running."""
+"""``Lattice.fill`` with a skin starts OpenCascade's offsets as soon as the part's solids
+are read (the child offsets while this process tessellates the part, builds the lattice
+graph and stitches it), and a fill that fails ends that child instead of leaving it
+running."""
 
 from __future__ import annotations
 
@@ -62,3 +63,50 @@ def test_a_failing_fill_ends_the_offset_child(monkeypatch):
     assert len(seen) == 1 and seen[0] is not None
     worker = seen[0].worker
     assert worker._pool is None and not worker.running  # closed: the child was killed
+
+
+def test_offsets_start_from_the_solids_before_the_part_is_tessellated(monkeypatch):
+    """The child gets the solids as soon as they are read (``load_part(on_solids=)``), not
+    after their tessellation and its checks (the GE bracket: 1.2 s earlier)."""
+    from conformal import part as part_mod
+    from conformal import skin as skin_mod
+
+    events: list[str] = []
+    tessellate = part_mod._closed_tessellation
+    start = skin_mod.start_solid_offsets
+
+    def closed_tessellation(*a, **k):
+        events.append("tessellate")
+        return tessellate(*a, **k)
+
+    def start_solid_offsets(*a, **k):
+        events.append("offsets")
+        return start(*a, **k)
+
+    monkeypatch.setattr(part_mod, "_closed_tessellation", closed_tessellation)
+    monkeypatch.setattr(skin_mod, "start_solid_offsets", start_solid_offsets)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(PART, "bcc", 12.0, 1.0, skin=2.0)
+    assert events[:2] == ["offsets", "tessellate"]
+    pending = lat._pending_offsets
+    assert pending.part is lat.part and pending.solids is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        mesh = lat.mesh()
+    assert lat.skin_report.method == "occt" and lat.skin_report.bodies == 1
+    assert len(mesh.faces)
+
+
+def test_early_offsets_of_other_solids_are_not_adopted():
+    from conformal.part import load_part
+    from conformal.skin import PendingOffsets
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)  # 3 solids united
+        part = load_part(PART)
+        other = load_part(PART)  # the same file read again: other solid objects
+    pending = PendingOffsets(None, None, 2.0, False, solids=list(other.shape))
+    assert not pending.adopt(part)
+    assert pending.part is None
+    assert pending.adopt(other) and pending.part is other and pending.solids is None
