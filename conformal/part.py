@@ -659,7 +659,7 @@ def load_part(
             angular_deflection,
             measure=True,
             on_solids=on_solids,
-        )  # fmt: skip
+        )
     )
 
 
