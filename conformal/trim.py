@@ -38,6 +38,7 @@ __all__ = [
     "protrusion",
     "cutting_part",
     "cut_shortfall",
+    "uncut",
 ]
 
 
@@ -297,6 +298,38 @@ def _tolerance(radius: float, extent: float) -> float:
 #: A direction parallel to no face a CAD user draws (unit vector), for ``shift``.
 _S = np.array([0.5317, -0.3183, 0.7854])
 SHIFT_DIRECTION = _S / np.linalg.norm(_S)
+
+
+def uncut(lattice: Any, part: Any, *, radius: float, why: str) -> TrimResult:
+    """The lattice not cut, for the reason ``why`` (a cut that cannot be made: a part whose
+    surface folds over itself, ``conformal.Part.folds``): ``solid`` is ``lattice`` as given
+    and the report says why, with how far the lattice reaches outside the part.
+
+    lattice : Mesh or mesh-like, part : conformal.Part, radius : float (the largest strut
+    radius, mm).
+    """
+    from conformal.skin_split import pieces
+    from lattice_cad.core.mesh import mesh_arrays
+
+    t0 = time.perf_counter()
+    arrays = mesh_arrays(lattice)
+    assert arrays is not None
+    v, f = arrays
+    out = protrusion(part, v)
+    extent = float(np.abs(part.bounds).max()) if len(part.vertices) else 1.0
+    _, _, vols = pieces(v, f)
+    report = TrimReport(
+        trimmed=False,
+        protrusion_before=out,
+        protrusion_after=out,
+        tolerance=_tolerance(radius, extent),
+        volume_removed=0.0,
+        bodies=int(np.count_nonzero(vols > 0)),
+        pieces_removed=0,
+        seconds=time.perf_counter() - t0,
+        failed=why,
+    )
+    return TrimResult(solid=lattice, report=report)
 
 
 #: Clearance from the part's surface of the struts :func:`trim_to_part` leaves out of its

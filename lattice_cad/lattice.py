@@ -770,6 +770,16 @@ class Lattice:
         # the booleans on the struts near the wall only, the deep ones glued back after the
         # float32 check (conformal.skin_split): for the stitched lattice as it is
         local = split and lattice is self._lattice_mesh and self.escape_holes is None
+        folded = None
+        if self.part is not None and self.part.folds:
+            # a fold of the surface itself (Part.folds): the cutting tessellation, which
+            # the test below waits for, folds too (the swept handle: 78 s before the same
+            # refusal)
+            folded = _skin.folded_wall(self.part, name=getattr(self.part, "name", None))
+        if folded is not None:
+            if pending is not None:
+                pending.worker.close()
+            raise folded
         cut = self.part if coarse else self._cutting_part
         if self.part is not None and self.part.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
             # the part's tessellation folds over itself (said at load): when the one the
@@ -935,6 +945,15 @@ class Lattice:
             clear = clear_inside(self._kept_mesh, self.part, self.graph, radius=radius)
             if clear is not None:
                 return clear
+        if self.part is not None and self.part.folds:
+            # the part's surface folds over itself, not only its tessellation: a cut by it
+            # bounds no solid at any chord, so none is tessellated or tried (the swept
+            # handle made outside shared/data: 237 s of chord-checked tessellation before
+            # its cut was given up); the lattice is written uncut, as the report says
+            from conformal.trim import uncut
+
+            why = f"{self.part.crossing_note()}, and the cut by such a surface bounds no solid"
+            return uncut(self._kept_mesh, self.part, radius=radius, why=why)
         return trim_to_part(
             self._kept_mesh,
             self._cutting_part,

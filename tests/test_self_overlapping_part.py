@@ -175,3 +175,56 @@ def test_a_scan_that_crosses_itself_in_a_few_places_is_still_cut(tmp_path):
     assert rep.protrusion_after <= rep.tolerance, rep.summary()
     assert fast_stitch.check(mesh).valid
     independent_check(mesh)
+
+
+def test_a_fill_of_a_folded_brep_is_not_cut_and_no_cutting_tessellation_is_made(monkeypatch):
+    """Regression (s27): a cabinet handle swept along a looping path (made outside
+    shared/data) crosses itself in 21 % of its triangles at load; each fill spent 88-237 s
+    making the chord-checked cutting tessellation (411 K triangles, still crossing) before
+    the cut was given up and the lattice written uncut. A B-rep whose tessellation crosses
+    itself in more than ``config.TRIM_HOPELESS_SHARE`` of its triangles, and still does
+    four times finer (``Part.folds``), is written uncut at once with the same reason; its
+    skin is refused at once."""
+    import fast_stitch
+    from conformal import trim
+    from lattice_cad.core.errors import SkinError
+
+    def no_cutting_part(*args, **kwargs):
+        raise AssertionError("a cutting tessellation was made for a folded B-rep")
+
+    monkeypatch.setattr(trim, "cutting_part", no_cutting_part)
+    with pytest.warns(LatticeWarning, match="surface crosses itself"):
+        part = load_part(FOLDED)
+    assert part.folds
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(part, cell="bcc", cell_size=8.0, radius=0.6, fill="clip")
+        mesh = lat.mesh()
+    rep = lat.trim_report
+    assert rep.failed.startswith("the part's surface crosses itself"), rep.summary()
+    assert "bounds no solid" in rep.failed and "NOT cut" in rep.summary()
+    assert rep.protrusion_before > 0 and rep.bodies >= 1
+    assert fast_stitch.check(mesh).valid  # the stitched lattice, written as it is
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        skinned = Lattice.fill(part, cell="octet", cell_size=8.0, radius=0.6, skin=1.5)
+        pending = skinned._pending_offsets
+        with pytest.raises(SkinError, match=r"surface crosses itself \(\d+ pair.*repair"):
+            skinned.mesh()
+    assert pending is None or pending.worker._pool is None  # OCCT's child closed
+
+
+def test_a_tessellation_that_crosses_itself_only_at_its_chords_is_not_a_fold():
+    """``Part.folds`` looks again four times finer: crossings that go away there are the
+    chords' (simulated: a clean B-rep said to cross itself in 5 % of its triangles), and a
+    mesh part is never judged a fold without its cut."""
+    from tests.conftest import DATA
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)  # 3 solids united
+        part = load_part(DATA / "step" / "kcl_flange-with-patterns.step")
+    part.__dict__["self_crossings"] = (int(0.05 * len(part.faces)), part.vertices[0])
+    assert not part.folds
+    mesh = load_part(DATA / "meshes" / "bunny_closed_odedstein.obj")
+    mesh.__dict__["self_crossings"] = (int(0.05 * len(mesh.faces)), mesh.vertices[0])
+    assert not mesh.folds

@@ -394,6 +394,10 @@ AUTO_INSIDE_SHARE = 0.2
 #: any rounding: the folded pipe elbow 4.9 % (9,139 pairs), never repaired; a noisy scan's
 #: cut 0.03 % (32 pairs) or a noisy bunny's 0.003 % (4), repaired by the fold collapses.
 TRIM_HOPELESS_SHARE = 0.01
+#: ``conformal.Part.folds``: a B-rep part whose tessellation crosses itself in more than
+#: TRIM_HOPELESS_SHARE of its triangles is tessellated this many times finer (unchecked)
+#: to tell a fold of its surface (it stays) from chords meeting across a thin feature.
+FOLD_REFINE = 4.0
 #: When most of a voxel fill falls apart into loose pieces, the warning says what keeps it
 #: joined, tried: the conform fill at the same size (for inside and clip), then cells of
 #: JOINED_SHRINK, JOINED_SHRINK^2, ... of the size (JOINED_TRIALS sizes at most), each
