@@ -28,7 +28,7 @@ import numpy as np
 
 from lattice_cad.core import config
 from lattice_cad.core.checks import check_positive
-from lattice_cad.core.errors import EscapeHoleError, ExportError, LatticeWarning
+from lattice_cad.core.errors import EscapeHoleError, ExportError, FillError, LatticeWarning
 from lattice_cad.core.formats import Kind, format_for, resolve, suffixes
 from lattice_cad.core.graph import LatticeGraph
 
@@ -177,6 +177,23 @@ def _offset_worker(part: Any, skin: float | None) -> Any:
     from lattice_cad.core.isolate import IsolatedWorker
 
     return IsolatedWorker(warm="lattice_cad.occ_impl.shapes")
+
+
+def _with_skin_room(exc: FillError, part: Any, skin: float | None) -> FillError:
+    """``exc`` (nothing fits the part), saying also when the skin asked leaves no room for
+    a lattice either (the part nowhere thicker than twice the skin): changing the cells or
+    the radius alone would not give a skinned lattice then. Else ``exc`` itself."""
+    if skin is None:
+        return exc
+    thick = 2.0 * float(part.inscribed_radius())
+    if thick > 2.0 * skin:
+        return exc
+    return FillError(
+        f"{exc}; and the skin leaves no room for a lattice either: the part is nowhere "
+        f"thicker than twice the skin thickness {skin:g} (its greatest thickness is about "
+        f"{thick:.3g} mm), so only a skin thinner than about {0.4 * thick:.3g} mm leaves a "
+        "cavity to fill"
+    )
 
 
 class _EarlyOffsets:
@@ -629,22 +646,25 @@ class Lattice:
                 from lattice_cad.keep import resolve_keep
 
                 zones = resolve_keep(the_part, keep)
-            graph, report = _fill_graph(
-                the_part,
-                method=method,
-                cell=cell,
-                cell_size=cell_size,
-                radius=radius,
-                fill=fill,
-                origin=origin,
-                rotation=rotation,
-                segments=segments,
-                min_radius=min_radius,
-                profile=profile,
-                # a self-supporting grid stays so only if the struts keep their directions
-                auto_fallback="clip" if self_supporting else "conform",
-                progress=progress,
-            )
+            try:
+                graph, report = _fill_graph(
+                    the_part,
+                    method=method,
+                    cell=cell,
+                    cell_size=cell_size,
+                    radius=radius,
+                    fill=fill,
+                    origin=origin,
+                    rotation=rotation,
+                    segments=segments,
+                    min_radius=min_radius,
+                    profile=profile,
+                    # a self-supporting grid stays so only if the struts keep their directions
+                    auto_fallback="clip" if self_supporting else "conform",
+                    progress=progress,
+                )
+            except FillError as exc:
+                raise _with_skin_room(exc, the_part, skin) from exc
             removal = None
             if remove_overhangs:
                 graph, removal = _pr.remove_overhangs(

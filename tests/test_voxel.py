@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -356,6 +357,19 @@ def test_a_fill_whose_struts_are_thicker_than_the_part_is_refused(tmp_path):
             said = r"about [\d.]+ mm, too thin for struts of radius 11\.1\d*: use a radius below"
             with pytest.raises(FillError, match=said):
                 voxel_lattice(beam, "bcc", 133.33, 11.11, fill=fill)
+    # with a skin (the benchmark's: cell / 6) that leaves no cavity either, the error says
+    # so too (s26 gave the radius only, where the skin alone already rules out a lattice)
+    from lattice_cad import Lattice
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        with pytest.raises(FillError, match=said) as refused:
+            Lattice.fill(beam, "octet", 133.33, 11.11, skin=22.22)
+        skin_said = r"skin leaves no room .* twice the skin thickness 22\.22 .* about [\d.]+ mm"
+        assert re.search(skin_said, str(refused.value)), refused.value
+        with pytest.raises(FillError, match=said) as refused:
+            Lattice.fill(beam, "octet", 133.33, 11.11, skin=1.0)  # room for a cavity
+        assert "skin" not in str(refused.value)
 
 
 def test_conform_moves_the_grid_when_a_thin_rod_lies_between_its_nodes():
