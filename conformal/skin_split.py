@@ -27,7 +27,10 @@ ring and its band ring, and the tube (the prism) joins the two band rings. So:
 3. the caps toward deep elements lie inside the inner surface, clear of it, so the
    boolean leaves them as they were; :meth:`SplitLattice.glue` finds them (by their exact
    float32 coordinates) in the result, removes them and puts the deep elements in their
-   place: the same closed surface as the boolean with the whole lattice.
+   place: the same closed surface as the boolean with the whole lattice, except that
+   manifold3d collapses edges shorter than its tolerance in what goes through a boolean
+   (e.g. a band of struts a few um thick), and the deep elements keep the stitcher's
+   triangles there.
 
 Nothing is assumed that is not checked: the mesh must have the stitcher's layout, the
 caps must come out of the boolean unchanged (else :meth:`glue` returns None and the
