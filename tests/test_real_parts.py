@@ -421,7 +421,13 @@ def test_a_voxel_skin_is_the_same_in_any_unit(tmp_path):
         assert rep.method == "voxel" and rep.bodies == 1 and _bodies(mesh) == 1
         got.append((rep, len(mesh.faces)))
     (big, n_big), (small, n_small) = got
-    assert big.split and small.split == big.split  # the same elements near the wall
+    # the same elements near the wall, up to those whose clearance is the margin to the
+    # rounding (s27, bands split elements of their own: two bands 0.996 and 1.0003
+    # margins from the wall at one scale, 1.001 and 0.999 at the other, change sides)
+    total = sum(big.split[k] for k in ("deep", "near", "wall"))
+    assert big.split and small.split.keys() == big.split.keys()
+    for key, count in big.split.items():
+        assert abs(small.split[key] - count) <= 1e-4 * total, (key, small.split, big.split)
     assert small.accurate == big.accurate
     for key, value in big.wall.items():
         assert small.wall[key] == pytest.approx(1e-3 * value, rel=1e-3), key
