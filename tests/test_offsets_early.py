@@ -17,22 +17,27 @@ from tests.conftest import DATA
 PART = DATA / "step" / "kcl_bracket.step"
 
 
+def _spy(monkeypatch, events: list[str], owner, name: str, label) -> None:
+    """Replace ``owner.name`` by a wrapper that appends ``label`` (or ``label(result)``) to
+    ``events`` when it is called."""
+    real = getattr(owner, name)
+
+    def spy(*a, **k):
+        if not callable(label):
+            events.append(label)
+        out = real(*a, **k)
+        if callable(label):
+            events.append(label(out))
+        return out
+
+    monkeypatch.setattr(owner, name, spy)
+
+
 def test_offsets_start_before_the_lattice_graph(monkeypatch):
     events: list[str] = []
-    started = lattice_mod._start_offsets
-    graph = lattice_mod._fill_graph
-
-    def start(*a, **k):
-        pending = started(*a, **k)
-        events.append("offsets" if pending is not None else "no offsets")
-        return pending
-
-    def fill_graph(*a, **k):
-        events.append("graph")
-        return graph(*a, **k)
-
-    monkeypatch.setattr(lattice_mod, "_start_offsets", start)
-    monkeypatch.setattr(lattice_mod, "_fill_graph", fill_graph)
+    _spy(monkeypatch, events, lattice_mod, "_start_offsets",
+         lambda pending: "offsets" if pending is not None else "no offsets")  # fmt: skip
+    _spy(monkeypatch, events, lattice_mod, "_fill_graph", "graph")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
         lat = Lattice.fill(PART, "bcc", 12.0, 1.0, skin=2.0)
@@ -72,19 +77,8 @@ def test_offsets_start_from_the_solids_before_the_part_is_tessellated(monkeypatc
     from conformal import skin as skin_mod
 
     events: list[str] = []
-    tessellate = part_mod._closed_tessellation
-    start = skin_mod.start_solid_offsets
-
-    def closed_tessellation(*a, **k):
-        events.append("tessellate")
-        return tessellate(*a, **k)
-
-    def start_solid_offsets(*a, **k):
-        events.append("offsets")
-        return start(*a, **k)
-
-    monkeypatch.setattr(part_mod, "_closed_tessellation", closed_tessellation)
-    monkeypatch.setattr(skin_mod, "start_solid_offsets", start_solid_offsets)
+    _spy(monkeypatch, events, part_mod, "_closed_tessellation", "tessellate")
+    _spy(monkeypatch, events, skin_mod, "start_solid_offsets", "offsets")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
         lat = Lattice.fill(PART, "bcc", 12.0, 1.0, skin=2.0)
