@@ -859,6 +859,17 @@ def _check_thickness(thickness: Any) -> None:
         raise ValueError(f"skin thickness must be a positive number, got {thickness!r}")
 
 
+def no_room_message(thickness: float, greatest: float) -> str:
+    """Why a skin of ``thickness`` (mm) leaves no cavity for a lattice in a part whose
+    greatest thickness is ``greatest`` (mm; twice ``Part.inscribed_radius``), and which
+    skin would."""
+    return (
+        f"the part is nowhere thicker than twice the skin thickness {thickness:g} mm: "
+        f"no room for a lattice; its greatest thickness is about {greatest:.3g} mm, so a "
+        f"skin thinner than about {0.4 * greatest:.3g} mm leaves a cavity"
+    )
+
+
 def _no_room(part: Any, thickness: float) -> bool:
     """Whether no point of ``part`` (a :class:`conformal.Part`) lies ``thickness`` deep,
     proven (:meth:`conformal.Part.thinner_than`) with the skin's tolerance
@@ -1019,12 +1030,7 @@ def build_skin(
     surfaces, used, fallback, h = _surfaces(p, thickness, method, voxel, mid_wall, offsets)
     outer, inner = surfaces[0], surfaces[1]
     if inner.is_empty():
-        thick = 2.0 * p.inscribed_radius()
-        raise SkinError(
-            f"the part is nowhere thicker than twice the skin thickness {thickness:g}: "
-            f"no room for a lattice; its greatest thickness is about {thick:.3g} mm, so a "
-            f"skin thinner than about {0.4 * thick:.3g} mm leaves a cavity"
-        )
+        raise SkinError(no_room_message(thickness, 2.0 * p.inscribed_radius()))
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)

@@ -572,7 +572,7 @@ def _refine_near(
     classified the elements first hold them as near when they come within ``margin`` of
     the surface; on a thin-walled part most are far clearer than that (GE bracket, octet
     6 mm, r 0.5, skin 1.5: 988 K of 2.87 M triangles near by the bounds, 619 K exactly
-    with the bands going with their prism, 0.45 s less in the booleans; 414 K with the
+    with the bands going with their prism, 0.45 s less in the booleans; 458 K with the
     bands classified on their own).
     """
     from conformal._kernels import soups_within

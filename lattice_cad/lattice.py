@@ -188,12 +188,9 @@ def _with_skin_room(exc: FillError, part: Any, skin: float | None) -> FillError:
     thick = 2.0 * float(part.inscribed_radius())
     if thick > 2.0 * skin:
         return exc
-    return FillError(
-        f"{exc}; and the skin leaves no room for a lattice either: the part is nowhere "
-        f"thicker than twice the skin thickness {skin:g} (its greatest thickness is about "
-        f"{thick:.3g} mm), so only a skin thinner than about {0.4 * thick:.3g} mm leaves a "
-        "cavity to fill"
-    )
+    from conformal.skin import no_room_message
+
+    return FillError(f"{exc}; and the skin leaves no room either: {no_room_message(skin, thick)}")
 
 
 class _EarlyOffsets:
