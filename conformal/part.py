@@ -96,6 +96,9 @@ class Part:
         #: deflection``. None / 0 when not measured.
         self.chord_error: float | None = None
         self.chord_unresolved = 0
+        #: For a surface rebuilt from a part whose surface folds over itself
+        #: (``conformal.unfold.rebuilt_part``): the grid spacing (mm); else 0.
+        self.rebuilt = 0.0
         #: For B-rep parts as loaded (``load_part``): an upper bound (mm) on the distance
         #: of their triangle centroids and edge midpoints from the exact surface
         #: (``|S(u, v) - p|`` at the triangles' parameters, no projection), measured right
@@ -171,6 +174,31 @@ class Part:
             return 0, np.full(3, np.nan)
         face = int(report.self_intersection_pairs[0, 0])
         return pairs, self.triangles[face].mean(axis=0)
+
+    @cached_property
+    def solid_parts(self) -> list[Part]:
+        """The part's separate solids, each its outer shell with the walls of the cavities
+        it holds (a Part each, with its own vertices; ``[self]`` for one shell).
+
+        A shell inside another solid's cavity is a solid of its own (a ball captive in a
+        housing, printed in place): each cavity wall belongs to the smallest shell around
+        it (``_cavity_holders``). An inward shell no solid holds belongs to none.
+        """
+        v, f = self.vertices, self.faces
+        comps = _components(f, len(v))
+        if len(comps) <= 1:
+            return [self]
+        shells = [f[c] for c in comps]
+        vols = [_mesh_volume(v[fc]) for fc in shells]
+        holder = _cavity_holders(v, shells, vols)
+        out: list[Part] = []
+        for k, fc in enumerate(shells):
+            if vols[k] <= 0:
+                continue
+            walls = [shells[j] for j in range(len(shells)) if holder[j] == k]
+            used, local = np.unique(np.vstack([fc, *walls]), return_inverse=True)
+            out.append(Part(v[used], local.reshape(-1, 3), name=f"{self.name} (solid {len(out)})"))
+        return out or [self]
 
     @cached_property
     def folds(self) -> bool:

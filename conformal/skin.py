@@ -147,12 +147,20 @@ class SkinReport:
     split: dict[str, int] = field(default_factory=dict)
     #: Triangles collapsed to remove folds of the inner wall (``conformal.skin_untangle``).
     untangled: int = 0
+    #: When the part's surface folds over itself (``conformal.Part.folds``): the spacing
+    #: (mm) of the grid its outside was rebuilt on (``conformal.unfold``); else 0.
+    rebuilt: float = 0.0
 
     def summary(self) -> str:
         """One line for logs and the CLI."""
         how = "OpenCascade offset" if self.method == "occt" else f"voxel field (h={self.voxel:.3g})"
         if self.fallback:
             how += f" [OCCT offset failed: {self.fallback}]"
+        if self.rebuilt:
+            how += (
+                f" [the part's surface folds over itself: its outside rebuilt on a "
+                f"{self.rebuilt:.3g} mm grid]"
+            )
         w = self.wall
         wall = (
             f"wall {w['min']:.4g} .. {w['max']:.4g} mm (median {w['median']:.4g}) for "
@@ -278,11 +286,14 @@ def as_manifold(obj: Any, *, name: str = "part") -> Any:
 
 
 def part_solid(part: Any) -> Any:
-    """The part as one ``manifold3d.Manifold``: its solids united, its voids cut out.
+    """The part as one ``manifold3d.Manifold``: its solids, each with its cavities
+    (``Part.solid_parts``), united.
 
     Assemblies often hold solids that touch (share faces) or overlap; their tessellation
     then has coincident faces, which a boolean would carry into the result. Uniting the
     solids (manifold3d's union merges touching faces) gives the region the part occupies.
+    A solid inside another's cavity (a ball captive in a housing) is one of them; an inward
+    shell that no solid holds (inside an even number of others) is left out.
 
     Parameters
     ----------
@@ -299,17 +310,15 @@ def part_solid(part: Any) -> Any:
     comps = shape.decompose()
     if len(comps) <= 1:
         return shape
-    solids = [c for c in comps if c.volume() > 0]
-    voids = []
-    for c in comps:
-        if c.volume() < 0:  # an inner shell: the solid of the void, to subtract
-            v, f = to_arrays(c)
-            voids.append(_manifold(v, np.ascontiguousarray(f[:, ::-1]), f"a void of {name}"))
-    add, subtract = manifold3d.OpType.Add, manifold3d.OpType.Subtract
-    out = manifold3d.Manifold.batch_boolean(solids, add)
-    if voids:
-        out = manifold3d.Manifold.batch_boolean([out, *voids], subtract)
-    return out
+    solid_parts = getattr(part, "solid_parts", None)
+    if solid_parts is None:  # (not a conformal.Part: its shells as they are)
+        return shape
+    # each solid with its own cavities, then united: a solid in another's cavity (a ball
+    # captive in a housing) stays; subtracting every void from the union removed it
+    solids = [
+        _manifold(s.vertices, s.faces, f"{name}, solid {k}") for k, s in enumerate(solid_parts)
+    ]
+    return manifold3d.Manifold.batch_boolean(solids, manifold3d.OpType.Add)
 
 
 def to_arrays(man: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -863,6 +872,15 @@ def no_room_message(thickness: float, greatest: float) -> str:
     """Why a skin of ``thickness`` (mm) leaves no cavity for a lattice in a part whose
     greatest thickness is ``greatest`` (mm; twice ``Part.inscribed_radius``), and which
     skin would."""
+    if greatest > 2.0 * thickness:
+        # (the inset came out empty though the part is thicker somewhere: its thick spots,
+        # rib crossings of a machine bed, are narrower than the voxel grid resolves)
+        return (
+            f"the inset of the part by the skin thickness {thickness:g} mm came out empty: "
+            f"its greatest thickness is about {greatest:.3g} mm, but only in spots too small "
+            f"for a cavity to hold a lattice; a skin thinner than about "
+            f"{0.4 * greatest:.3g} mm leaves a cavity there"
+        )
     return (
         f"the part is nowhere thicker than twice the skin thickness {thickness:g} mm: "
         f"no room for a lattice; its greatest thickness is about {greatest:.3g} mm, so a "

@@ -70,6 +70,12 @@ class TrimReport:
     clearance : float
         When :func:`clear_inside` proved the lattice inside the part on the part's own
         tessellation: the clearance (mm) from the exact surface it proved; else 0.
+    volume_before : float
+        Volume (mm^3) of the lattice before the cut (NaN when not measured).
+    rebuilt : float
+        When the part's surface folds over itself (``conformal.Part.folds``) and the cut
+        was by its rebuild (``conformal.unfold.rebuilt_part``): that grid's spacing (mm);
+        else 0. The protrusions are measured against the part as loaded.
     """
 
     trimmed: bool
@@ -82,6 +88,15 @@ class TrimReport:
     seconds: float
     failed: str = ""
     clearance: float = 0.0
+    rebuilt: float = 0.0
+    volume_before: float = float("nan")
+
+    @property
+    def share_removed(self) -> float:
+        """The fraction of the lattice's volume the cut removed (NaN when not known)."""
+        if not self.volume_before > 0:
+            return float("nan")
+        return self.volume_removed / self.volume_before
 
     @property
     def within_tolerance(self) -> bool:
@@ -104,8 +119,14 @@ class TrimReport:
                 f"{self.protrusion_before:.3g} mm)"
             )
         removed = f", {self.pieces_removed} loose piece(s) removed" if self.pieces_removed else ""
+        by = (
+            f"to the part's surface rebuilt on a {self.rebuilt:.3g} mm grid (the part's own "
+            "surface folds over itself)"
+            if self.rebuilt
+            else "to the part's surface"
+        )
         return (
-            f"trim: cut to the part's surface: protrusion {self.protrusion_before:.3g} mm -> "
+            f"trim: cut {by}: protrusion {self.protrusion_before:.3g} mm -> "
             f"{self.protrusion_after:.2g} mm (tolerance {self.tolerance:.2g} mm), "
             f"{self.volume_removed:.4g} mm^3 removed{removed}, {self.bodies} body(ies), "
             f"{self.seconds:.1f} s"
@@ -175,7 +196,9 @@ def cutting_part(part: Any, radius: float, *, chord: float | None = None) -> Any
     names the part and the chord error reached in % of ``radius``
     (:func:`cut_shortfall` gives it). When the finer tessellation fails (it is not
     closed), the part is returned unchanged with a
-    :class:`~lattice_cad.core.errors.LatticeWarning`.
+    :class:`~lattice_cad.core.errors.LatticeWarning`. A B-rep whose surface folds over
+    itself (``Part.folds``) is rebuilt instead (:func:`conformal.unfold.rebuilt_part` on a
+    grid of :func:`conformal.unfold.rebuild_spacing`; its ``rebuilt`` says so).
 
     Parameters
     ----------
@@ -195,6 +218,13 @@ def cutting_part(part: Any, radius: float, *, chord: float | None = None) -> Any
 
     if getattr(part, "shape", None) is None or not radius > 0:
         return part
+    if part.folds:
+        # no tessellation of a surface that folds over itself bounds a solid (the swept
+        # handle: 237 s of chord-checked tessellation before its cut was given up): the
+        # region it encloses, rebuilt on a grid (conformal.unfold)
+        from conformal.unfold import rebuild_spacing, rebuilt_part
+
+        return rebuilt_part(part, spacing=rebuild_spacing(part, radius))
     want = _wanted(part, radius, chord)
     budget = config.CUT_MAX_TRIANGLES
     defl = max(want, part.deflection * len(part.faces) / budget)  # the pessimistic guess
@@ -281,7 +311,11 @@ def cut_shortfall(
     -------
     float or None
     """
-    if getattr(part, "shape", None) is None or not radius > 0:
+    if (
+        getattr(part, "shape", None) is None
+        or not radius > 0
+        or bool(getattr(cut, "rebuilt", None))
+    ):
         return None
     want = _wanted(part, radius, chord)
     if cut.deflection <= want * (1 + 1e-9):
@@ -421,6 +455,7 @@ def trim_to_part(
         protrusion_after=protrusion(part, v1),
         tolerance=tol,
         volume_removed=float(lat.volume() - cut.volume()),
+        volume_before=float(lat.volume()),
         bodies=len(pieces),
         pieces_removed=removed,
         seconds=time.perf_counter() - t0,
@@ -639,6 +674,7 @@ def _trim_near(
         protrusion_after=protrusion(part, vc),
         tolerance=tol,
         volume_removed=float(total - gvol.sum()),
+        volume_before=float(total),
         bodies=n_groups - removed,
         pieces_removed=removed,
         seconds=time.perf_counter() - t0,

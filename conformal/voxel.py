@@ -918,25 +918,9 @@ def _components(n: int, edges: NDArray[np.int64]) -> tuple[int, NDArray[np.int64
 
 
 def _solid_shells(part: Part) -> list[Part]:
-    """The part's separate solids: its outer shells (positive volume), each as a Part."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    v, f = part.vertices, part.faces
-    n = len(v)
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
-    k, lab = connected_components(g, directed=False)
-    if k == 1:
-        return [part]
-    flab = lab[f[:, 0]]
-    shells: list[Part] = []
-    for c in range(k):
-        fc = f[flab == c]
-        t = v[fc]
-        if np.einsum("ij,ij->", t[:, 0], np.cross(t[:, 1], t[:, 2])) > 0:
-            shells.append(Part(v, fc, name=f"{part.name} (solid {len(shells)})"))
-    return shells or [part]
+    """The part's separate solids (``Part.solid_parts``: each outer shell with the walls of
+    its cavities, so a solid captive in another's cavity is one of its own)."""
+    return part.solid_parts
 
 
 def shell_owner(shells: list[Part], points: ArrayLike) -> NDArray[np.int64]:

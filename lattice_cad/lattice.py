@@ -28,7 +28,13 @@ import numpy as np
 
 from lattice_cad.core import config
 from lattice_cad.core.checks import check_positive
-from lattice_cad.core.errors import EscapeHoleError, ExportError, FillError, LatticeWarning
+from lattice_cad.core.errors import (
+    EscapeHoleError,
+    ExportError,
+    FillError,
+    LatticeWarning,
+    SkinError,
+)
 from lattice_cad.core.formats import Kind, format_for, resolve, suffixes
 from lattice_cad.core.graph import LatticeGraph
 
@@ -235,6 +241,30 @@ def _start_offsets(worker: Any, part: Any, skin: float | None, early: Any = None
     except Exception:  # noqa: BLE001 - build_skin starts them again and reports the failure
         worker.close()
         return None
+
+
+#: A cut that removes more than this fraction of the lattice's volume is said in a warning.
+MOSTLY_CUT = 0.5
+
+
+def _warn_mostly_cut(report: Any, graph: LatticeGraph) -> None:
+    """Warn when the cut to the part removed most of the lattice (struts that run outside
+    a concave part: a 3 m machine bed with 200 mm cells lost 94 % of its conforming lattice's
+    volume and was written with one report line)."""
+    share = report.share_removed
+    if not share > MOSTLY_CUT:
+        return
+    lengths = np.linalg.norm(
+        graph.nodes[graph.edges[:, 1]] - graph.nodes[graph.edges[:, 0]], axis=1
+    )
+    warnings.warn(
+        f"the cut to the part's surface removed {100 * share:.0f} % of the lattice's volume: "
+        f"its struts (median length {float(np.median(lengths)):.3g} mm) mostly run outside "
+        "the part, which is thin or hollow for cells of this size; smaller cells keep more "
+        "of the lattice inside it",
+        LatticeWarning,
+        stacklevel=4,
+    )
 
 
 def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
@@ -754,6 +784,7 @@ class Lattice:
                 return self._kept_mesh
             trimmed = self._cut()  # checked below, after rounding to float32
             self.trim_report = trimmed.report
+            _warn_mostly_cut(trimmed.report, self.graph)
             self._split = trimmed.split
             if not trimmed.report.trimmed:
                 return self._kept_mesh
@@ -787,27 +818,16 @@ class Lattice:
         # the booleans on the struts near the wall only, the deep ones glued back after the
         # float32 check (conformal.skin_split): for the stitched lattice as it is
         local = split and lattice is self._lattice_mesh and self.escape_holes is None
-        folded = None
-        if self.part is not None and self.part.folds:
-            # a fold of the surface itself (Part.folds): the cutting tessellation, which
-            # the test below waits for, folds too (the swept handle: 78 s before the same
-            # refusal)
-            folded = _skin.folded_wall(self.part, name=getattr(self.part, "name", None))
-        if folded is not None:
-            if pending is not None:
-                pending.worker.close()
-            raise folded
+        # (a B-rep whose surface folds over itself, Part.folds: its rebuild, conformal.unfold,
+        # with the voxel skin: OCCT's offset of such a surface folds too)
         cut = self.part if coarse else self._cutting_part
         if self.part is not None and self.part.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
             # the part's tessellation folds over itself (said at load): when the one the
             # skin is built on folds too, its outer wall would, and the skinned mesh could
-            # not be written; refused before OCCT's offsets and the walls are waited for
-            # (the folded pipe elbow: 30 s, 67 s beside the parts benchmark)
-            folded = _skin.folded_wall(cut, name=getattr(self.part, "name", None))
-            if folded is not None:
-                if pending is not None:
-                    pending.worker.close()
-                raise folded
+            # not be written (a mesh part that folds: the folded elbow's tessellation as an
+            # STL); the part's surface rebuilt from the region it encloses instead
+            if _skin.folded_wall(cut) is not None:
+                cut = self._rebuilt_part
         result = _skin.build_skin(
             lattice,
             cut,
@@ -819,6 +839,8 @@ class Lattice:
         )
         self._split = result.split
         self.skin_report = result.report
+        if getattr(cut, "rebuilt", 0.0):
+            self.skin_report = dataclasses.replace(result.report, rebuilt=cut.rebuilt)
         solid = result.solid
         if self.escape_holes is not None:
             solid = self._drill(solid)
@@ -851,6 +873,18 @@ class Lattice:
                 mesh = _checked_single_precision(solid, "the lattice")
                 mesh = self._glue_deep(mesh)
             except ExportError as exc:
+                rebuilt = self.skin_report is not None and self.skin_report.rebuilt
+                if self.skin is not None and rebuilt:
+                    # a skin on the rebuild of a surface that folds (conformal.unfold): the
+                    # retries below rebuild and rebool the same voxel walls (the folded
+                    # elbow's 2 mm tube under a 0.96 mm skin: 3,137 pieces, 10 minutes)
+                    raise SkinError(
+                        f"{self.part.name}: {self.part.crossing_note()}; the skin built on "
+                        f"its surface rebuilt on a {rebuilt:.3g} mm grid cannot be written "
+                        f"in single precision either ({str(exc).splitlines()[0][:200]}): "
+                        "fill it without a skin, or repair the part (its overlapping "
+                        "bodies united) and fill again"
+                    ) from exc
                 if self.skin is not None:
                     # the booleans left surfaces a float32 step apart (a strut grazing the
                     # skin's inner wall): the same solid the older way (with the mid-wall
@@ -892,7 +926,8 @@ class Lattice:
                 # the cut by the part's surface left slivers that float32 cannot hold (tiny
                 # struts lying in the surface): cut once more a quarter of the tolerance
                 # off the surface, else write the lattice uncut and say so in the report
-                retry = None if hopeless else self._retrim()
+                # (a cut by a mesh surface that folds over itself: by its rebuild instead)
+                retry = self._rebuilt_retrim() if hopeless else self._retrim()
                 if retry is not None:
                     return retry
                 crossing = self.part.crossing_note() if self.part is not None else ""
@@ -930,6 +965,41 @@ class Lattice:
         v, f = _skin.to_arrays(trimmed.solid)
         return _checked_single_precision(Mesh(vertices=v, faces=f), "the lattice")
 
+    @cached_property
+    def _rebuilt_part(self) -> Any:
+        """The part's surface rebuilt from the region it encloses
+        (``conformal.unfold.rebuilt_part``), for a part whose surface folds over itself."""
+        from conformal.unfold import rebuild_spacing, rebuilt_part
+
+        radius = float(self.graph.radii.max())
+        return rebuilt_part(self.part, spacing=rebuild_spacing(self.part, radius))
+
+    def _rebuilt_retrim(self) -> Mesh | None:
+        """The trim cut by :attr:`_rebuilt_part`, checked, when the cut by the part's own
+        surface crosses itself too much to be repaired (a mesh part whose surface folds;
+        a B-rep that folds is cut by its rebuild at once, ``conformal.trim.cutting_part``);
+        None if that fails too."""
+        from conformal import skin as _skin
+        from lattice_cad.core.errors import LatticeError
+        from lattice_cad.core.mesh import Mesh
+
+        if self.part is None or bool(getattr(self._cutting_part, "rebuilt", None)):
+            return None
+        try:
+            self.__dict__["_cutting_part"] = self._rebuilt_part
+            trimmed = self._cut()
+            self._split = trimmed.split
+            if not trimmed.report.trimmed:
+                mesh = self._stitched_single_precision()
+            else:
+                v, f = _skin.to_arrays(trimmed.solid)
+                mesh = _checked_single_precision(Mesh(vertices=v, faces=f), "the lattice")
+                mesh = self._glue_deep(mesh)
+        except LatticeError:
+            return None
+        self.trim_report = trimmed.report
+        return mesh
+
     def _retrim(self) -> Mesh | None:
         """The trim cut with the part moved off its surface by a quarter of the tolerance
         (see ``conformal.trim.trim_to_part(shift=)``), or None if that fails too."""
@@ -962,23 +1032,35 @@ class Lattice:
             clear = clear_inside(self._kept_mesh, self.part, self.graph, radius=radius)
             if clear is not None:
                 return clear
-        if self.part is not None and self.part.folds:
-            # the part's surface folds over itself, not only its tessellation: a cut by it
-            # bounds no solid at any chord, so none is tessellated or tried (the swept
-            # handle made outside shared/data: 237 s of chord-checked tessellation before
-            # its cut was given up); the lattice is written uncut, as the report says
-            from conformal.trim import uncut
-
-            why = f"{self.part.crossing_note()}, and the cut by such a surface bounds no solid"
-            return uncut(self._kept_mesh, self.part, radius=radius, why=why)
-        return trim_to_part(
+        cut_by = self._cutting_part
+        trimmed = trim_to_part(
             self._kept_mesh,
-            self._cutting_part,
+            cut_by,
             radius=radius,
             check=False,
             shift=shift,
             graph=self.graph if split and not shift else None,
         )
+        if getattr(cut_by, "rebuilt", 0.0):
+            # the part's surface folds over itself: cut by its rebuild (conformal.unfold),
+            # the protrusion measured against the part as loaded
+            from conformal.skin import to_arrays
+            from conformal.trim import TrimResult, protrusion
+
+            before = protrusion(self.part, self._kept_mesh.vertices)
+            out = protrusion(self.part, to_arrays(trimmed.solid)[0])
+            split_part = trimmed.split
+            if split_part is not None:  # (the deep struts lie inside the rebuild: inside)
+                out = max(out, protrusion(self.part, split_part.deep_vertices))
+            report = dataclasses.replace(
+                trimmed.report,
+                rebuilt=cut_by.rebuilt,
+                protrusion_before=before,
+                protrusion_after=out,
+                trimmed=trimmed.report.trimmed or before > 0,
+            )
+            trimmed = TrimResult(solid=trimmed.solid, report=report, split=split_part)
+        return trimmed
 
     def _cut_then_keep(self, *, shift: float = 0.0) -> Any:
         """With keep zones: the lattice alone cut by the part's surface, then united with

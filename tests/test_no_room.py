@@ -111,3 +111,17 @@ def test_room_is_not_refused():
     # the GE bracket has room for a 1.5 mm skin (its greatest thickness is ~46 mm)
     part = load_part(DATA / "step" / "dolfiny_ge_bracket_rotated_nonds.step")
     assert not skin._no_room(part, 1.5)
+
+
+def test_the_no_room_message_does_not_contradict_the_thickness_it_gives():
+    """Regression (s28, a 3 m machine bed made outside shared/data): with a skin of 33.3 mm
+    the voxel inset came out empty, and the refusal said the part is "nowhere thicker than
+    twice the skin thickness 33.3 mm" and in the same breath that its greatest thickness is
+    73.2 mm (rib crossings, narrower than the voxel grid)."""
+    from conformal.skin import no_room_message
+
+    thin = no_room_message(1.0, 1.6)
+    assert "nowhere thicker than twice the skin thickness 1 mm" in thin and "0.64 mm" in thin
+    spots = no_room_message(33.3333, 73.2)
+    assert "nowhere thicker" not in spots
+    assert "came out empty" in spots and "73.2 mm" in spots and "29.3 mm" in spots

@@ -1,0 +1,78 @@
+"""A solid inside another solid's cavity (regression, s28's parts made outside shared/data).
+
+A ball floating in the closed spherical cavity of a cube (print-in-place captive parts,
+common on SLS/MJF): every fill said ``ok`` with one body and the ball was gone. The part
+as a boolean solid (``conformal.skin.part_solid``) was the union of the outer shells minus
+every void, so the cavity took the ball with it (107,384 -> 93,365 mm^3, exactly one
+ball); and the island removal gave the ball's lattice to the cube, whose outer shell
+"contains" it, and removed it as a loose piece. ``Part.solid_parts`` now pairs each
+cavity wall with the solid that holds it.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from conformal import load_part
+from lattice_cad import Lattice
+from lattice_cad.core.errors import LatticeWarning
+
+
+@pytest.fixture(scope="module")
+def captive(tmp_path_factory):
+    """A 40 mm cube with a closed D30 spherical cavity, and a D22 ball in it (2 solids)."""
+    import cadquery as cq
+
+    cube = cq.Workplane("XY").box(40, 40, 40).cut(cq.Workplane("XY").sphere(15))
+    ball = cq.Workplane("XY").sphere(11)
+    path = tmp_path_factory.mktemp("captive") / "ball_in_cube.step"
+    cq.exporters.export(
+        cq.Workplane("XY").add(cq.Compound.makeCompound([cube.val(), ball.val()])), str(path)
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)  # the solids were united
+        return load_part(path)
+
+
+def _volume(part) -> float:
+    t = part.triangles
+    return float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() / 6.0)
+
+
+def test_the_ball_is_a_solid_of_its_own_and_stays_in_the_part_solid(captive):
+    from conformal.skin import part_solid
+    from conformal.voxel import shell_owner
+
+    cube = 40.0**3 - 4.0 / 3.0 * np.pi * 15.0**3
+    ball = 4.0 / 3.0 * np.pi * 11.0**3
+    solids = captive.solid_parts
+    assert len(solids) == 2
+    vols = sorted(_volume(s) for s in solids)
+    # (the load tessellation of a sphere holds about 1 % less than the sphere)
+    assert vols[0] == pytest.approx(ball, rel=0.02) and vols[1] == pytest.approx(cube, rel=0.02)
+    # the ball's centre lies in the ball; a point in the gap in neither (nearest: either)
+    owner = shell_owner(solids, np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 18.0]]))
+    big = int(np.argmax([_volume(s) for s in solids]))
+    assert owner[0] == 1 - big and owner[1] == big
+    solid = part_solid(captive)
+    assert solid.volume() == pytest.approx(cube + ball, rel=0.02)  # was the cube alone
+    assert len([p for p in solid.decompose() if p.volume() > 0]) == 2
+
+
+@pytest.mark.parametrize("fill", ["inside", "clip"])
+def test_a_fill_keeps_the_captive_ball(captive, fill):
+    from tests.conftest import independent_check
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(captive, "bcc", 4.0, 0.4, fill=fill)
+        mesh = lat.mesh()
+    assert lat.build_report.removed_islands == 0  # the ball's lattice is no loose piece
+    inside_ball = np.linalg.norm(mesh.vertices, axis=1) < 10.5
+    assert inside_ball.sum() > 1000
+    if lat.trim_report is not None and lat.trim_report.trimmed:
+        assert lat.trim_report.bodies == 2, lat.trim_report.summary()
+    independent_check(mesh)
