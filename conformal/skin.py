@@ -1089,6 +1089,17 @@ def build_skin(
         # pipe elbow swept past its path, too thin for the split) ran for more than 10
         # minutes; that wall bounds no solid, so their result could not be written anyway
         raise folded
+    if split is None and getattr(p, "rebuilt", None) and graph is not None:
+        # the outside rebuilt from a folded surface (conformal.unfold): where the lattice
+        # near the wall cannot be split off (the folded elbow: a 2 mm tube wall under a
+        # 0.96 mm skin, a 0.1 mm cavity), the booleans on the whole lattice fell apart into
+        # 3,043 pieces that float32 could not hold, after 201 s: refused here instead
+        raise SkinError(
+            f"{p.name}: the part's surface folds over itself, and on its surface rebuilt on a "
+            f"{p.rebuilt:.3g} mm grid the skin of {thickness:g} mm leaves a cavity too thin "
+            "for the lattice to be joined to the wall: fill it without a skin, or with a "
+            "thinner skin, or repair the part (its overlapping bodies united) and fill again"
+        )
     if split is None:
         lat = as_manifold(lattice, name="lattice mesh")
         # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only

@@ -146,6 +146,31 @@ def test_a_skin_of_a_folded_part_is_built_on_its_rebuild():
     independent_check(mesh)
 
 
+@pytest.mark.slow
+def test_a_skin_of_a_thin_walled_folded_part_is_refused_without_the_whole_booleans(
+    monkeypatch,
+):
+    """The folded elbow (a 2 mm tube wall) with the benchmark's skin (0.96 mm) leaves a
+    0.1 mm cavity on its rebuild, and the lattice near the wall cannot be split off: the
+    booleans on the whole lattice then fell into 3,043 pieces that float32 could not hold,
+    refused after 201 s. Refused before those booleans now, saying why and what to do."""
+    from conformal import skin as _skin
+    from lattice_cad.core.errors import SkinError
+
+    def no_whole_booleans(*args, **kwargs):
+        raise AssertionError("the booleans on the whole lattice ran")
+
+    monkeypatch.setattr(_skin, "_keep_attached", no_whole_booleans)
+    with pytest.warns(LatticeWarning, match="surface crosses itself"):
+        part = load_part(FOLDED)
+    cell = float(part.size.max()) / 15
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(part, cell="octet", cell_size=cell, radius=cell / 12, skin=cell / 6)
+        with pytest.raises(SkinError, match=r"folds over itself.*rebuilt on a .* too thin"):
+            lat.mesh()
+
+
 def test_a_scan_that_crosses_itself_in_a_few_places_is_still_cut(tmp_path):
     """The shared hi-res bunny with vertex noise of 0.2 of its edges crosses itself in 25
     triangle pairs; its clip's cut crosses itself in 4 of 140,520 triangles before any
