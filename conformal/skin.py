@@ -1142,6 +1142,7 @@ def build_skin(
         islands_removed=islands,
         split=dict(split.counts) if split is not None else {},
         untangled=untangled,
+        rebuilt=float(getattr(p, "rebuilt", None) or 0.0),
         seconds={
             "surfaces": t1 - t0,
             "booleans": t2 - t1 - t_wall,

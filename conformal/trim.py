@@ -38,7 +38,6 @@ __all__ = [
     "protrusion",
     "cutting_part",
     "cut_shortfall",
-    "uncut",
 ]
 
 
@@ -334,38 +333,6 @@ _S = np.array([0.5317, -0.3183, 0.7854])
 SHIFT_DIRECTION = _S / np.linalg.norm(_S)
 
 
-def uncut(lattice: Any, part: Any, *, radius: float, why: str) -> TrimResult:
-    """The lattice not cut, for the reason ``why`` (a cut that cannot be made: a part whose
-    surface folds over itself, ``conformal.Part.folds``): ``solid`` is ``lattice`` as given
-    and the report says why, with how far the lattice reaches outside the part.
-
-    lattice : Mesh or mesh-like, part : conformal.Part, radius : float (the largest strut
-    radius, mm).
-    """
-    from conformal.skin_split import pieces
-    from lattice_cad.core.mesh import mesh_arrays
-
-    t0 = time.perf_counter()
-    arrays = mesh_arrays(lattice)
-    assert arrays is not None
-    v, f = arrays
-    out = protrusion(part, v)
-    extent = float(np.abs(part.bounds).max()) if len(part.vertices) else 1.0
-    _, _, vols = pieces(v, f)
-    report = TrimReport(
-        trimmed=False,
-        protrusion_before=out,
-        protrusion_after=out,
-        tolerance=_tolerance(radius, extent),
-        volume_removed=0.0,
-        bodies=int(np.count_nonzero(vols > 0)),
-        pieces_removed=0,
-        seconds=time.perf_counter() - t0,
-        failed=why,
-    )
-    return TrimResult(solid=lattice, report=report)
-
-
 #: Clearance from the part's surface of the struts :func:`trim_to_part` leaves out of its
 #: boolean (``graph=``), in strut radii (at least ``NEAR_MARGIN_ULPS`` float32 steps).
 NEAR_MARGIN_RTOL = 0.02
@@ -449,13 +416,14 @@ def trim_to_part(
 
         cut = checked(cut, "the trimmed lattice")
     v1, _ = to_arrays(cut)
+    whole = float(lat.volume())
     report = TrimReport(
         trimmed=True,
         protrusion_before=before,
         protrusion_after=protrusion(part, v1),
         tolerance=tol,
-        volume_removed=float(lat.volume() - cut.volume()),
-        volume_before=float(lat.volume()),
+        volume_removed=whole - float(cut.volume()),
+        volume_before=whole,
         bodies=len(pieces),
         pieces_removed=removed,
         seconds=time.perf_counter() - t0,

@@ -839,8 +839,6 @@ class Lattice:
         )
         self._split = result.split
         self.skin_report = result.report
-        if getattr(cut, "rebuilt", 0.0):
-            self.skin_report = dataclasses.replace(result.report, rebuilt=cut.rebuilt)
         solid = result.solid
         if self.escape_holes is not None:
             solid = self._drill(solid)
