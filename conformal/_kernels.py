@@ -889,3 +889,69 @@ def min_area_fill(p, forbidden):
         stack[top, 1] = j
         top += 1
     return out[:m]
+
+
+# ------------------------------------------------------------ depth bounds
+@njit(cache=True, inline="always")
+def _dist(px, py, pz, q):
+    return np.sqrt((px - q[0]) ** 2 + (py - q[1]) ** 2 + (pz - q[2]) ** 2)
+
+
+@njit(cache=True)
+def octant_depth_bounds(centres, a, signs, near):
+    """An upper bound of the distance to a surface over each octant of cubes.
+
+    Cube ``c`` has centre ``centres[c]`` (C, 3) and half side ``a``; its octant ``o`` is
+    the box between the centre and the corner ``centres[c] + a * signs[o]`` (signs (8, 3)),
+    and ``near[c, o]`` (C, 8, 3) is a point of the surface (the nearest to that corner; NaN:
+    none found). Every point ``y`` of the octant lies no farther from the surface than from
+    ``q_o = near[c, o]``, nor than the nearer of ``q_o`` and another ``q_j``: the box cut
+    by their bisector plane gives two convex pieces, on each of which the distance to its
+    nearer point is convex, so it is largest at a vertex of the piece: a vertex of the box
+    or where the plane crosses one of its edges. The bound is the least of those maxima over
+    ``j`` (``j = o``: the box's vertices alone). Returns (C, 8) float64 (inf: no bound).
+    """
+    n = centres.shape[0]
+    out = np.empty((n, 8))
+    box = np.empty((8, 3))
+    for c in range(n):
+        for o in range(8):
+            qi = near[c, o]
+            if not (np.isfinite(qi[0]) and np.isfinite(qi[1]) and np.isfinite(qi[2])):
+                out[c, o] = np.inf
+                continue
+            for v in range(8):  # vertex bits (x, y, z): 0 the centre's side, 1 the corner's
+                for k in range(3):
+                    box[v, k] = centres[c, k] + a * signs[o, k] * ((v >> (2 - k)) & 1)
+            best = np.inf
+            for j in range(8):
+                qj = near[c, j]
+                if not (np.isfinite(qj[0]) and np.isfinite(qj[1]) and np.isfinite(qj[2])):
+                    continue
+                worst = 0.0
+                for v in range(8):
+                    d = _dist(box[v, 0], box[v, 1], box[v, 2], qi)
+                    if j != o:
+                        d = min(d, _dist(box[v, 0], box[v, 1], box[v, 2], qj))
+                    worst = max(worst, d)
+                if j != o:
+                    nx, ny, nz = qj[0] - qi[0], qj[1] - qi[1], qj[2] - qi[2]
+                    mx, my, mz = 0.5 * (qi[0] + qj[0]), 0.5 * (qi[1] + qj[1]), 0.5 * (qi[2] + qj[2])
+                    for v in range(8):
+                        for k in range(3):
+                            w = v | (1 << (2 - k))
+                            if w == v:
+                                continue  # each edge once, from its 0 end
+                            s1 = nx * (box[v, 0] - mx) + ny * (box[v, 1] - my)
+                            s1 += nz * (box[v, 2] - mz)
+                            s2 = nx * (box[w, 0] - mx) + ny * (box[w, 1] - my)
+                            s2 += nz * (box[w, 2] - mz)
+                            if s1 * s2 < 0.0:
+                                t = s1 / (s1 - s2)
+                                px = box[v, 0] + t * (box[w, 0] - box[v, 0])
+                                py = box[v, 1] + t * (box[w, 1] - box[v, 1])
+                                pz = box[v, 2] + t * (box[w, 2] - box[v, 2])
+                                worst = max(worst, _dist(px, py, pz, qi))
+                best = min(best, worst)
+            out[c, o] = best
+    return out

@@ -104,6 +104,10 @@ class Part:
         #: (``|S(u, v) - p|`` at the triangles' parameters, no projection), measured right
         #: after tessellating. None when not measured.
         self.chord_bound: float | None = None
+        #: For B-rep parts: per solid, the triangles of each face (TopExp order) at
+        #: ``deflection`` and the power of ``1 / chord error`` they grow at most as
+        #: (``occ_impl.shapes.triangle_growth``), for :meth:`triangles_at`; else None.
+        self.face_triangles: list[tuple[NDArray[np.int64], NDArray[np.float64]]] | None = None
         #: Whether the patches of closed holes cross the surface (said by ``load_part``).
         self._patch_crossings = False
 
@@ -239,6 +243,19 @@ class Part:
         faces = self.faces if np.linalg.det(m[:3, :3]) > 0 else self.faces[:, ::-1]
         return Part(v, faces, name=self.name, deflection=self.deflection)
 
+    def triangles_at(self, deflection: float) -> float | None:
+        """How many triangles this B-rep has at most, about, when tessellated with a chord
+        error of ``deflection`` (mm): each face's count at :attr:`deflection` times the ratio
+        of the chord errors to the power its surface grows as (``face_triangles``); None when
+        not known (a mesh part). Measured on the 26 shared parts and 20 others, at the parts
+        benchmark's cutting chord error and 4 x it, the total was 0.03 - 1.00 x the count
+        BRepMesh gave (a single face: up to 3.1 x, the M6 screw's threaded cone, whose edges
+        its neighbours refine)."""
+        if self.face_triangles is None or not deflection > 0:
+            return None
+        ratio = max(1.0, self.deflection / float(deflection))
+        return float(sum((n * ratio**g).sum() for n, g in self.face_triangles))
+
     def refined(self, deflection: float, *, angular: float = 0.3, checked: bool = True) -> Part:
         """The same B-rep tessellated with a chord error of at most ``deflection`` (mm).
 
@@ -289,8 +306,10 @@ class Part:
             with warnings.catch_warnings():  # the union was announced when it was loaded
                 warnings.simplefilter("ignore", LatticeWarning)
                 cache[key] = _from_shape(
-                    shape, self.name, key[0], key[1], checked=checked, reuse=reuse, split=split
-                )
+                    shape, self.name, key[0], key[1], checked=checked, reuse=reuse, split=split,
+                    prior=None if self.face_triangles is None else
+                    (self.deflection, self.face_triangles),
+                )  # fmt: skip
             self.__dict__["_meshed_at"] = key[:2]
             cache[key].unrefined = self
         return cache[key]
@@ -463,15 +482,22 @@ class Part:
         """Whether no point of the part lies ``depth`` (mm) or more from its surface (so an
         inset by ``depth`` is empty), proven; False when not proven.
 
-        A branch and bound on the grid of :meth:`inscribed_radius`: every point of the part
-        lies in the cube of half-diagonal ``rho = sqrt(3) / 2 * h`` about its nearest grid
-        point ``g``, and the distance to the surface is 1-Lipschitz, so its depth is at most
-        ``d(g) + rho``, where ``d(g)`` is the grid's distance transform (inside points; an
-        upper bound of their exact distance) or 0 (outside points). The cubes whose bound
-        reaches ``depth`` are measured exactly at their centre and split in eight, for up
-        to ``levels`` levels and ``budget`` distance queries; the answer is True when no
-        cube is left. The grid's inside test is exact for the mesh (winding numbers);
-        what the mesh is to the exact surface is the caller's tolerance.
+        A branch and bound on the grid of :meth:`inscribed_radius`. Every point of the part
+        lies in the cube of side ``h`` about its nearest grid point ``g``, and the distance
+        to the surface is 1-Lipschitz, so the cubes whose ``d(g) + sqrt(3) / 2 * h`` stays
+        below ``depth`` hold no point that deep, where ``d(g)`` is the grid's distance
+        transform (inside points; an upper bound of their exact distance) or 0 (outside).
+        Each cube left is cut into its eight octants, each with one corner ``c`` of the
+        cube: the surface point ``q`` nearest to ``c`` is measured exactly, and no point
+        ``y`` of that octant lies deeper than ``|y - q|`` (``q`` is a point of the surface),
+        whose largest value over the octant is at one of its vertices (a distance to a point
+        is convex). Near a flat wall that bound grows with the square of the octant's size
+        (where the centre's ``+ rho`` grows linearly): a 3 mm plate is proven thinner than
+        1.625 mm on the first level. The octants whose bound reaches ``depth`` are cubes of
+        the next level, for up to ``levels`` levels and ``budget`` distance queries (the
+        cubes' corners, each measured once); the answer is True when no cube is left. The
+        grid's inside test is exact for the mesh (winding numbers); what the mesh is to the
+        exact surface is the caller's tolerance.
         """
         depth = float(depth)
         grid = self._depth_grid(resolution)
@@ -484,31 +510,42 @@ class Part:
         deep = field.ravel() + rho >= depth
         if np.count_nonzero(deep) > budget:
             return False
-        cand = np.flatnonzero(deep)
-        centres = origin + np.column_stack(np.unravel_index(cand, field.shape)) * h
-        side, spent = h, 0
+        # cubes on an integer lattice of step u = h / 2 ** (levels + 1): centres of level-0
+        # cubes at multiples of 2 ** (levels + 1), a level-L cube's half side 2 ** (levels - L)
+        half = 2**levels
+        if (np.array(field.shape) * 2 * half + 2).max() >= 2**21:
+            return False  # (a grid finer than the packing holds; not met below 8M points)
+        cells = np.column_stack(np.unravel_index(np.flatnonzero(deep), field.shape))
+        cells = cells.astype(np.int64) * (2 * half)
+        u = h / (2 * half)
+        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        spent = 0
         for _ in range(levels + 1):
-            if not len(centres):
+            if not len(cells):
                 return True
-            spent += len(centres)
+            corners = (cells[:, None, :] + half * signs[None, :, :]).reshape(-1, 3)
+            # one query per corner (packed: at most 2 ** 21 lattice steps an axis)
+            packed = (corners[:, 0] + 1) << 42 | (corners[:, 1] + 1) << 21 | corners[:, 2] + 1
+            _keys, first, back = np.unique(packed, return_index=True, return_inverse=True)
+            spent += len(first)
             if spent > budget:
                 return False
-            exact = self.distance(centres, max_distance=depth + rho)
-            keep = exact + rho >= depth
-            centres = centres[keep]
-            if not len(centres):
-                return True
-            side *= 0.5  # each cube in eight
-            rho *= 0.5
-            offsets = (
-                0.5
-                * side
-                * np.array(
-                    [[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=np.float64
-                )
+            pts = origin + corners[first] * u
+            dist, near = self.closest(pts, max_distance=depth + 2.0 * rho)
+            deep_at = np.flatnonzero(dist >= depth)
+            if len(deep_at) and bool(self.contains(pts[deep_at]).any()):
+                return False  # a point that deep, found
+            q = near[back.ravel()].reshape(len(cells), 8, 3)
+            bound = _kernels.octant_depth_bounds(
+                origin + cells * u, float(half * u), signs.astype(np.float64), q
             )
-            centres = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 3)
-        return False
+            left = ~(bound < depth)
+            if half == 1 and left.any():
+                return False
+            cells = (cells[:, None, :] + (half // 2) * signs[None, :, :])[left]
+            half //= 2
+            rho *= 0.5
+        return not len(cells)
 
     def closest(
         self, points: ArrayLike, *, max_distance: float = np.inf
@@ -761,12 +798,15 @@ def _from_shape(
     measure: bool = False,
     split: dict[int, Any] | None = None,
     on_solids: Callable[[list[Any]], None] | None = None,
+    prior: tuple[float, list[tuple[NDArray[np.int64], NDArray[np.float64]]]] | None = None,
 ) -> Part:
     """The part of a B-rep ``shape``; ``measure`` (an unchecked tessellation): also bound its
     chord error (``Part.chord_bound``). With ``split`` (solid index: what
     ``occ_impl.chord.split_dense_faces`` gave for it, filled in when missing), dense faces
     are meshed as patches; the part's ``shape`` stays the solids as they were.
-    ``on_solids``: see :func:`load_part`."""
+    ``on_solids``: see :func:`load_part`. ``prior``: the deflection and ``face_triangles``
+    of a coarser tessellation of the same solids, from which ``split_dense_faces`` may
+    tell at once that no face is dense."""
     from lattice_cad.occ_impl import shapes as _occ
 
     solids = _occ.solids(shape)
@@ -782,11 +822,16 @@ def _from_shape(
     pieces = []
     chord_error, unresolved = 0.0, 0
     bound: float | None = 0.0 if measure and not checked else None
+    counts = []
     for k, solid in enumerate(solids):
-        v, f, report, dev = _closed_tessellation(
+        v, f, report, dev, per_face = _closed_tessellation(
             solid, k, name, defl, angular, diag, checked, reuse, measure=bound is not None,
-            split=split,
+            split=split, prior=None if prior is None else (prior[0], *prior[1][k]),
         )  # fmt: skip
+        growth = _occ.triangle_growth(solid)
+        if 0 < len(per_face) <= len(growth):
+            per_face = np.pad(per_face, (0, len(growth) - len(per_face)))
+        counts.append((per_face, growth))
         if bound is not None and dev is not None:
             bound = max(bound, dev)
         if report is not None:
@@ -810,6 +855,8 @@ def _from_shape(
         )
     part = Part(v, f, name=name, shape=solids, deflection=defl)
     part.chord_bound = bound
+    if all(len(n) == len(g) for n, g in counts):
+        part.face_triangles = counts
     if checked and config.CHORD_CONTROL > 0:
         part.chord_error = chord_error
         part.chord_unresolved = unresolved
@@ -872,12 +919,14 @@ def _closed_tessellation(
     *,
     measure: bool = False,
     split: dict[int, Any] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.int64], Any, float | None]:
+    prior: tuple[float, NDArray[np.int64], NDArray[np.float64]] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], Any, float | None, NDArray[np.int64]]:
     """A closed, 2-manifold triangulation of one B-rep solid, healing it if needed.
 
     With ``checked``, every face is checked against its exact surface and the faces that
     BRepMesh meshed coarser than ``defl`` are refined (``occ_impl.chord``); the
-    ``ChordReport`` is returned third (None without ``checked``). With ``measure``, the
+    ``ChordReport`` is returned third (None without ``checked``), and the triangles of
+    each B-rep face (TopExp order) last. With ``measure``, the
     fourth is an upper bound on the deviation of its triangle centroids and edge midpoints
     from the exact surface (``occ_impl.chord.face_deviations``, no projection: 0.07 s for
     the M6 screw's 7,602 triangles, 0.4 s for NIST CTC-02's 37,192), else None. With ``reuse``, the
@@ -900,7 +949,7 @@ def _closed_tessellation(
     patches = None
     if split is not None:
         if k not in split:
-            split[k] = None if reuse else split_dense_faces(solid, defl, angular)
+            split[k] = None if reuse else split_dense_faces(solid, defl, angular, prior=prior)
         patches = split[k]
     tries = [(False, patches)] + ([(False, None)] if patches is not None else []) + [(True, None)]
     for n_try, (healed, patch) in enumerate(tries):
@@ -927,7 +976,9 @@ def _closed_tessellation(
             problem = _closed_problem(ff)
             if not problem:
                 dev = _deviation_bound(shape) if measure else None
-                return vv, ff, report, dev
+                # (of the healed shape's faces: not the solid's, none given)
+                per_face = np.bincount(owner[kept]) if not healed else np.zeros(0, np.int64)
+                return vv, ff, report, dev, per_face
         problem = _closed_problem(ff, vv)  # where, for the message (not in every trial)
         faces_at = np.unique(owner[kept][_open_triangles(ff)])
         if patch is not None and split is not None:
@@ -1276,12 +1327,27 @@ def _from_mesh_file(
             stacklevel=3,
         )
         problem = _closed_problem(f, v)
+    if problem and "non-manifold" in problem:
+        # bodies that touch along an edge or face (an assembly saved as one mesh)
+        from conformal.touching import split_touching
+
+        split = split_touching(v, f)
+        if split is not None:
+            v, f, touching = split
+            warnings.warn(f"{path}: {touching.summary()}", LatticeWarning, stacklevel=3)
+            problem = _closed_problem(f, v)
     if problem and "opposite orientation" not in problem:
         hint = (
             "; close_holes=True (--close-holes) closes them with least-area patches"
             if "open (boundary)" in problem and not close_holes
             else ""
         )
+        if "non-manifold" in problem:
+            hint = (
+                ": not bodies that touch one another (those are split apart), but a body "
+                "that touches itself along an edge, or faces inside the solid; unite or "
+                "separate its pieces in the program it came from (or export it as STEP)"
+            )
         soup = _soup_note(v, f) if "open (boundary)" in problem else ""
         hint = "" if soup else hint  # patches would make each triangle a sheet
         raise PartError(f"{path}: the mesh is not a closed solid: {problem}{soup}{hint}")

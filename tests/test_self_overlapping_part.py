@@ -58,7 +58,7 @@ def test_a_folded_sweep_is_said_at_load_and_its_fill_is_cut_by_its_rebuild():
     from OCP.BRepCheck import BRepCheck_Analyzer
 
     from lattice_cad.occ_impl.step import read_step
-    from tests.conftest import independent_check
+    from tests.conftest import assert_valid
 
     assert BRepCheck_Analyzer(read_step(FOLDED)).IsValid()  # "valid" to OCCT
     with pytest.warns(LatticeWarning, match=r"surface crosses itself \((\d+) pair") as said:
@@ -79,7 +79,7 @@ def test_a_folded_sweep_is_said_at_load_and_its_fill_is_cut_by_its_rebuild():
     assert rep.protrusion_before > 3 * 0.6
     assert rep.protrusion_after < rep.rebuilt, rep.summary()
     assert rep.bodies == 1
-    independent_check(mesh)
+    assert_valid(mesh)
 
 
 def test_a_sweep_that_does_not_fold_loads_without_a_word():
@@ -126,7 +126,7 @@ def test_a_skin_of_a_folded_part_is_built_on_its_rebuild():
     built on cross themselves. Its outside is now the surface rebuilt from the region the
     part encloses, the skin the voxel method's on it; OCCT's child is closed; one body,
     valid to the independent checkers, and the report says so."""
-    from tests.conftest import independent_check
+    from tests.conftest import assert_valid
 
     with pytest.warns(LatticeWarning, match="surface crosses itself"):
         part = load_part(HANDLE)
@@ -143,7 +143,7 @@ def test_a_skin_of_a_folded_part_is_built_on_its_rebuild():
     assert rep.method == "voxel" and rep.rebuilt > 0 and rep.bodies == 1, rep.summary()
     assert "folds over itself" in rep.summary()
     assert abs(rep.wall["median"] - cell / 6) < 0.02 * cell / 6, rep.summary()
-    independent_check(mesh)
+    assert_valid(mesh)
 
 
 @pytest.mark.slow
@@ -181,7 +181,7 @@ def test_a_scan_that_crosses_itself_in_a_few_places_is_still_cut(tmp_path):
     import trimesh
 
     import fast_stitch
-    from tests.conftest import DATA, independent_check
+    from tests.conftest import DATA, assert_valid
 
     clean = load_part(DATA / "meshes" / "bunny_closed_hr_odedstein.obj")
     v, f = clean.vertices, clean.faces
@@ -201,7 +201,7 @@ def test_a_scan_that_crosses_itself_in_a_few_places_is_still_cut(tmp_path):
     assert not rep.failed, rep.failed
     assert rep.protrusion_after <= rep.tolerance, rep.summary()
     assert fast_stitch.check(mesh).valid
-    independent_check(mesh)
+    assert_valid(mesh)
 
 
 def test_a_fill_of_a_folded_brep_is_cut_by_its_rebuild_without_a_cutting_tessellation(
@@ -300,7 +300,7 @@ def test_a_mesh_part_that_folds_is_cut_and_skinned_by_its_rebuild(tmp_path):
     independent checkers, one body each."""
     import trimesh
 
-    from tests.conftest import independent_check
+    from tests.conftest import assert_valid
 
     with pytest.warns(LatticeWarning, match="surface crosses itself"):
         brep = load_part(HANDLE)
@@ -317,11 +317,11 @@ def test_a_mesh_part_that_folds_is_cut_and_skinned_by_its_rebuild(tmp_path):
     rep = lat.trim_report
     assert not rep.failed and rep.rebuilt > 0 and rep.bodies == 1, rep.summary()
     assert rep.protrusion_after < rep.rebuilt < rep.protrusion_before, rep.summary()
-    independent_check(mesh)
+    assert_valid(mesh)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
         skinned = Lattice.fill(part, "octet", cell, cell / 12, skin=cell / 6)
         mesh = skinned.mesh()
     rep = skinned.skin_report
     assert rep.rebuilt > 0 and rep.bodies == 1 and "folds over itself" in rep.summary()
-    independent_check(mesh)
+    assert_valid(mesh)
