@@ -19,6 +19,7 @@ import pytest
 from conformal import load_part
 from lattice_cad import Lattice
 from lattice_cad.core.errors import LatticeWarning
+from tests.conftest import assert_valid
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +65,6 @@ def test_the_ball_is_a_solid_of_its_own_and_stays_in_the_part_solid(captive):
 
 @pytest.mark.parametrize("fill", ["inside", "clip"])
 def test_a_fill_keeps_the_captive_ball(captive, fill):
-    from tests.conftest import assert_valid
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
@@ -75,4 +75,34 @@ def test_a_fill_keeps_the_captive_ball(captive, fill):
     assert inside_ball.sum() > 1000
     if lat.trim_report is not None and lat.trim_report.trimmed:
         assert lat.trim_report.bodies == 2, lat.trim_report.summary()
+    assert_valid(mesh)
+
+
+def test_the_offset_of_a_solid_with_a_void_is_its_outer_offset_less_the_grown_void():
+    """Regression (s29): OCCT's offset of a solid holding a closed void failed
+    (NotConnectedShell), and the skin of a cored part fell back to the voxel field. Its
+    outer shell and the void are offset as solids of their own: a 40 mm cube with a D30
+    void, 2 mm inward, is a 36 mm cube less a D34 ball (an inward offset keeps a box's
+    edges sharp)."""
+    import cadquery as cq
+
+    from lattice_cad.occ_impl import shapes
+
+    cut = cq.Workplane("XY").box(40, 40, 40).cut(cq.Workplane("XY").sphere(15))
+    (cored,) = shapes.solids(cut.val().wrapped)
+    assert shapes.count(cored, shapes.TopAbs_SHELL) == 2
+    out = shapes.offset_solid(cored, -2.0)
+    assert shapes.is_valid(out) and shapes.count(out, shapes.TopAbs_SHELL) == 2
+    assert shapes.volume(out) == pytest.approx(36.0**3 - 4.0 / 3.0 * np.pi * 17.0**3, rel=1e-6)
+
+
+@pytest.mark.slow
+def test_the_skin_of_the_captive_part_is_by_occts_offset(captive):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(captive, "octet", 4.0, 0.4, skin=1.0)
+        mesh = lat.mesh()
+    rep = lat.skin_report
+    assert rep.method == "occt" and not rep.fallback, rep.summary()
+    assert rep.accurate and rep.bodies == 2, rep.summary()
     assert_valid(mesh)

@@ -224,6 +224,10 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
         No way gives one valid solid; the message names each way's failure (with OCCT's
         ``BRepOffset_Error`` code).
     """
+    if count(solid, TopAbs_SHELL) > 1:
+        # a solid with closed voids inside (a cored casting): OCCT's offset fails on it
+        # (NotConnectedShell); its outer shell and each void offset as solids of their own
+        return _offset_with_voids(solid, distance, tol)
     why: list[str] = []
     # the part as it is, arc joins: done and valid is the common case
     invalid = False
@@ -296,6 +300,53 @@ def offset_solid(solid: TopoDS_Shape, distance: float, *, tol: float = 1e-6) -> 
     nudges = ", ".join(f"{100 * (f - 1):+g} %" for f in OFFSET_NUDGES)
     why.append(f"the same with the depth changed by {nudges}")
     raise OCCTFailure("; ".join(why))
+
+
+def _offset_with_voids(solid: TopoDS_Shape, distance: float, tol: float) -> TopoDS_Shape:
+    """:func:`offset_solid` of a solid with closed voids inside: its outer shell as a solid
+    offset by ``distance``, less each void (its shell reversed: a solid) offset by
+    ``-distance`` (inward for the part is outward for its voids).
+
+    Raises
+    ------
+    OCCTFailure
+        A shell cannot be made a solid, an offset fails, or the cut is not one valid solid.
+    """
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeSolid
+    from OCP.BRepClass3d import BRepClass3d
+
+    outer = BRepClass3d.OuterShell_s(TopoDS.Solid_s(solid))
+    if outer.IsNull():
+        raise OCCTFailure("offset of a solid with voids: no outer shell")
+    voids = []
+    exp = TopExp_Explorer(solid, TopAbs_SHELL)
+    while exp.More():
+        shell = TopoDS.Shell_s(exp.Current())
+        exp.Next()
+        if not shell.IsSame(outer):
+            voids.append(shell)
+
+    def made(shell: Any, what: str) -> TopoDS_Shape:
+        with occt_errors(f"offset of a solid with voids: {what} as a solid"):
+            mk = BRepBuilderAPI_MakeSolid(shell)
+            if not mk.IsDone():
+                raise OCCTFailure(f"offset of a solid with voids: {what}: not a solid")
+            got = mk.Solid()
+        if volume(got) < 0:  # a void's shell faces into the void
+            got = TopoDS.Solid_s(got.Reversed())
+        check_valid(got, f"offset of a solid with voids: {what}")
+        return got
+
+    out = offset_solid(made(outer, "the outer shell"), distance, tol=tol)
+    for k, shell in enumerate(voids):
+        grown = offset_solid(made(shell, f"void {k}"), -distance, tol=tol)
+        what = f"offset of a solid with voids: void {k} cut from the outer offset"
+        with occt_errors(what):
+            cut = BRepAlgoAPI_Cut(out, grown)
+            check_done(cut, what)
+            out = _as_one_solid(cut.Shape(), what)
+    return out
 
 
 def _offset_ways(
