@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -120,10 +121,13 @@ def test_real_open_meshes_load_closed_with_a_warning(name, holes):
 def test_open_mesh_error_says_how_to_close_it():
     with pytest.raises(PartError, match=r"around 1 hole\(s\).*--close-holes"):
         load_part(BROKEN / "cube_no_bottom.obj")
-    # non-manifold edges are no hole: refused as before, without the hint
-    with pytest.raises(PartError, match=r"non-manifold edge") as info:
-        load_part(BROKEN / "trimesh_shared_nonmanifold_edge.STL", close_holes=True)
-    assert "close-holes" not in str(info.value)
+    # an edge shared by two bodies is no hole: split between them, nothing patched
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always", LatticeWarning)
+        part = load_part(BROKEN / "trimesh_shared_nonmanifold_edge.STL", close_holes=True)
+    said = " | ".join(str(w.message) for w in rec)
+    assert "shared by more than two triangles" in said and "closed" not in said
+    assert part.volume == pytest.approx(2.0)
 
 
 def test_a_triangle_soup_is_still_refused():

@@ -46,10 +46,6 @@ BROKEN = {
     ),
     "plane_holes.obj": r"not a closed solid: 341 open \(boundary\) edge\(s\) around 27 hole",
     "stanford-bunny_original_with_holes.obj": r"not a closed solid: \d+ open",
-    "trimesh_shared_nonmanifold_edge.STL": (
-        r"1 non-manifold edge\(s\) shared by more than two triangles, "
-        r"e\.g\. the edge \(0\.5, 0\.5, -0\.5\) - \(0\.5, 0\.5, 0\.5\)$"
-    ),
     "trimesh_soup.stl": r"not a closed solid: 300 open",
     "trimesh_stl_empty_ascii.stl": r"no triangles",
     "trimesh_stl_empty_bin.stl": r"no triangles",
@@ -62,6 +58,22 @@ def test_broken_files_raise_clear_error(name):
     with pytest.raises(PartError, match=BROKEN[name]) as info:
         load_part(path)
     assert name in str(info.value)
+
+
+def test_bodies_sharing_an_edge_are_split_with_a_warning():
+    """trimesh's two unit cubes sharing an edge were refused ("1 non-manifold edge(s) shared
+    by more than two triangles"); each cube now keeps its own copy of the edge
+    (``conformal.touching``), said with where, and the two are one part of volume 2."""
+    path = DATA / "broken" / "trimesh_shared_nonmanifold_edge.STL"
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always", LatticeWarning)
+        part = load_part(path)
+    said = " | ".join(str(w.message) for w in rec)
+    assert "1 edge(s) shared by more than two triangles" in said
+    assert "e.g. at (0.5, 0.5, 0)" in said and "2 bodies were united" in said
+    assert part.volume == pytest.approx(2.0, rel=1e-12)
+    assert part.contains(np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]])).all()
+    assert not part.contains(np.array([[1.0, 0.0, 0.0]]))[0]
 
 
 def test_overlapping_solids_are_united_with_warning():

@@ -812,24 +812,30 @@ def count(shape: TopoDS_Shape, kind: Any, avoid: Any = None) -> int:
     return n
 
 
+def surface_kinds(shape: TopoDS_Shape) -> list[str]:
+    """The surface type of each face of ``shape`` (TopExp order): ``"Plane"``,
+    ``"Cylinder"``, ``"BSplineSurface"``, ... (``GeomAbs_SurfaceType`` without its prefix)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+
+    out = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        kind = BRepAdaptor_Surface(TopoDS.Face_s(exp.Current())).GetType()
+        out.append(str(getattr(kind, "name", kind)).replace("GeomAbs_", ""))
+        exp.Next()
+    return out
+
+
 def triangle_growth(shape: TopoDS_Shape) -> NDArray[np.float64]:
     """(n_faces,) float64, for each face of ``shape`` (TopExp order), the power of ``1 / d``
     its triangle count grows at most as when the chord error ``d`` shrinks: 0.5 for planes
     (their triangles follow the nodes on their edges, whose count on a curved edge grows
     as ``1 / sqrt(d)``), cylinders and cones (curved one way), 1 for the rest (BRepMesh
     meshes an extrusion as any surface: the spanner's B-spline extrusion grew as 1 / d^0.75,
-    716 -> 10,510 triangles for a 37 x finer chord error)."""
-    from OCP.BRepAdaptor import BRepAdaptor_Surface
-    from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Plane
-
-    one_way = (GeomAbs_Plane, GeomAbs_Cylinder, GeomAbs_Cone)
-    out = []
-    exp = TopExp_Explorer(shape, TopAbs_FACE)
-    while exp.More():
-        kind = BRepAdaptor_Surface(TopoDS.Face_s(exp.Current())).GetType()
-        out.append(0.5 if kind in one_way else 1.0)
-        exp.Next()
-    return np.asarray(out, dtype=np.float64)
+    716 -> 10,510 triangles for a 37 x finer chord error). Measured by
+    ``benchmarks/bench_triangle_growth.py``."""
+    one_way = ("Plane", "Cylinder", "Cone")
+    return np.asarray([0.5 if k in one_way else 1.0 for k in surface_kinds(shape)])
 
 
 # ------------------------------------------------------------ tessellation
