@@ -1205,29 +1205,46 @@ def _without_debris(
     """The closed shells of a mesh file without its debris: shells smaller than
     ``config.DEBRIS_SIZE`` of the part's diagonal whose volume is below
     ``config.DEBRIS_VOLUME`` of the largest shell's (a speck an exporter or a scan left
-    beside the part: a skin kept it as a second, unprintable body), with a warning."""
+    beside the part: a skin kept it as a second, unprintable body), and shells whose mean
+    thickness (2 V / A) is below ``config.DEBRIS_THICKNESS`` of the part's diagonal (a face
+    an exporter thickened to 0.1 um: a tet fill cut a lattice down to that sheet and wrote
+    it as a second body), with a warning."""
     if len(shells) < 2:
         return shells, volumes, turned
     diag = float(np.linalg.norm(np.ptp(v[np.unique(np.concatenate(shells))], axis=0)))
     big = max(abs(x) for x in volumes)
     size = [float(np.linalg.norm(np.ptp(v[np.unique(fb)], axis=0))) for fb in shells]
+    thick = []
+    for k, fb in enumerate(shells):
+        t = v[fb]
+        area = 0.5 * float(
+            np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+        )
+        thick.append(2.0 * volumes[k] / area if area > 0 else 0.0)
     debris = [
         k
         for k in range(len(shells))
-        if size[k] < config.DEBRIS_SIZE * diag and 0 < volumes[k] < config.DEBRIS_VOLUME * big
+        if 0 < volumes[k]
+        and (
+            (size[k] < config.DEBRIS_SIZE * diag and volumes[k] < config.DEBRIS_VOLUME * big)
+            or thick[k] < config.DEBRIS_THICKNESS * diag
+        )
     ]  # (a shell facing inward may be a cavity's wall: kept)
     if not debris or len(debris) == len(shells):
         return shells, volumes, turned
     where = "; ".join(
-        "{:.3g} mm across at ({:.4g}, {:.4g}, {:.4g})".format(
-            size[k], *v[np.unique(shells[k])].mean(axis=0)
+        "{:.3g} mm across{} at ({:.4g}, {:.4g}, {:.4g})".format(
+            size[k],
+            f", {thick[k]:.3g} mm thick" if thick[k] < config.DEBRIS_THICKNESS * diag else "",
+            *v[np.unique(shells[k])].mean(axis=0),
         )
         for k in debris[:3]
     ) + (" ..." if len(debris) > 3 else "")
     warnings.warn(
         f"{name}: {len(debris)} tiny closed shell(s) beside the part were left out as debris "
         f"({where}; each under {config.DEBRIS_SIZE:g} of the part's size and "
-        f"{config.DEBRIS_VOLUME:g} of its volume)",
+        f"{config.DEBRIS_VOLUME:g} of its volume, or thinner than "
+        f"{config.DEBRIS_THICKNESS:g} of its size)",
         LatticeWarning,
         stacklevel=4,
     )

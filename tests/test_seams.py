@@ -144,7 +144,7 @@ def test_a_speck_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
     path = tmp_path / "speck.stl"
     trimesh.util.concatenate([trimesh.Trimesh(v, f), tet]).export(path)
     with pytest.warns(LatticeWarning, match=r"1 tiny closed shell\(s\) beside the part were left "
-                      r"out as debris \([\d.e-]+ mm across at"):  # fmt: skip
+                      r"out as debris \([\d.e-]+ mm across(, [\d.e-]+ mm thick)? at"):  # fmt: skip
         part = load_part(path)
     assert len(part.faces) == len(f)
     assert part.volume == pytest.approx(vol, rel=1e-9)
@@ -156,3 +156,31 @@ def test_a_speck_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
     with pytest.warns(LatticeWarning, match="2 bodies were united"):
         part = load_part(path)
     assert part.volume == pytest.approx(vol + block.volume, rel=1e-6)
+
+
+def test_a_sheet_of_no_thickness_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
+    """Regression (s29, a bracket STL with a 30 x 20 mm face an exporter thickened to
+    0.1 um beside it, made outside shared/data): not a speck (30 mm across), it was united
+    with the part; a tet fill cut a lattice down to that sheet and wrote it as a second
+    body of 0.018 mm^3, a skin copied it through. A shell thinner (2 V / A) than 1e-4 of the
+    part's size is debris too; a thin plate that prints is not."""
+    v, f, vol = fandisk
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    size = float(np.linalg.norm(hi - lo))
+    sheet = trimesh.creation.box(extents=[0.5 * size, 0.3 * size, 1e-6 * size])
+    sheet.apply_translation(hi + 0.2 * size)
+    path = tmp_path / "sheet.stl"
+    trimesh.util.concatenate([trimesh.Trimesh(v, f), sheet]).export(path)
+    with pytest.warns(LatticeWarning, match=r"left out as debris \([\d.e-]+ mm across, "
+                      r"[\d.e-]+ mm thick at"):  # fmt: skip
+        part = load_part(path)
+    assert len(part.faces) == len(f)
+    assert part.volume == pytest.approx(vol, rel=1e-9)
+    # a plate 1e-2 of the part's size thick is kept
+    plate = trimesh.creation.box(extents=[0.5 * size, 0.3 * size, 1e-2 * size])
+    plate.apply_translation(hi + 0.2 * size)
+    path = tmp_path / "plate.stl"
+    trimesh.util.concatenate([trimesh.Trimesh(v, f), plate]).export(path)
+    with pytest.warns(LatticeWarning, match="2 bodies were united"):
+        part = load_part(path)
+    assert part.volume == pytest.approx(vol + plate.volume, rel=1e-6)

@@ -484,6 +484,10 @@ HUB_BAND_GAP = 0.05
 #: bracket: 6e-4 of its size, 1e-9 of its volume), left out with a warning.
 DEBRIS_SIZE = 0.01
 DEBRIS_VOLUME = 1e-6
+#: ... and so is a closed shell whose mean thickness (2 V / A) is below DEBRIS_THICKNESS of
+#: the part's diagonal (a 30 x 20 mm face an exporter thickened to 0.1 um beside a 60 mm
+#: bracket: 1.3e-6 of its diagonal; a 0.2 mm fin on a 300 mm part is 6.7e-4).
+DEBRIS_THICKNESS = 1e-4
 
 #: Mesh files: a vertex within this fraction of the bounding-box diagonal of an edge, strictly
 #: between its ends, lies on it (a T-junction, or a zero-area sliver's middle vertex;
