@@ -513,7 +513,7 @@ class Part:
         # cubes on an integer lattice of step u = h / 2 ** (levels + 1): centres of level-0
         # cubes at multiples of 2 ** (levels + 1), a level-L cube's half side 2 ** (levels - L)
         half = 2**levels
-        if (np.array(field.shape) * 2 * half + 2).max() >= 2**21:
+        if (np.array(field.shape) * 2 * half + 2 * half + 2).max() >= 2**21:
             return False  # (a grid finer than the packing holds; not met below 8M points)
         cells = np.column_stack(np.unravel_index(np.flatnonzero(deep), field.shape))
         cells = cells.astype(np.int64) * (2 * half)
@@ -524,8 +524,11 @@ class Part:
             if not len(cells):
                 return True
             corners = (cells[:, None, :] + half * signs[None, :, :]).reshape(-1, 3)
-            # one query per corner (packed: at most 2 ** 21 lattice steps an axis)
-            packed = (corners[:, 0] + 1) << 42 | (corners[:, 1] + 1) << 21 | corners[:, 2] + 1
+            # one query per corner (packed: at most 2 ** 21 lattice steps an axis, from the
+            # level-0 corners' -2 ** levels; a key that met another's would only give a
+            # looser bound: any surface point bounds the depth)
+            c = corners + (2**levels + 1)
+            packed = c[:, 0] << 42 | c[:, 1] << 21 | c[:, 2]
             _keys, first, back = np.unique(packed, return_index=True, return_inverse=True)
             spent += len(first)
             if spent > budget:
