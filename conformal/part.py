@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
 from lattice_cad.core import config
-from lattice_cad.core.arrays import unique_rows
+from lattice_cad.core.arrays import edge_uses, unique_rows
 from lattice_cad.core.errors import LatticeWarning, MissingFileError, PartError
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
@@ -1013,10 +1013,8 @@ def _deviation_bound(shape: Any) -> float:
 
 def _open_triangles(f: NDArray[np.int64]) -> NDArray[np.bool_]:
     """(F,) bool: triangles with an edge used once or more than twice."""
-    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    _, inv, cnt = unique_rows(np.sort(he, axis=1), return_inverse=True, return_counts=True)
-    bad = (cnt != 2)[inv.reshape(-1)]
-    return bad.reshape(3, -1).any(axis=0)
+    _, inv, cnt = edge_uses(f)
+    return (cnt != 2)[inv].reshape(3, -1).any(axis=0)
 
 
 def _closed_problem(f: NDArray[np.int64], v: NDArray[np.float64] | None = None) -> str:
@@ -1081,13 +1079,6 @@ def _edges_at(edges: NDArray[np.int64], v: NDArray[np.float64] | None, most: int
     return f", e.g. the edge {shown}{more}"
 
 
-def _edge_counts(f: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """The undirected edges ``(E, 2) int64`` of triangles ``f`` and how many use each."""
-    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    rows, cnt = unique_rows(und, return_counts=True)
-    return rows, cnt
-
-
 def _weld_open_rims(
     v: NDArray[np.float64], f: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], int, float] | None:
@@ -1113,7 +1104,7 @@ def _weld_open_rims(
     """
     from lattice_cad.occ_impl.merge import merge_close
 
-    rows, cnt = _edge_counts(f)
+    rows, _, cnt = edge_uses(f)
     if not (cnt == 1).any():
         return None
     lengths = np.linalg.norm(v[rows[:, 1]] - v[rows[:, 0]], axis=1)
@@ -1131,7 +1122,7 @@ def _weld_open_rims(
             continue  # nothing within this distance
         _, once = unique_rows(np.sort(f2, axis=1), return_index=True)
         f2 = f2[np.sort(once)]
-        _, cnt2 = _edge_counts(f2)
+        cnt2 = edge_uses(f2)[2]
         if (cnt2 > 2).any():
             break  # a larger distance joins more: no better
         left = int((cnt2 == 1).sum())
@@ -1168,7 +1159,7 @@ def _mended_seams(
                     "of no thickness between two bodies) were removed"
                 )
     if "open (boundary)" in problem:
-        rows, cnt = _edge_counts(f)
+        rows, _, cnt = edge_uses(f)
         if (cnt == 1).sum() <= 0.5 * len(rows):  # (a soup's copies are welded instead)
             g, n = seams.split_t_junctions(v, f, tol)
             if n:
@@ -1261,7 +1252,7 @@ def _soup_note(v: NDArray[np.float64], f: NDArray[np.int64]) -> str:
     far apart they are; '' otherwise."""
     from scipy.spatial import cKDTree
 
-    rows, cnt = _edge_counts(f)
+    rows, _, cnt = edge_uses(f)
     if (cnt == 1).sum() <= 0.5 * len(rows):
         return ""
     ends = np.unique(rows[cnt == 1])

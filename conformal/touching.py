@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from lattice_cad.core.arrays import unique_rows
+from lattice_cad.core.arrays import edge_uses
 
 __all__ = ["Touching", "split_touching"]
 
@@ -43,13 +43,6 @@ class Touching:
             "along an edge or a face) were split, each body keeping its own copy, e.g. at "
             f"({x:.4g}, {y:.4g}, {z:.4g})"
         )
-
-
-def _edge_counts(f: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Undirected edge of each half-edge (3F,) and each edge's use count."""
-    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    _, inv, cnt = unique_rows(np.sort(he, axis=1), return_inverse=True, return_counts=True)
-    return inv.reshape(-1), cnt
 
 
 def _alternating(theta: NDArray[np.float64], runs: NDArray[np.int64]) -> NDArray[np.int64]:
@@ -103,7 +96,7 @@ def split_touching(
     f = np.asarray(faces, dtype=np.int64)
     if not len(f):
         return None
-    edge_of, cnt = _edge_counts(f)
+    _, edge_of, cnt = edge_uses(f)
     if not (cnt > 2).any():
         return None
     if (cnt == 1).any():
@@ -154,7 +147,7 @@ def split_touching(
     uniq, inv = np.unique(key.ravel(), return_inverse=True)
     out_v = v[uniq % len(v)]
     out_f = inv.reshape(-1, 3).astype(np.int64)
-    _, cnt2 = _edge_counts(out_f)
+    cnt2 = edge_uses(out_f)[2]
     if not np.all(cnt2 == 2):
         return None  # a body touching itself along an edge: not split here
     report = Touching(

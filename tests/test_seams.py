@@ -131,6 +131,14 @@ def test_a_vertex_off_the_edge_is_no_t_junction():
     assert n == 0 and len(g) == 1
 
 
+def _beside(path, v, f, extents, at):
+    """An STL at ``path`` of the mesh (v, f) and a box of ``extents`` centred at ``at``."""
+    box = trimesh.creation.box(extents=extents)
+    box.apply_translation(at)
+    trimesh.util.concatenate([trimesh.Trimesh(v, f), box]).export(path)
+    return path
+
+
 def test_a_speck_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
     """Regression (s26, a bracket STL with a 0.05 mm tetrahedron 4 mm beside it, made
     outside shared/data): the speck was united with the part, and a skin wrote it as a
@@ -139,23 +147,17 @@ def test_a_speck_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
     v, f, vol = fandisk
     lo, hi = v.min(axis=0), v.max(axis=0)
     size = float(np.linalg.norm(hi - lo))
-    tet = trimesh.creation.box(extents=[2e-3 * size] * 3)
-    tet.apply_translation(hi + 0.05 * size)
-    path = tmp_path / "speck.stl"
-    trimesh.util.concatenate([trimesh.Trimesh(v, f), tet]).export(path)
+    path = _beside(tmp_path / "speck.stl", v, f, [2e-3 * size] * 3, hi + 0.05 * size)
     with pytest.warns(LatticeWarning, match=r"1 tiny closed shell\(s\) beside the part were left "
                       r"out as debris \([\d.e-]+ mm across(, [\d.e-]+ mm thick)? at"):  # fmt: skip
         part = load_part(path)
     assert len(part.faces) == len(f)
     assert part.volume == pytest.approx(vol, rel=1e-9)
     # a body of 5 % of the part's size is kept (and united with it, as before)
-    block = trimesh.creation.box(extents=[0.05 * size] * 3)
-    block.apply_translation(hi + 0.1 * size)
-    path = tmp_path / "two.stl"
-    trimesh.util.concatenate([trimesh.Trimesh(v, f), block]).export(path)
+    path = _beside(tmp_path / "two.stl", v, f, [0.05 * size] * 3, hi + 0.1 * size)
     with pytest.warns(LatticeWarning, match="2 bodies were united"):
         part = load_part(path)
-    assert part.volume == pytest.approx(vol + block.volume, rel=1e-6)
+    assert part.volume == pytest.approx(vol + (0.05 * size) ** 3, rel=1e-6)
 
 
 def test_a_sheet_of_no_thickness_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
@@ -167,20 +169,16 @@ def test_a_sheet_of_no_thickness_beside_a_real_part_is_left_out_as_debris(tmp_pa
     v, f, vol = fandisk
     lo, hi = v.min(axis=0), v.max(axis=0)
     size = float(np.linalg.norm(hi - lo))
-    sheet = trimesh.creation.box(extents=[0.5 * size, 0.3 * size, 1e-6 * size])
-    sheet.apply_translation(hi + 0.2 * size)
-    path = tmp_path / "sheet.stl"
-    trimesh.util.concatenate([trimesh.Trimesh(v, f), sheet]).export(path)
+    extents = [0.5 * size, 0.3 * size, 1e-6 * size]
+    path = _beside(tmp_path / "sheet.stl", v, f, extents, hi + 0.2 * size)
     with pytest.warns(LatticeWarning, match=r"left out as debris \([\d.e-]+ mm across, "
                       r"[\d.e-]+ mm thick at"):  # fmt: skip
         part = load_part(path)
     assert len(part.faces) == len(f)
     assert part.volume == pytest.approx(vol, rel=1e-9)
     # a plate 1e-2 of the part's size thick is kept
-    plate = trimesh.creation.box(extents=[0.5 * size, 0.3 * size, 1e-2 * size])
-    plate.apply_translation(hi + 0.2 * size)
-    path = tmp_path / "plate.stl"
-    trimesh.util.concatenate([trimesh.Trimesh(v, f), plate]).export(path)
+    extents = [0.5 * size, 0.3 * size, 1e-2 * size]
+    path = _beside(tmp_path / "plate.stl", v, f, extents, hi + 0.2 * size)
     with pytest.warns(LatticeWarning, match="2 bodies were united"):
         part = load_part(path)
-    assert part.volume == pytest.approx(vol + plate.volume, rel=1e-6)
+    assert part.volume == pytest.approx(vol + float(np.prod(extents)), rel=1e-6)

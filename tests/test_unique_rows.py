@@ -52,3 +52,15 @@ def test_refuses_floats_and_vectors():
         unique_rows(np.zeros((3, 2)))
     with pytest.raises(ValueError, match="2-D integer"):
         unique_rows(np.zeros(3, dtype=np.int64))
+
+
+def test_edge_uses_of_a_tetrahedron_and_an_open_triangle():
+    from lattice_cad.core.arrays import edge_uses
+
+    tet = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
+    rows, inverse, counts = edge_uses(tet)
+    assert len(rows) == 6 and (counts == 2).all()
+    he = np.concatenate([tet[:, [0, 1]], tet[:, [1, 2]], tet[:, [2, 0]]])
+    assert np.array_equal(rows[inverse], np.sort(he, axis=1))
+    rows, inverse, counts = edge_uses(np.array([[4, 5, 6]]))
+    assert rows.tolist() == [[4, 5], [4, 6], [5, 6]] and (counts == 1).all()

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["unique_rows"]
+__all__ = ["edge_uses", "unique_rows"]
 
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -79,3 +79,16 @@ def unique_rows(
     if return_counts:
         extra.append(counts.astype(np.int64, copy=False))
     return (uniq, *extra) if extra else uniq
+
+
+def edge_uses(
+    faces: NDArray[np.integer[Any]],
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """The undirected edges of triangles ``faces`` (F, 3): ``rows`` (E, 2) int64 (sorted
+    ends), the edge of each half-edge ``inverse`` (3 F,) int64 (edges (0, 1), then (1, 2),
+    then (2, 0) of every triangle), and how many half-edges use each ``counts`` (E,) int64
+    (2 in a closed 2-manifold mesh)."""
+    f = np.asarray(faces)
+    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    rows, inverse, counts = unique_rows(und, return_inverse=True, return_counts=True)
+    return rows, np.asarray(inverse).reshape(-1), counts
