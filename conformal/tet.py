@@ -34,7 +34,7 @@ from conformal.radius import (
     repair_graph,
     resolve_radii,
 )
-from conformal.voxel import BuildReport, FitMode, _finish
+from conformal.voxel import BuildReport, FitMode, _finish, refuse_too_thick
 from lattice_cad.core import config
 from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import ExternalCrash, ExternalTimeout, LatticeWarning
@@ -545,6 +545,10 @@ def tet_lattice(
         gmsh failed (its message and the volume tags are included).
     FitError
         Some struts cannot be stitched even at a tenth of the radius.
+    FillError
+        The radius asked is too thick for the part, and the fit would thin most struts
+        beyond ``tolerance`` (:func:`conformal.voxel.refuse_too_thick`; the message says
+        what radius fits).
 
     Warns
     -----
@@ -556,6 +560,7 @@ def tet_lattice(
         raise TypeError(f"part must be a conformal.Part (see load_part), got {type(part).__name__}")
     segments, profile = check_stitch_profile(segments, profile)
     rep = BuildReport()
+    asked = radius
     t0 = time.perf_counter()
     nodes, tets = tet_mesh(part, size, algorithm=algorithm, progress=progress)
     rep.seconds["mesh"] = time.perf_counter() - t0
@@ -588,6 +593,11 @@ def tet_lattice(
     graph = _finish(nodes, edges, radius, min_radius, fit, rep, segments=segments, profile=profile)
     if repair:
         rep.radii_reduced = max(rep.radii_reduced, fix.thinned)
+    # the radius asked too thick for the part, and most struts thinned far below it:
+    # refused, as the voxel method's fills refuse it
+    refuse_too_thick(
+        part, graph.nodes, graph, asked, rep, h=np.full(3, size), fill="conform", fitted=False
+    )
     rep.seconds["fit"] = time.perf_counter() - t0
     return (graph, rep) if return_report else graph
 

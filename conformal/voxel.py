@@ -469,36 +469,106 @@ def voxel_lattice(
         )  # fmt: skip
     rep.seconds["fit"] = time.perf_counter() - t0
     if fill in ("clip", "conform") and len(graph.radii):
-        # most struts thicker than the part anywhere: the trim would cut nearly all of them
-        # away (a 2 m I-beam of 5-8 mm walls with 22 mm struts: a 76-triangle fragment was
-        # written); the clip's refusal, with the radius that fits
-        r_med = float(np.median(graph.radii))
-        if 2.0 * r_med >= THICKER_THAN_PART * float(local.size.min()) or (
-            not _room_for(local, nodes, r_med)
-            and 2.0 * r_med >= THICKER_THAN_PART * 2.0 * local.inscribed_radius()
-        ):
-            raise _nothing_fits(
-                part, h, r_med, f"no strut of radius {r_med:.4g} mm fits inside", fill=fill
-            )
+        refuse_too_thick(part, nodes, graph, radius, rep, h=h, fill=fill)
     return (graph, rep) if return_report else graph
 
 
-def _room_for(local: Part, nodes: NDArray[np.float64], r: float) -> bool:
-    """Whether some of ``nodes`` (up to 2,000 of them, in the part's grid frame) lies
-    inside ``local`` deeper than ``THICKER_THAN_PART * r``: the part is then surely thick
+def refuse_too_thick(
+    part: Part,
+    nodes: NDArray[np.float64],
+    graph: LatticeGraph,
+    asked: RadiusSpec,
+    rep: BuildReport,
+    *,
+    h: NDArray[np.float64],
+    fill: str,
+    fitted: bool = True,
+) -> None:
+    """Raise :class:`FillError` (with the radius that fits) when the struts of a lattice
+    that follows the part's walls (clip, conform, tet) are too thick for the part.
+
+    That is, when 2 r is at least ``THICKER_THAN_PART`` times the part's greatest thickness
+    (``Part.inscribed_radius``, a lower bound), for r either
+
+    - the median radius after the fit: the trim would cut nearly every strut away (a 2 m
+      I-beam of 5-8 mm walls with 22 mm struts: a 76-triangle fragment was written), or
+    - the median radius asked, when the fit thinned more than ``MOST_THINNED`` of the
+      struts below ``config.THIN_TOLERANCE`` times it (``rep.thinned_beyond_tolerance``):
+      the lattice written would not be the one asked (a 1.2 mm sheet enclosure at
+      r = 0.69: bcc's conform fill thinned 1,455 of 1,479 struts below 0.7 x and tet all
+      6,482, where kelvin's, which its fit did not thin, was refused).
+
+    Parameters
+    ----------
+    part : Part
+        In the frame of ``nodes`` (the world frame).
+    nodes : (N, 3) float64
+        The graph's nodes.
+    graph : LatticeGraph
+        The fitted graph.
+    asked : float, (M,), (M, 2) or callable
+        The radius asked (:mod:`conformal.radius`).
+    rep : BuildReport
+        The build's report (its ``thinned_beyond_tolerance``).
+    h : (3,) float64
+        Cell size (tet: the tet size), for the advice.
+    fill : str
+        The fill, for the advice.
+    fitted : bool
+        Test the radius after the fit too (the voxel fills). A tet lattice's struts join
+        nodes of a mesh of the part, so their axes lie inside it, and a strut a little
+        thicker than the part is trimmed to it, not cut away (the sheet-metal bracket,
+        2.28 mm thick at r = 1.27: 11 of 719 struts thinned, written in one body).
+    """
+    n = graph.num_edges
+    if not n:
+        return
+    r_fit = float(np.median(graph.radii))
+    if fitted and _thicker_than_part(part, nodes, r_fit):
+        raise _nothing_fits(
+            part, h, r_fit, f"no strut of radius {r_fit:.4g} mm fits inside", fill=fill
+        )
+    if rep.thinned_beyond_tolerance <= MOST_THINNED * n:
+        return
+    r_asked = float(np.median(resolve_radii(asked, nodes, graph.edges)))
+    if _thicker_than_part(part, nodes, r_asked):
+        raise _nothing_fits(
+            part, h, r_asked,
+            f"no strut of radius {r_asked:.4g} mm fits inside",
+            fill=fill,
+            note=f" (the fit would thin {rep.thinned_beyond_tolerance:,} of {n:,} struts below "
+            f"{config.THIN_TOLERANCE:g} x that radius to stitch them)",
+        )  # fmt: skip
+
+
+def _thicker_than_part(part: Part, nodes: NDArray[np.float64], r: float) -> bool:
+    """Whether struts of radius ``r`` are too thick for ``part`` (``THICKER_THAN_PART``)."""
+    return 2.0 * r >= THICKER_THAN_PART * float(part.size.min()) or (
+        not _room_for(part, nodes, r)
+        and 2.0 * r >= THICKER_THAN_PART * 2.0 * part.inscribed_radius()
+    )
+
+
+def _room_for(part: Part, nodes: NDArray[np.float64], r: float) -> bool:
+    """Whether some of ``nodes`` (up to 2,000 of them, in the frame of ``part``) lies
+    inside ``part`` deeper than ``THICKER_THAN_PART * r``: the part is then surely thick
     enough for a strut of radius ``r`` (a quick test before ``Part.inscribed_radius``)."""
     sample = nodes[:: max(1, len(nodes) // 2000)]
     need = THICKER_THAN_PART * r
-    depth = local.distance(sample, max_distance=2.0 * need)
+    depth = part.distance(sample, max_distance=2.0 * need)
     deep = sample[depth > need]  # (inf: farther than 2 need from the surface)
-    return bool(len(deep)) and bool(local.contains(deep).any())
+    return bool(len(deep)) and bool(part.contains(deep).any())
 
 
-#: A clip or conform fill whose median strut (after the fit) is this many times thicker than
-#: the part's greatest thickness (``Part.inscribed_radius``, a lower bound) is refused: most
-#: struts lie inside the part nowhere (the benchmark's kcl_sheet-metal-bracket, thinned to
-#: fit its 2.28 mm tabs: 0.78 at most).
+#: A clip, conform or tet lattice whose median strut is this many times thicker than the
+#: part's greatest thickness (``Part.inscribed_radius``, a lower bound) is refused
+#: (:func:`refuse_too_thick`): most struts lie inside the part nowhere (the benchmark's
+#: kcl_sheet-metal-bracket, 2.28 mm thick: r = 1.27 asked is 1.11 x too thick).
 THICKER_THAN_PART = 1.1
+
+#: ... or whose radius asked is, when the fit thinned more than this fraction of the struts
+#: below ``config.THIN_TOLERANCE`` times it (:func:`refuse_too_thick`).
+MOST_THINNED = 0.5
 
 #: at most this fraction of a voxel lattice's struts may be dropped as unstitchable
 MAX_DROPPED = 0.10
@@ -579,7 +649,13 @@ def _origin_at_deepest(
 
 
 def _nothing_fits(
-    part: Part, h: NDArray[np.float64], radius: RadiusSpec, what: str, *, fill: str = "inside"
+    part: Part,
+    h: NDArray[np.float64],
+    radius: RadiusSpec,
+    what: str,
+    *,
+    fill: str = "inside",
+    note: str = "",
 ) -> FillError:
     """A :class:`FillError` that says what would fit the part (``fill``: the fill tried)."""
     r_in = part.inscribed_radius()
@@ -604,7 +680,7 @@ def _nothing_fits(
             f"its greatest thickness is about {thick:.3g} mm, too thin for struts of radius "
             f"{r:g}: use a radius below {0.5 * r_in:.3g} mm"
         )
-    return FillError(f"{what} {part.name}; {hint}")
+    return FillError(f"{what} {part.name}{note}; {hint}")
 
 
 def _homog(r: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -564,3 +564,24 @@ def test_welding_moves_only_the_end_points_of_open_edges(tmp_path):
     trimesh.Trimesh(v2, f2, process=False).export(path)
     with pytest.raises(PartError, match=r"4 open \(boundary\) edge\(s\) around 1 hole"):
         load_part(path)
+
+
+def test_the_depth_of_bodies_stacked_face_to_face_is_finite(tmp_path):
+    """Regression (s30, a helper's part: two boxes stacked face to face, triangulated
+    differently, so the shared face stays as two sheets inside the solid):
+    ``inscribed_radius`` was inf. The grid's depth passes through the inner sheets, so its
+    deepest points lay at them; the climb's move straight off that plane landed at exactly
+    the bound of its distance query, read as "farther" (inf), and taken. Now the climb
+    never takes an unmeasured point, and starts from points spread over the part too."""
+    a = trimesh.creation.box((40, 40, 15))
+    b = a.copy().subdivide()  # the same face, other triangles
+    b.apply_translation((0, 0, 15))
+    path = tmp_path / "stacked.stl"
+    trimesh.util.concatenate([a, b]).export(path)
+    with pytest.warns(LatticeWarning, match="crosses itself"):  # (the two sheets touch)
+        part = load_part(path)
+    point, depth = part.deepest_point()
+    # each box is 15 mm thick and its face to the other is a sheet of the surface
+    assert 7.4 < depth <= 7.5
+    assert part.inscribed_radius() == depth
+    assert part.distance(point[None])[0] == pytest.approx(depth) and part.contains(point[None])[0]

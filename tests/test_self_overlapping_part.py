@@ -10,6 +10,7 @@ the trim's reason names the part; a cut that crosses itself is given up at once.
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 
@@ -17,6 +18,7 @@ import numpy as np
 import pytest
 
 from conformal import load_part
+from conformal.trim import protrusion
 from lattice_cad import Lattice
 from lattice_cad.core.errors import LatticeWarning
 
@@ -70,8 +72,14 @@ def test_a_folded_sweep_is_said_at_load_and_its_fill_is_cut_by_its_rebuild():
 
     with pytest.warns(LatticeWarning, match="thinned"):
         lat = Lattice.fill(part, cell="bcc", cell_size=8.0, radius=0.6)
-    mesh = lat.mesh()
+    # (s30) out of the part by more than the tolerance: said in a warning, not only in the
+    # trim's line, with how far
+    with pytest.warns(LatticeWarning, match=r"the lattice stands up to ([\d.]+) mm out") as out:
+        mesh = lat.mesh()
     rep = lat.trim_report
+    said = re.search(r"stands up to ([\d.]+) mm", str(out[0].message))
+    assert said and float(said.group(1)) == pytest.approx(rep.protrusion_after, rel=1e-2)
+    assert rep.protrusion_after > rep.tolerance
     assert not rep.failed and rep.trimmed and rep.rebuilt > 0, rep.summary()
     assert "rebuilt on a" in rep.summary() and "NOT cut" not in rep.summary()
     # against the part as loaded: out by less than the grid's spacing (at concave creases:
@@ -310,18 +318,31 @@ def test_a_mesh_part_that_folds_is_cut_and_skinned_by_its_rebuild(tmp_path):
         part = load_part(path)
     assert part.shape is None and part.self_crossings[0] > 100 and not part.folds
     cell = float(part.size.max()) / 15
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", LatticeWarning)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", LatticeWarning)
         lat = Lattice.fill(part, "bcc", cell, cell / 12, fill="conform")
         mesh = lat.mesh()
     rep = lat.trim_report
     assert not rep.failed and rep.rebuilt > 0 and rep.bodies == 1, rep.summary()
     assert rep.protrusion_after < rep.rebuilt < rep.protrusion_before, rep.summary()
+    out = protrusion(part, mesh.vertices)  # (the file's, against the part as loaded)
+    assert out == pytest.approx(rep.protrusion_after, rel=1e-3, abs=1e-6)
+    assert out > rep.tolerance and _said_out(said, "the lattice") == pytest.approx(out, rel=1e-2)
     assert_valid(mesh)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", LatticeWarning)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", LatticeWarning)
         skinned = Lattice.fill(part, "octet", cell, cell / 12, skin=cell / 6)
         mesh = skinned.mesh()
     rep = skinned.skin_report
     assert rep.rebuilt > 0 and rep.bodies == 1 and "folds over itself" in rep.summary()
+    out = protrusion(part, mesh.vertices)
+    assert out > 0.01 * cell / 12 and _said_out(said, "the skin") == pytest.approx(out, rel=1e-2)
     assert_valid(mesh)
+
+
+def _said_out(said: list, what: str) -> float:
+    """How far the warning about ``what`` cut on a rebuild says it stands out (mm)."""
+    found = [re.search(rf"{what} stands up to ([\d.]+) mm out", str(w.message)) for w in said]
+    hits = [float(m.group(1)) for m in found if m]
+    assert len(hits) == 1, [str(w.message)[:200] for w in said]
+    return hits[0]
