@@ -91,6 +91,7 @@ def tet_mesh(
         Each runs in a child process: a crash or a hang of gmsh moves on to the next
         attempt instead of ending the caller; after a hang, the next surface (a hang is
         most often in the surface mesh, which the other 3-D algorithms would mesh again).
+        All attempts together stop after ``config.TET_TOTAL_ATTEMPTS`` times it.
     progress : callable, optional
         ``progress(stage, done, total)`` is called before each gmsh attempt: ``stage``
         names it (the surface strategy, the piece, the 3-D algorithm), ``done`` counts
@@ -141,10 +142,17 @@ def tet_mesh(
         expected = 2.0 * abs(part.volume) / (size**3 / (6.0 * math.sqrt(2.0)))
         timeout = config.TET_ATTEMPT_SECONDS + expected / config.TET_ATTEMPT_RATE
     failures: list[str] = []
+    deadline = time.monotonic() + config.TET_TOTAL_ATTEMPTS * timeout
     inputs = _GmshInputs(part, size)
     label = {"brep": "B-rep", "surface": "surface", "resampled": "resampled surface"}
     with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
         for step, (source, how, angle) in enumerate(surfaces):
+            if time.monotonic() >= deadline:
+                failures.append(
+                    f"the other ways not tried: the attempts took "
+                    f"{config.TET_TOTAL_ATTEMPTS:g} x {timeout:.0f} s, their budget"
+                )
+                break
             sources = inputs.files(source, Path(tmp))
             if sources is None:
                 failures.append("the solids could not be fused into one B-rep")
@@ -164,6 +172,8 @@ def tet_mesh(
             for k, file in enumerate(sources):
                 piece = f" piece {k + 1} of {len(sources)}" if len(sources) > 1 else ""
                 for algo in order:
+                    if time.monotonic() >= deadline:
+                        break
                     if progress is not None:
                         progress(f"gmsh, {what}{piece}, {algo}", step, len(surfaces))
                     try:
@@ -175,7 +185,7 @@ def tet_mesh(
                                 how,
                                 angle,
                                 algo,
-                                timeout=timeout,
+                                timeout=max(1e-3, min(timeout, deadline - time.monotonic())),
                                 what=f"gmsh ({what}{piece}, {algo})",
                             )
                         )
@@ -211,7 +221,12 @@ def tet_mesh(
                     stacklevel=2,
                 )
             return _joined([_compact(*g) for g in got])
-    raise PartError(f"{part.name}: gmsh could not mesh the part: " + "; ".join(failures))
+    raise PartError(
+        f"{part.name}: gmsh could not mesh the part: "
+        + "; ".join(failures)
+        + "; a lattice of cells fills it without tetrahedra (--method voxel, the default: "
+        "--fill conform follows its walls as a tet lattice does)"
+    )
 
 
 def _feature_patches(part: Part, size: float, angle: float) -> tuple[int, float]:

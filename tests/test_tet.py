@@ -506,3 +506,31 @@ def test_a_noisy_scan_is_not_reparametrised_along_its_noise(monkeypatch):
     tried.clear()
     tet_mesh(clean, size)
     assert tried == ["gmsh (surface, reparametrized 40 deg, hxt)"]
+
+
+def test_gmsh_attempts_stop_at_their_budget_and_the_error_says_what_fills_it(cyl, monkeypatch):
+    """Regression (s30, a helper's 945 K-triangle gyroid network): every surface strategy
+    hung to its timeout or failed, and the refusal came after 12 minutes. The attempts now
+    stop after ``config.TET_TOTAL_ATTEMPTS`` times one attempt's time, and the error says
+    that a lattice of cells fills the part."""
+    import time
+
+    import conformal.tet
+    from lattice_cad.core import config
+    from lattice_cad.core.errors import ExternalTimeout
+
+    calls: list[float] = []
+
+    def hangs(fn, *a, timeout, what, **kw):  # every attempt hangs until its timeout
+        calls.append(timeout)
+        time.sleep(timeout)
+        raise ExternalTimeout(f"{what} did not finish within {timeout:g} s")
+
+    monkeypatch.setattr(conformal.tet, "run_isolated", hangs)
+    t0 = time.monotonic()
+    with pytest.raises(PartError, match=r"the other ways not tried") as info:
+        tet_mesh(cyl, 5.0, timeout=0.4)
+    spent = time.monotonic() - t0
+    assert "--method voxel" in str(info.value)
+    assert sum(calls) <= config.TET_TOTAL_ATTEMPTS * 0.4 + 1e-6
+    assert 2 <= len(calls) <= 4 and spent < config.TET_TOTAL_ATTEMPTS * 0.4 + 5.0

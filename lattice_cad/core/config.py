@@ -419,6 +419,10 @@ THIN_TOLERANCE = 0.7
 #: B-rep hung in all three 3-D algorithms (600 s each, before).
 TET_ATTEMPT_SECONDS = 120.0
 TET_ATTEMPT_RATE = 2000.0
+#: All of a tet mesh's gmsh attempts together stop after this many times one attempt's
+#: time (conformal.tet_mesh): a 945 K-triangle gyroid network (genus 486) timed out or
+#: failed in every strategy, 12 minutes before its refusal.
+TET_TOTAL_ATTEMPTS = 2.5
 #: A mesh part's surface is not re-parametrised with feature edges at an angle when those
 #: edges cut it into more patches than this share of its area in squares of the size: a
 #: scan's noise, not its features, at that size (a noisy capsule: 11,007 patches at 40 deg
