@@ -236,8 +236,8 @@ class Part:
         return (
             f"the part's surface crosses itself ({pairs} pair(s) of its triangles, e.g. at "
             f"{_fmt_point(at)}): the solid overlaps itself there (a sweep folding over its "
-            "path, bodies overlapping in one shell) or two of its faces lie closer than its "
-            "tessellation"
+            "path, bodies overlapping in one shell), two of its faces lie closer than its "
+            "tessellation, or two of its bodies touch there (face to face or along an edge)"
         )
 
     def transformed(self, matrix: ArrayLike) -> Part:
