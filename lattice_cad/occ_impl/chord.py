@@ -43,6 +43,7 @@ from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 from lattice_cad.core import config
 from lattice_cad.core.arrays import unique_rows
 from lattice_cad.core.errors import OCCTFailure
+from lattice_cad.occ_impl.surface_eval import surface_points
 from lattice_cad.occ_impl.triangulation import triangulation_arrays
 
 #: The meshing of faces alone with a finer deflection (:func:`_mesh_faces_finer`) stops
@@ -217,9 +218,12 @@ def _triangle_deviation(
     uniq, inv = _unique_edges(t)
     p3 = np.concatenate([pts[t].mean(axis=1), pts[uniq].mean(axis=1)])
     q = np.concatenate([uv[t].mean(axis=1), uv[uniq].mean(axis=1)])
-    # one Python call per point, from 1-D lists (a list of pairs costs as much as the calls)
-    values = map(surf.Value, q[:, 0].tolist(), q[:, 1].tolist())
-    s = np.fromiter((x for p in values for x in p.Coord()), dtype=np.float64, count=3 * len(q))
+    # on arrays where the surface type allows (checked against OCCT's Value), else one
+    # Python call per point, from 1-D lists (a list of pairs costs as much as the calls)
+    s = surface_points(surf, q[:, 0], q[:, 1])
+    if s is None:
+        values = map(surf.Value, q[:, 0].tolist(), q[:, 1].tolist())
+        s = np.fromiter((x for p in values for x in p.Coord()), dtype=np.float64, count=3 * len(q))
     d = np.linalg.norm(s.reshape(-1, 3) - p3, axis=1)
     over = np.flatnonzero(d > limit)
     if len(over):
