@@ -7,21 +7,9 @@ import numpy as np
 import pytest
 
 from lattice_cad.occ_impl import surface_eval
+from lattice_cad.occ_impl.chord import _faces
 from lattice_cad.occ_impl.surface_eval import surface_points
 from tests.conftest import DATA
-
-
-def _faces(shape):
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-
-    out = []
-    exp = TopExp_Explorer(shape, TopAbs_FACE)
-    while exp.More():
-        out.append(TopoDS.Face_s(exp.Current()))
-        exp.Next()
-    return out
 
 
 def _compare(face, rng, n=500):
