@@ -28,7 +28,12 @@ from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepTools import BRepTools
-from OCP.Extrema import Extrema_ExtPS, Extrema_GenLocateExtPS
+from OCP.Extrema import (
+    Extrema_ExtAlgo_Grad,
+    Extrema_ExtFlag_MINMAX,
+    Extrema_ExtPS,
+    Extrema_GenLocateExtPS,
+)
 from OCP.Geom import Geom_BSplineSurface, Geom_RectangularTrimmedSurface
 from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Plane
 from OCP.gp import gp_Pnt
@@ -228,13 +233,16 @@ def _triangle_deviation(
     over = np.flatnonzero(d > limit)
     if len(over):
         loc = Extrema_GenLocateExtPS(surf, 1e-9, 1e-9)
+        ext = None
         for k in over.tolist():
             p = gp_Pnt(*p3[k])
             loc.Perform(p, float(q[k, 0]), float(q[k, 1]), True)
             if loc.IsDone():
                 d[k] = min(d[k], float(np.sqrt(loc.SquareDistance())))
             if d[k] > limit:  # the local search stopped at the domain's boundary: global
-                ext = Extrema_ExtPS(p, surf, 1e-9, 1e-9)
+                if ext is None:  # one search for the face: its grid of samples is built once
+                    ext = _global_search(surf)
+                ext.Perform(p)
                 if ext.IsDone() and ext.NbExt() > 0:
                     sq = min(ext.SquareDistance(i) for i in range(1, ext.NbExt() + 1))
                     d[k] = min(d[k], float(np.sqrt(sq)))
@@ -244,6 +252,27 @@ def _triangle_deviation(
     if cache is not None:
         cache[:] = [key, result]
     return result
+
+
+def _global_search(surf: BRepAdaptor_Surface) -> Extrema_ExtPS:
+    """``Extrema_ExtPS`` over the whole face, for many points (``Perform``): the same
+    search as ``Extrema_ExtPS(point, surf, 1e-9, 1e-9)`` (that constructor is this
+    ``Initialize`` and a ``Perform``), but its grid of samples of the surface is built
+    once, not once per point (the bottle's degree-14 loft and its offset: 1,568 searches,
+    4.4 s)."""
+    ext = Extrema_ExtPS()
+    ext.SetFlag(Extrema_ExtFlag_MINMAX)
+    ext.SetAlgo(Extrema_ExtAlgo_Grad)
+    ext.Initialize(
+        surf,
+        surf.FirstUParameter(),
+        surf.LastUParameter(),
+        surf.FirstVParameter(),
+        surf.LastVParameter(),
+        1e-9,
+        1e-9,
+    )
+    return ext
 
 
 def _measured(

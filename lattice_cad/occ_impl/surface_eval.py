@@ -7,8 +7,11 @@ tessellation's time on the curved parts (the cycloidal gear: 4.8 of 16.8 s, 1 M 
 Here the surfaces a CAD part is mostly made of are evaluated on arrays: planes are not
 measured; cylinders, cones, spheres and tori by their closed forms (OCCT's ``ElSLib``), and
 B-spline surfaces (rational or not; periodic ones made non-periodic, the same surface) by
-``scipy.interpolate.NdBSpline`` on their poles and knots. Any other surface type returns
-None (the caller evaluates point by point).
+``scipy.interpolate.NdBSpline`` on their poles and knots, and offsets of B-spline surfaces
+(a shelled loft's inner wall: ``S + d N``, ``N`` the unit normal ``Su x Sv`` from the
+spline's derivatives, as OCCT's ``GeomEvaluator_OffsetSurface`` computes it; where
+``Su x Sv`` nearly vanishes, OCCT's special handling of such points is used, point by
+point). Any other surface type returns None (the caller evaluates point by point).
 
 Nothing is assumed: every evaluation is compared with OCCT's own ``Value`` at up to
 ``CHECK_POINTS`` of the parameters spread over them and at each parameter's least and
@@ -28,6 +31,7 @@ from OCP.GeomAbs import (
     GeomAbs_BSplineSurface,
     GeomAbs_Cone,
     GeomAbs_Cylinder,
+    GeomAbs_OffsetSurface,
     GeomAbs_Sphere,
     GeomAbs_Torus,
 )
@@ -38,6 +42,13 @@ __all__ = ["surface_points"]
 CHECK_POINTS = 16
 #: Largest difference allowed there, relative to the points' extent (at least 1 mm).
 CHECK_RTOL = 1e-9
+#: An offset surface's points where ``|Su x Sv|`` is at most this fraction of its median
+#: ``|Su|`` times its median ``|Sv|`` (the basis surface's normal nearly undefined: a pole,
+#: a degenerate edge, where the derivatives are rounding noise), or at most
+#: ``OCCT_SINGULAR`` (below which OCCT's ``GeomEvaluator_OffsetSurface`` takes the normal
+#: from higher derivatives), are evaluated by OCCT, point by point.
+SINGULAR_SINE = 1e-6
+OCCT_SINGULAR = 1e-9
 
 
 def surface_points(
@@ -67,6 +78,8 @@ def surface_points(
             pts = _ELEMENTARY[kind](surf, u, v)
         elif kind == GeomAbs_BSplineSurface:
             pts = _bspline(surf, u, v)
+        elif kind == GeomAbs_OffsetSurface:
+            pts = _offset(surf, u, v)
         else:
             return None
     except Exception:  # an OCCT accessor raised (Standard_Failure), scipy refused the knots
@@ -135,9 +148,41 @@ def _bspline(
     surf: Any, u: NDArray[np.float64], v: NDArray[np.float64]
 ) -> NDArray[np.float64] | None:
     """A B-spline surface by ``NdBSpline`` on its poles (homogeneous when rational)."""
+    got = _bspline_points(surf.BSpline(), u, v, derivatives=False)  # (with the location)
+    return None if got is None else got[0]
+
+
+def _offset(
+    surf: Any, u: NDArray[np.float64], v: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """An offset of a B-spline surface: ``S + d (Su x Sv) / |Su x Sv|``; the points where
+    the basis's normal is nearly undefined (``SINGULAR_SINE``, ``OCCT_SINGULAR``) by
+    OCCT's ``Value``."""
+    basis = surf.BasisSurface()  # (with the face's location)
+    if basis.GetType() != GeomAbs_BSplineSurface:
+        return None
+    got = _bspline_points(basis.BSpline(), u, v, derivatives=True)
+    if got is None:
+        return None
+    p, pu, pv = got
+    n = np.cross(pu, pv)
+    norm = np.linalg.norm(n, axis=1)
+    typical = float(np.median(np.linalg.norm(pu, axis=1)) * np.median(np.linalg.norm(pv, axis=1)))
+    weak = ~(norm > max(OCCT_SINGULAR, SINGULAR_SINE * typical))  # (NaN included)
+    pts = p + float(surf.OffsetValue()) * n / np.where(weak, 1.0, norm)[:, None]
+    for i in np.flatnonzero(weak).tolist():
+        pts[i] = surf.Value(float(u[i]), float(v[i])).Coord()
+    return pts
+
+
+def _bspline_points(
+    bs: Any, u: NDArray[np.float64], v: NDArray[np.float64], *, derivatives: bool
+) -> tuple[NDArray[np.float64], ...] | None:
+    """Points of a ``Geom_BSplineSurface`` at ``(u, v)``, (n, 3) float64, and with
+    ``derivatives`` also its first derivatives in u and in v; None when its knots do not
+    make a spline of its poles (scipy's view of them)."""
     from scipy.interpolate import NdBSpline
 
-    bs = surf.BSpline()  # (with the face's location)
     if bs.IsUPeriodic() or bs.IsVPeriodic():
         # parameters into the first period (as OCCT evaluates a periodic surface), then
         # the same surface made non-periodic (the adaptor's own stays as it is)
@@ -160,13 +205,22 @@ def _bspline(
         return None
     k = (bs.UDegree(), bs.VDegree())
     uv = np.column_stack([u, v])
-    if bs.IsURational() or bs.IsVRational():
+    rational = bs.IsURational() or bs.IsVRational()
+    if rational:
         w = np.array([bs.Weight(i, j) for i in range(1, nu + 1) for j in range(1, nv + 1)]).reshape(
             nu, nv, 1
         )
-        hom = NdBSpline((tu, tv), np.concatenate([poles * w, w], axis=2), k)(uv)
-        return np.asarray(hom[:, :3] / hom[:, 3:], dtype=np.float64)
-    return np.asarray(NdBSpline((tu, tv), poles, k)(uv), dtype=np.float64)
+        poles = np.concatenate([poles * w, w], axis=2)
+    spline = NdBSpline((tu, tv), poles, k)
+    value = np.asarray(spline(uv), dtype=np.float64)
+    orders = [(1, 0), (0, 1)] if derivatives else []
+    slopes = [np.asarray(spline(uv, nu=np.array(o)), dtype=np.float64) for o in orders]
+    if not rational:
+        return (value, *slopes)
+    # P = H / w; dP = (dH - P dw) / w
+    w_at = value[:, 3:]
+    p = value[:, :3] / w_at
+    return (p, *[(d[:, :3] - p * d[:, 3:]) / w_at for d in slopes])
 
 
 def _flat(n: int, knot: Any, multiplicity: Any) -> NDArray[np.float64]:
