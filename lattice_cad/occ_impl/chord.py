@@ -34,7 +34,7 @@ from OCP.Extrema import (
     Extrema_ExtPS,
     Extrema_GenLocateExtPS,
 )
-from OCP.Geom import Geom_BSplineSurface, Geom_RectangularTrimmedSurface
+from OCP.Geom import Geom_BSplineSurface, Geom_OffsetSurface, Geom_RectangularTrimmedSurface
 from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Plane
 from OCP.gp import gp_Pnt
 from OCP.IMeshTools import IMeshTools_Parameters
@@ -466,9 +466,16 @@ def _has_triangulation(face: TopoDS_Face) -> bool:
 
 
 def _bspline(face: TopoDS_Face) -> Geom_BSplineSurface | None:
+    """The B-spline surface whose knots shape ``face``'s meshing: its surface's, or the
+    basis surface's of an offset surface (parametrised as its basis: BRepMesh splits it at
+    the basis's knots)."""
     surf = BRep_Tool.Surface_s(face)
     if isinstance(surf, Geom_RectangularTrimmedSurface):
         surf = surf.BasisSurface()
+    if isinstance(surf, Geom_OffsetSurface):
+        surf = surf.BasisSurface()
+        if isinstance(surf, Geom_RectangularTrimmedSurface):
+            surf = surf.BasisSurface()
     return surf if isinstance(surf, Geom_BSplineSurface) else None
 
 
