@@ -962,34 +962,46 @@ def _keep_attached(solid: Any, outer: Any) -> tuple[Any, int, int]:
 
     Returns the kept solid, the number of bodies, and the number of islands removed.
     Negative-volume components (cavity walls) are always kept. ``outer``: Manifold or Part.
+
+    The pieces are found on the arrays (``conformal.skin_split.pieces``), not by
+    ``Manifold.decompose``, whose time grows with the number of pieces times the mesh: a
+    dome shelled to 1.8 mm under a skin of 0.8 mm (made outside shared/data) leaves a
+    0.2 mm cavity that its 0.8 mm struts cut into 2,295 closed voids, and ``decompose`` of
+    that 1.08 M-triangle solid ran for more than 5 minutes (the arrays: 1.2 s).
     """
-    pieces = solid.decompose()
-    if len(pieces) <= 1:
-        return solid, len(pieces), 0
+    from conformal.skin_split import pieces
+
+    v, f = to_arrays(solid)
+    n, vlabel, vols = pieces(v, f)
+    if n <= 1:
+        return solid, n, 0
     surface = _as_part(outer)
     tol = 1e-4 * float(np.linalg.norm(surface.size))
-    keep, bodies, islands = [], 0, 0
-    for piece in pieces:
-        if piece.volume() < 0:
-            keep.append(piece)
-            continue
-        v, _ = to_arrays(piece)
-        sample = v[:: max(1, len(v) // 2000)]
-        if surface.distance(sample, max_distance=2 * tol).min() <= tol:
-            keep.append(piece)
-            bodies += 1
-        else:
-            islands += 1
+    # each positive piece's vertices, up to about 2,000 of them (every k-th), in one query
+    used = np.flatnonzero(vlabel >= 0)
+    lab = vlabel[used]
+    order = np.argsort(lab, kind="stable")
+    counts = np.bincount(lab, minlength=n)
+    rank = np.empty(len(order), dtype=np.int64)
+    rank[order] = np.arange(len(order)) - np.repeat(np.cumsum(counts) - counts, counts)
+    step = np.maximum(1, counts // 2000)
+    pick = (vols[lab] >= 0) & (rank % step[lab] == 0)
+    near = np.full(n, np.inf)
+    if pick.any():
+        d = surface.distance(v[used[pick]], max_distance=2 * tol)
+        np.minimum.at(near, lab[pick], d)
+    attached = near <= tol
+    keep = (vols < 0) | attached
+    bodies = int(np.count_nonzero((vols >= 0) & attached))
+    islands = int(np.count_nonzero(~keep))
     if not islands:
         return solid, bodies, 0
-    # Manifold.compose drops negative (cavity) components: join the meshes instead
-    vs, fs, base = [], [], 0
-    for piece in keep:
-        v, f = to_arrays(piece)
-        vs.append(v)
-        fs.append(f + base)
-        base += len(v)
-    return _manifold(np.vstack(vs), np.vstack(fs), "the skinned part"), bodies, islands
+    # Manifold.compose drops negative (cavity) components: the kept triangles instead
+    kept_faces = f[keep[vlabel[f[:, 0]]]]
+    inside = np.zeros(len(v), dtype=bool)
+    inside[kept_faces.ravel()] = True
+    new_id = np.cumsum(inside) - 1
+    return _manifold(v[inside], new_id[kept_faces], "the skinned part"), bodies, islands
 
 
 def build_skin(
