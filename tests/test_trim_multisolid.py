@@ -125,3 +125,28 @@ def test_kcl_enclosure_tet_gives_one_body_without_specks(kcl_enclosure_tet):
     bodies = tm.split(only_watertight=False)
     assert len(bodies) == 1, [(len(b.faces), b.volume) for b in bodies]
     assert lat.trim_report.bodies == 1
+
+
+def test_a_solid_whose_largest_piece_is_a_fragment_keeps_none():
+    """A scan's 0.8 mm blob beside its body loads as a solid of its own; the conform fill's
+    cut kept in it a 0.2 mm fragment of a strut (0.0003 mm^3) as that solid's largest piece:
+    a second body of no use (s31, made outside shared/data). A solid's largest piece under
+    a strut stub as long as it is thick (2 pi r^3) is removed now; the largest of all stays."""
+    import trimesh as _tm
+
+    from conformal.part import Part
+    from conformal.trim import _largest_per_solid
+
+    body = _tm.creation.box(extents=(20, 20, 20))
+    blob = _tm.creation.box(extents=(0.8, 0.8, 0.8))
+    blob.apply_translation((15, 0, 0))
+    both = _tm.util.concatenate([body, blob])
+    part = Part(np.asarray(both.vertices), np.asarray(both.faces, dtype=np.int64), name="two")
+    assert len(part.solid_parts) == 2
+    in_body, in_blob = np.array([[1.0, 2.0, 3.0]]), np.array([[15.1, 0.1, -0.1]])
+    samples = [in_body, in_blob, in_body]
+    r = 0.44  # 2 pi r^3 = 0.535 mm^3
+    assert _largest_per_solid(part, np.array([100.0, 3e-4, 50.0]), samples, radius=r) == [0]
+    assert _largest_per_solid(part, np.array([100.0, 0.6, 50.0]), samples, radius=r) == [0, 1]
+    # the largest of all is kept however small
+    assert _largest_per_solid(part, np.array([1e-4, 3e-5, 1e-5]), samples, radius=r) == [0]
