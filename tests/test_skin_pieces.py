@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from conformal import skin
+from tests.test_check import join
 
 
 def _cube(lo, size, *, inward=False):
@@ -25,22 +26,13 @@ def _cube(lo, size, *, inward=False):
     return v, (f[:, ::-1] if inward else f)
 
 
-def _joined(parts):
-    vs, fs, base = [], [], 0
-    for v, f in parts:
-        vs.append(v)
-        fs.append(f + base)
-        base += len(v)
-    return np.vstack(vs), np.vstack(fs)
-
-
 def test_many_cavities_are_kept_and_islands_dropped():
     cavities = [_cube((1 + 2 * i, 1 + 2 * j, 1 + 2 * k), 1.0, inward=True)
                 for i in range(12) for j in range(12) for k in range(12)]  # fmt: skip
     islands = [_cube((40 + 3 * i, 0, 0), 1.0) for i in range(5)]
     block = _cube((0, 0, 0), 26.0)
     # the block with its 1,728 voids and five islands clear of it
-    v, f = _joined([block, *cavities, *islands])
+    v, f = join(block, *cavities, *islands)
     solid = skin._manifold(v, f, "test solid")
     outer = skin._manifold(*block, "outer")
     kept, bodies, removed = skin._keep_attached(solid, outer)
@@ -49,7 +41,7 @@ def test_many_cavities_are_kept_and_islands_dropped():
     assert len(kept.decompose()) == 1 + 1728
 
     # nothing to remove: the solid as it is
-    v2, f2 = _joined([block, *cavities[:10]])
+    v2, f2 = join(block, *cavities[:10])
     solid2 = skin._manifold(v2, f2, "test solid")
     same, bodies2, removed2 = skin._keep_attached(solid2, outer)
     assert (bodies2, removed2) == (1, 0) and same is solid2
