@@ -969,7 +969,7 @@ def _keep_attached(solid: Any, outer: Any) -> tuple[Any, int, int]:
     0.2 mm cavity that its 0.8 mm struts cut into 2,295 closed voids, and ``decompose`` of
     that 1.08 M-triangle solid ran for more than 5 minutes (the arrays: 1.2 s).
     """
-    from conformal.skin_split import pieces
+    from conformal.skin_split import kept_pieces, pieces
 
     v, f = to_arrays(solid)
     n, vlabel, vols = pieces(v, f)
@@ -997,11 +997,8 @@ def _keep_attached(solid: Any, outer: Any) -> tuple[Any, int, int]:
     if not islands:
         return solid, bodies, 0
     # Manifold.compose drops negative (cavity) components: the kept triangles instead
-    kept_faces = f[keep[vlabel[f[:, 0]]]]
-    inside = np.zeros(len(v), dtype=bool)
-    inside[kept_faces.ravel()] = True
-    new_id = np.cumsum(inside) - 1
-    return _manifold(v[inside], new_id[kept_faces], "the skinned part"), bodies, islands
+    kv, kf = kept_pieces(v, f, keep[vlabel[f[:, 0]]])
+    return _manifold(kv, kf, "the skinned part"), bodies, islands
 
 
 def build_skin(

@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SplitLattice", "pieces", "split_lattice"]
+__all__ = ["SplitLattice", "first_vertices", "kept_pieces", "pieces", "split_lattice"]
 
 #: Sample spacing along a strut for its distance to the inner surface, in strut radii
 #: (at least ``MIN_SPACING`` mm).
@@ -272,6 +272,28 @@ def pieces(
         six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
         vols += np.bincount(vlabel[f[start : start + (1 << 16), 0]], six, len(kinds))
     return len(kinds), vlabel, vols / 6.0
+
+
+def kept_pieces(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    face_kept: NDArray[np.bool_],
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The triangles ``faces[face_kept]`` (F,) bool with only the vertices they use,
+    renumbered: the pieces of :func:`pieces` that are kept, as arrays."""
+    f = faces[face_kept]
+    used = np.zeros(len(vertices), dtype=bool)
+    used[f.ravel()] = True
+    new_id = np.cumsum(used) - 1
+    return vertices[used], new_id[f]
+
+
+def first_vertices(vlabel: NDArray[np.int64], n: int, k: int) -> list[NDArray[np.int64]]:
+    """Up to ``k`` vertex indices of each of the ``n`` pieces (``vlabel`` from
+    :func:`pieces`), the lowest first."""
+    order = np.argsort(vlabel, kind="stable")
+    starts = np.searchsorted(vlabel[order], np.arange(n + 1))
+    return [order[starts[i] : min(starts[i] + k, starts[i + 1])] for i in range(n)]
 
 
 #: vertex counts up to which :func:`_face_keys` packs a triangle in one int64 (21 bits each)

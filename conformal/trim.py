@@ -620,7 +620,7 @@ def _trim_near(
     """:func:`trim_to_part` on the struts near the part's surface only, or None when the
     split does not apply (see ``trim_to_part(graph=)``)."""
     from conformal.skin import _manifold, part_solid, to_arrays
-    from conformal.skin_split import split_lattice
+    from conformal.skin_split import first_vertices, kept_pieces, split_lattice
     from lattice_cad.core.mesh import Mesh, mesh_arrays, signed_volume
 
     arrays = mesh_arrays(lattice)
@@ -655,23 +655,18 @@ def _trim_near(
     removed = 0
     if n_groups > 1:
         # a group's solid from the vertices of its first piece of the cut
-        by_piece = np.argsort(vlabel, kind="stable")
-        starts = np.searchsorted(vlabel[by_piece], np.arange(n_pieces + 1))
         first = np.full(n_groups, -1, dtype=np.int64)
         first[group[:n_pieces][::-1]] = np.arange(n_pieces)[::-1]
         if np.any(first < 0):
             return None  # a deep piece joins no piece of the cut (cannot be: caps found)
-        samples = [vc[by_piece[starts[k] : min(starts[k] + 64, starts[k + 1])]] for k in first]
+        some = first_vertices(vlabel, n_pieces, 64)
+        samples = [vc[some[k]] for k in first]
         keep = _largest_per_solid(part, gvol, samples, radius=radius)
         removed = n_groups - len(keep)
         if removed:
             kept = np.zeros(n_groups, dtype=bool)
             kept[keep] = True
-            face_ok = kept[group[vlabel[fc[:, 0]]]]
-            used = np.zeros(len(vc), dtype=bool)
-            used[fc[face_ok].ravel()] = True
-            new_id = np.cumsum(used) - 1
-            vc, fc = vc[used], new_id[fc[face_ok]]
+            vc, fc = kept_pieces(vc, fc, kept[group[vlabel[fc[:, 0]]]])
             split = split.without(np.flatnonzero(~kept[group[n_pieces:]]))
             gvol = gvol[kept]
             cut = Mesh(vertices=vc, faces=fc)
