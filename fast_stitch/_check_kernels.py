@@ -800,6 +800,100 @@ def component_rep_faces(labels, area, n_components):
 
 
 @numba.njit(parallel=True, cache=True)
+def ray_winding_numbers(points, faces, labels, n_vertices, query_labels, grid, cell_start, order):
+    """Winding number of the faces *not* in ``query_labels[q]`` at query point ``q``, by
+    the signed crossings of the ray from it along +z, with exact predicates.
+
+    Parameters
+    ----------
+    points : (V + Q, 3) float64
+        The mesh's vertices, then the query points (query ``q`` is point ``n_vertices + q``).
+    faces : (F, 3) int64
+    labels : (F,) int64
+        Component of each face.
+    n_vertices : int
+    query_labels : (Q,) int64
+        Component whose faces are left out for each query point.
+    grid : (5,) float64
+        ``x0, y0, h, nx, ny``: the cells of side ``h`` over the queries' xy box.
+    cell_start : (nx * ny + 1,) int64
+    order : (Q,) int64
+        Queries sorted by cell (cell ``c`` holds ``order[cell_start[c]:cell_start[c + 1]]``).
+
+    Returns
+    -------
+    w : (Q,) int64
+        Sum over the crossed faces of the sign of their normal's z: the winding number of
+        closed, consistently oriented components (+1 inside an outward one, 0 outside).
+    unsure : (Q,) bool
+        The ray meets an edge, a vertex or the plane of a face at the query point (an
+        exact zero): ``w`` does not count; ask :func:`winding_numbers`.
+    """
+    nf = faces.shape[0]
+    nq = query_labels.shape[0]
+    x0, y0, h = grid[0], grid[1], grid[2]
+    nx, ny = np.int64(grid[3]), np.int64(grid[4])
+    n_chunks = max(1, min(64, 20_000_000 // max(1, nq)))
+    chunk = (nf + n_chunks - 1) // n_chunks
+    partial = np.zeros((n_chunks, nq), np.int64)
+    flags = np.zeros((n_chunks, nq), np.bool_)
+    for ch in numba.prange(n_chunks):
+        for f in range(ch * chunk, min(nf, (ch + 1) * chunk)):
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            if a == b or b == c or c == a:
+                continue
+            lox = min(points[a, 0], points[b, 0], points[c, 0])
+            hix = max(points[a, 0], points[b, 0], points[c, 0])
+            loy = min(points[a, 1], points[b, 1], points[c, 1])
+            hiy = max(points[a, 1], points[b, 1], points[c, 1])
+            i0 = max(np.int64(0), np.int64(np.floor((lox - x0) / h)))
+            i1 = min(nx - 1, np.int64(np.floor((hix - x0) / h)))
+            j0 = max(np.int64(0), np.int64(np.floor((loy - y0) / h)))
+            j1 = min(ny - 1, np.int64(np.floor((hiy - y0) / h)))
+            if i0 > i1 or j0 > j1:
+                continue
+            sgn = 2  # the face's orientation seen from above (0: vertical; 2: not yet known)
+            for i in range(i0, i1 + 1):
+                for j in range(j0, j1 + 1):
+                    cell = i * ny + j
+                    for k in range(cell_start[cell], cell_start[cell + 1]):
+                        q = order[k]
+                        if labels[f] == query_labels[q]:
+                            continue
+                        p = n_vertices + q
+                        if not (lox <= points[p, 0] <= hix and loy <= points[p, 1] <= hiy):
+                            continue
+                        if sgn == 2:
+                            sgn = orient2d(points, a, b, c, 0, 1)
+                            if sgn == 0:
+                                break  # a vertical face: no ray crosses it
+                        s0 = orient2d(points, a, b, p, 0, 1)
+                        s1 = orient2d(points, b, c, p, 0, 1)
+                        s2 = orient2d(points, c, a, p, 0, 1)
+                        if s0 == -sgn or s1 == -sgn or s2 == -sgn:
+                            continue  # outside the face's shadow
+                        if s0 == 0 or s1 == 0 or s2 == 0:
+                            flags[ch, q] = True  # on an edge or a vertex of it
+                            continue
+                        up = orient3d(points, a, b, c, p)  # sign of sgn * (z_face - z_p)
+                        if up == 0:
+                            flags[ch, q] = True  # in the face
+                        elif up == sgn:
+                            partial[ch, q] += sgn
+                    if sgn == 0:
+                        break
+                if sgn == 0:
+                    break
+    w = np.zeros(nq, np.int64)
+    unsure = np.zeros(nq, np.bool_)
+    for ch in range(n_chunks):
+        for q in range(nq):
+            w[q] += partial[ch, q]
+            unsure[q] |= flags[ch, q]
+    return w, unsure
+
+
+@numba.njit(parallel=True, cache=True)
 def winding_numbers(vertices, faces, labels, queries, query_labels):
     """Generalized winding number of the faces *not* in ``query_labels[q]`` at ``queries[q]``.
 

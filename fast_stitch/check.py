@@ -84,8 +84,17 @@ _TARGET_ENTRIES_PER_FACE = 5.0
 #: Maximum number of pieces a long face is cut into for the broadphase.
 _MAX_PIECES = 256
 
-#: Budget of (query, face) solid-angle evaluations for the cavity test of inverted shells.
+#: Budget of (query, face) solid-angle evaluations for the cavity test of inverted shells
+#: whose ray test (``_ray_winding``) is not certain, or of any inverted shell when a
+#: component is open; past it, the rest count as inverted.
 _WINDING_BUDGET = 200_000_000
+#: Barycentric weights of the points of a shell's largest face from which the ray test
+#: is tried, in turn, until it is certain (its centroid first).
+_RAY_QUERY_WEIGHTS = (
+    np.full(3, 1.0 / 3.0),
+    np.array([0.5, 0.3, 0.2]),
+    np.array([0.2, 0.17, 0.63]),
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -419,15 +428,91 @@ def _inverted_components(
     negative = np.flatnonzero((comp_volume < 0.0) & ~open_components)
     if negative.size == 0 or n_components == 1:
         return negative.astype(np.int64)
+    rep = _k.component_rep_faces(labels, area, n_components)
+    inverted = np.zeros(0, np.int64)
+    if not open_components.any():
+        # every shell closed: each negative one's winding number counted along a ray
+        # (exact; a ray that meets an edge or a plane is left to the solid angles below)
+        # (from the centroid of the shell's face that is largest seen from above, then from
+        # two other points of it: a face seen edge-on would put the ray in other planes)
+        corners = vertices[faces[_flattest_faces(vertices, faces, labels, negative)]]
+        for weights in _RAY_QUERY_WEIGHTS:
+            queries = np.ascontiguousarray(np.einsum("k,qkd->qd", weights, corners))
+            w, unsure = _ray_winding(vertices, faces, labels, queries, negative)
+            inverted = np.concatenate([inverted, negative[~unsure & (w <= 0)]])
+            negative, corners = negative[unsure], corners[unsure]
+            if negative.size == 0:
+                return np.sort(inverted).astype(np.int64)
     # Test the largest shells first, within a fixed budget; the rest count as inverted.
     by_size = negative[np.argsort(comp_volume[negative], kind="stable")]
     n_test = min(by_size.size, max(1, _WINDING_BUDGET // max(1, faces.shape[0])))
     tested = by_size[:n_test]
-    rep = _k.component_rep_faces(labels, area, n_components)[tested]
-    queries = np.ascontiguousarray(vertices[faces[rep]].mean(axis=1))
+    queries = np.ascontiguousarray(vertices[faces[rep[tested]]].mean(axis=1))
     w = _k.winding_numbers(vertices, faces, labels, queries, np.ascontiguousarray(tested))
-    inverted = np.concatenate([tested[w < 0.5], by_size[n_test:]])
+    inverted = np.concatenate([inverted, tested[w < 0.5], by_size[n_test:]])
     return np.sort(inverted).astype(np.int64)
+
+
+def _flattest_faces(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    labels: NDArray[np.int64],
+    comps: NDArray[np.int64],
+) -> NDArray[np.int64]:
+    """(K,) int64: for each component of ``comps`` (sorted ids), its face whose projection
+    on the xy plane is largest (lowest index on ties)."""
+    mine = np.flatnonzero(np.isin(labels, comps))
+    t = vertices[faces[mine]]
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    area_z = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    order = np.lexsort((mine, -area_z, labels[mine]))
+    first = np.ones(order.size, bool)
+    first[1:] = labels[mine[order[1:]]] != labels[mine[order[:-1]]]
+    return mine[order[first]]
+
+
+def _ray_winding(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    labels: NDArray[np.int64],
+    queries: NDArray[np.float64],
+    query_labels: NDArray[np.int64],
+) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """Winding number of the faces not in ``query_labels[q]`` at ``queries[q]``, by the
+    exact crossings of a ray along +z (``_k.ray_winding_numbers``).
+
+    vertices : (V, 3) float64, faces : (F, 3) int64, labels : (F,) int64, queries : (Q, 3)
+    float64, query_labels : (Q,) int64. Returns ``w : (Q,) int64`` and ``unsure : (Q,)
+    bool`` (the ray met an edge, a vertex or a face's plane at the query: ``w`` not valid).
+    The queries are binned on an xy grid of about ``Q`` cells, each face visits the cells
+    its xy box covers: about ``F`` face visits instead of the ``F Q`` solid angles.
+    """
+    nq = queries.shape[0]
+    if query_labels.shape != (nq,) or queries.shape != (nq, 3):
+        raise ValueError("queries must be (Q, 3) with (Q,) query_labels")
+    lo = queries[:, :2].min(axis=0)
+    hi = queries[:, :2].max(axis=0)
+    ext = hi - lo
+    # about Q cells: square ones over a box, Q along a line, one for a single point
+    h = math.sqrt(float(ext[0] * ext[1]) / nq) or float(ext.max()) / nq or 1.0
+    n = np.floor(ext / h).astype(np.int64) + 1
+    ij = np.minimum(np.floor((queries[:, :2] - lo) / h).astype(np.int64), n - 1)
+    cell = ij[:, 0] * n[1] + ij[:, 1]
+    order = np.argsort(cell, kind="stable").astype(np.int64)
+    cell_start = np.zeros(int(n[0] * n[1]) + 1, np.int64)
+    np.cumsum(np.bincount(cell, minlength=int(n[0] * n[1])), out=cell_start[1:])
+    grid = np.array([lo[0], lo[1], h, n[0], n[1]], np.float64)
+    points = np.ascontiguousarray(np.vstack([vertices, queries]))
+    return _k.ray_winding_numbers(
+        points,
+        faces,
+        labels,
+        vertices.shape[0],
+        np.ascontiguousarray(query_labels, dtype=np.int64),
+        grid,
+        cell_start,
+        order,
+    )
 
 
 def _self_intersections(
