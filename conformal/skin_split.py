@@ -173,9 +173,11 @@ class SplitLattice:
 
     def bodies(
         self, vertices: NDArray[np.float64], faces: NDArray[np.int64], touches: Any
-    ) -> int | None:
+    ) -> tuple[int, NDArray[np.float64]] | None:
         """Bodies of the glued result (positive pieces reaching the outer surface, as
-        ``conformal.skin._keep_attached`` counts them), or None when the glued result has
+        ``conformal.skin._keep_attached`` counts them) and the volume of each of its sealed
+        voids ((K,) float64, mm^3: the cavity walls joined by deep pieces, the volume of
+        the deep pieces in them left out), or None when the glued result has
         an island (a piece of lattice joined to nothing that reaches the outer surface or
         to a cavity wall), for the full booleans to remove.
 
@@ -193,8 +195,11 @@ class SplitLattice:
         if joined is None:
             return None
         n_pieces, vlabel, vols, group, n_groups = joined
+        neg = vols < 0  # a void: a group of cavity walls (the deep pieces' volume left out)
+        gid, inv = np.unique(group[:n_pieces][neg], return_inverse=True)
+        voids = np.bincount(inv, weights=-vols[neg], minlength=len(gid)).astype(np.float64)
         if n_pieces <= 1:
-            return n_pieces
+            return n_pieces - len(voids), voids
         anchored = np.zeros(n_groups, dtype=bool)
         anchored[group[:n_pieces][vols < 0]] = True  # cavity walls are kept
         bodies = 0
@@ -206,7 +211,7 @@ class SplitLattice:
                 bodies += 1
         if not anchored[group[:n_pieces]].all():
             return None
-        return bodies
+        return bodies, voids
 
     def glue(
         self, vertices: NDArray[np.float64], faces: NDArray[np.int64]

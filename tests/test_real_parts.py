@@ -37,6 +37,14 @@ def _bodies(mesh) -> int:
     return sum(1 for p in man.decompose() if p.volume() > 0)
 
 
+def _voids(mesh) -> int:
+    """Closed voids: the inside-out shells of the mesh (trimesh's pieces, negative volume)."""
+    import trimesh
+
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    return sum(1 for p in tm.split(only_watertight=True) if p.volume < 0)
+
+
 def test_skin_by_occt_offset_is_exact_and_one_body():
     """kcl_bracket: OpenCascade's offset works, so the wall is exact (2 % / 0.02 mm)."""
     part = _part("step/kcl_bracket.step")
@@ -49,6 +57,9 @@ def test_skin_by_occt_offset_is_exact_and_one_body():
     assert rep.method == "occt" and rep.accurate, rep.summary()
     assert abs(rep.wall["min"] - cell / 6) <= max(0.02 * cell / 6, 0.02)
     assert rep.bodies == 1 and _bodies(mesh) == 1
+    # the sealed voids the report names (the cavity, and any specks), as trimesh counts them
+    assert rep.voids >= 1 and rep.voids + rep.pockets == _voids(mesh), rep.summary()
+    assert "sealed void(s)" in rep.summary()
     np.testing.assert_array_equal(mesh.vertices, mesh.vertices.astype(np.float32))
     # exact self-intersection test (ours) plus trimesh and manifold3d; pymeshlab's test has a
     # tolerance and flags two coplanar faces 2.3 um apart here, which do not intersect

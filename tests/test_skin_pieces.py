@@ -35,13 +35,14 @@ def test_many_cavities_are_kept_and_islands_dropped():
     v, f = join(block, *cavities, *islands)
     solid = skin._manifold(v, f, "test solid")
     outer = skin._manifold(*block, "outer")
-    kept, bodies, removed = skin._keep_attached(solid, outer)
-    assert (bodies, removed) == (1, 5)
+    kept, bodies, removed, voids = skin._keep_attached(solid, outer)
+    assert (bodies, removed, len(voids)) == (1, 5, 1728)
+    np.testing.assert_allclose(voids, 1.0)  # each cavity's volume
     assert abs(kept.volume() - (26.0**3 - 1728 * 1.0)) < 1e-6 * 26.0**3
     assert len(kept.decompose()) == 1 + 1728
 
     # nothing to remove: the solid as it is
     v2, f2 = join(block, *cavities[:10])
     solid2 = skin._manifold(v2, f2, "test solid")
-    same, bodies2, removed2 = skin._keep_attached(solid2, outer)
-    assert (bodies2, removed2) == (1, 0) and same is solid2
+    same, bodies2, removed2, voids2 = skin._keep_attached(solid2, outer)
+    assert (bodies2, removed2, len(voids2)) == (1, 0, 10) and same is solid2
