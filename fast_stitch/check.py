@@ -493,8 +493,10 @@ def _ray_winding(
     lo = queries[:, :2].min(axis=0)
     hi = queries[:, :2].max(axis=0)
     ext = hi - lo
-    # about Q cells: square ones over a box, Q along a line, one for a single point
+    # about Q cells: square ones over a box, Q along a line, one for a single point (and
+    # never more than 4 Q + 4: a box much longer than wide gets cells as long as needed)
     h = math.sqrt(float(ext[0] * ext[1]) / nq) or float(ext.max()) / nq or 1.0
+    h = max(h, float(ext.max()) / (4 * nq))
     n = np.floor(ext / h).astype(np.int64) + 1
     ij = np.minimum(np.floor((queries[:, :2] - lo) / h).astype(np.int64), n - 1)
     cell = ij[:, 0] * n[1] + ij[:, 1]

@@ -133,3 +133,13 @@ def test_a_ray_along_an_edge_or_in_a_face_is_unsure():
     assert w2.tolist() == [-1] and not u2[0]
     w3, u3 = check_module._ray_winding(v, f, labels, queries[:1], np.zeros(1, np.int64))
     assert w3.tolist() == [0] and not u3[0]
+
+
+def test_queries_along_a_line_get_few_cells():
+    # 5 queries 2 m apart along x, 1e-13 apart in y: square cells of their box would
+    # number 1e16; the grid is capped at 4 Q cells and the answers are the same
+    v = np.array([[0, 0, 1], [2000, 0, 1], [2000, 1, 1], [0, 1, 1]], np.float64)
+    f = np.array([[0, 1, 2], [0, 2, 3]], np.int64)
+    q = np.c_[np.linspace(1, 1999, 5), 0.5 + 1e-13 * np.arange(5), np.zeros(5)]
+    w, unsure = check_module._ray_winding(v, f, np.zeros(2, np.int64), q, np.ones(5, np.int64))
+    assert w.tolist() == [1] * 5 and not unsure.any()
