@@ -799,6 +799,41 @@ def component_rep_faces(labels, area, n_components):
     return rep
 
 
+@numba.njit(cache=True)
+def flattest_faces(vertices, faces, labels, wanted):
+    """Face of each wanted component whose projection on the xy plane is largest (lowest
+    index on ties; -1 for the others).
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    labels : (F,) int64
+    wanted : (C,) bool
+
+    Returns
+    -------
+    rep : (C,) int64
+    """
+    n = wanted.shape[0]
+    rep = np.full(n, -1, np.int64)
+    best = np.full(n, -1.0)
+    for f in range(labels.shape[0]):
+        c = labels[f]
+        if not wanted[c]:
+            continue
+        a, b, d = faces[f, 0], faces[f, 1], faces[f, 2]
+        ux = vertices[b, 0] - vertices[a, 0]
+        uy = vertices[b, 1] - vertices[a, 1]
+        vx = vertices[d, 0] - vertices[a, 0]
+        vy = vertices[d, 1] - vertices[a, 1]
+        az = abs(ux * vy - uy * vx)
+        if az > best[c]:
+            best[c] = az
+            rep[c] = f
+    return rep
+
+
 @numba.njit(parallel=True, cache=True)
 def ray_winding_numbers(points, faces, labels, n_vertices, query_labels, grid, cell_start, order):
     """Winding number of the faces *not* in ``query_labels[q]`` at query point ``q``, by

@@ -428,14 +428,16 @@ def _inverted_components(
     negative = np.flatnonzero((comp_volume < 0.0) & ~open_components)
     if negative.size == 0 or n_components == 1:
         return negative.astype(np.int64)
-    rep = _k.component_rep_faces(labels, area, n_components)
     inverted = np.zeros(0, np.int64)
     if not open_components.any():
         # every shell closed: each negative one's winding number counted along a ray
         # (exact; a ray that meets an edge or a plane is left to the solid angles below)
         # (from the centroid of the shell's face that is largest seen from above, then from
         # two other points of it: a face seen edge-on would put the ray in other planes)
-        corners = vertices[faces[_flattest_faces(vertices, faces, labels, negative)]]
+        wanted = np.zeros(n_components, np.bool_)
+        wanted[negative] = True
+        flat = _k.flattest_faces(vertices, faces, labels, wanted)
+        corners = vertices[faces[flat[negative]]]
         for weights in _RAY_QUERY_WEIGHTS:
             queries = np.ascontiguousarray(np.einsum("k,qkd->qd", weights, corners))
             w, unsure = _ray_winding(vertices, faces, labels, queries, negative)
@@ -447,28 +449,11 @@ def _inverted_components(
     by_size = negative[np.argsort(comp_volume[negative], kind="stable")]
     n_test = min(by_size.size, max(1, _WINDING_BUDGET // max(1, faces.shape[0])))
     tested = by_size[:n_test]
-    queries = np.ascontiguousarray(vertices[faces[rep[tested]]].mean(axis=1))
+    rep = _k.component_rep_faces(labels, area, n_components)[tested]
+    queries = np.ascontiguousarray(vertices[faces[rep]].mean(axis=1))
     w = _k.winding_numbers(vertices, faces, labels, queries, np.ascontiguousarray(tested))
     inverted = np.concatenate([inverted, tested[w < 0.5], by_size[n_test:]])
     return np.sort(inverted).astype(np.int64)
-
-
-def _flattest_faces(
-    vertices: NDArray[np.float64],
-    faces: NDArray[np.int64],
-    labels: NDArray[np.int64],
-    comps: NDArray[np.int64],
-) -> NDArray[np.int64]:
-    """(K,) int64: for each component of ``comps`` (sorted ids), its face whose projection
-    on the xy plane is largest (lowest index on ties)."""
-    mine = np.flatnonzero(np.isin(labels, comps))
-    t = vertices[faces[mine]]
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    area_z = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    order = np.lexsort((mine, -area_z, labels[mine]))
-    first = np.ones(order.size, bool)
-    first[1:] = labels[mine[order[1:]]] != labels[mine[order[:-1]]]
-    return mine[order[first]]
 
 
 def _ray_winding(
