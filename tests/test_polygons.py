@@ -146,3 +146,34 @@ def test_a_face_naming_a_missing_vertex_is_named(tmp_path):
     path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 9\n")
     with pytest.raises(InputFileError, match=r"face 0 \(0, 1, 2, 8\) names a vertex"):
         read_mesh(path)
+
+
+def _tetra_obj(header: str, refs: str, offset: tuple[float, float, float]) -> str:
+    x, y, z = offset
+    corners = [(x, y, z), (x + 1, y, z), (x, y + 1, z), (x, y, z + 1)]
+    lines = [header] + [f"v {a:g} {b:g} {c:g}" for a, b, c in corners]
+    for tri in ((1, 3, 2), (1, 2, 4), (1, 4, 3), (2, 3, 4)):
+        lines.append("f " + " ".join(refs.format(i - 5) for i in tri))
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("header", ["o", "g"])
+@pytest.mark.parametrize("refs", ["{}", "{0}/{0}/{0}", "{0}//{0}"])
+def test_relative_indices_count_back_from_the_file_not_the_object(tmp_path, header, refs):
+    # regression (s32, an OBJ of 6 groups with relative indices made outside shared/data):
+    # trimesh counted "f -4 -2 -3" back from the vertices of the face's object, so every
+    # object after the first was read onto the first one's vertices (91 open edges)
+    import trimesh
+
+    path = tmp_path / "two.obj"
+    path.write_text(
+        "# relative indices\n"
+        + _tetra_obj(f"{header} first", refs, (0, 0, 0))
+        + _tetra_obj(f"{header} second", refs, (5, 0, 0))
+    )
+    v, f = read_mesh(path)
+    assert len(v) == 8 and f.max() == 7 and set(f[4:].ravel()) == {4, 5, 6, 7}
+    tm = trimesh.Trimesh(v, f, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent
+    assert tm.volume == pytest.approx(2.0 / 6.0)
+    assert len(tm.split()) == 2

@@ -24,6 +24,8 @@ __all__ = ["mesh_polygons", "triangulate"]
 
 #: A face line of an OBJ file with four or more vertex references.
 _OBJ_POLYGON = re.compile(rb"^[ \t]*f[ \t]+\S+[ \t]+\S+[ \t]+\S+[ \t]+\S+", re.M)
+#: A face line of an OBJ file with a relative (negative) vertex reference.
+_OBJ_RELATIVE = re.compile(rb"^[ \t]*f[ \t]+(?:[^\r\n]*[ \t])?-[0-9]", re.M)
 _OBJ_V = re.compile(rb"^[ \t]*v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)", re.M)
 _OBJ_F = re.compile(rb"^[ \t]*f[ \t]+([^\r\n]*)", re.M)
 _REFS = re.compile(rb"/\S*")
@@ -41,14 +43,18 @@ def mesh_polygons(
 ) -> tuple[NDArray[np.float64], Groups] | None:
     """The vertices (V, 3) float64 and the faces (:data:`Groups`) of a mesh file with at
     least one face of more than three vertices, or None (triangles only, or a format
-    without polygons).
+    without polygons). Also an OBJ file of triangles with relative (negative) vertex
+    references: trimesh counts them back from the vertices of the face's object, not of the
+    file, so every object after the first is read onto the first one's vertices (an OBJ
+    of 6 groups, made outside shared/data, loaded with 91 open edges).
 
     ``fmt``: the format's name (``"obj"``, ``"off"``, ``"ply"``); ``loaded``: the mesh
     trimesh read from a PLY file (its raw elements hold the polygons).
     """
     if fmt == "obj":
         data = path.read_bytes()
-        return _obj_polygons(data) if _OBJ_POLYGON.search(data) else None
+        wanted = _OBJ_POLYGON.search(data) or _OBJ_RELATIVE.search(data)
+        return _obj_polygons(data) if wanted else None
     if fmt == "off":
         return _off_polygons(path.read_text(errors="replace"))
     if fmt == "ply" and loaded is not None:
