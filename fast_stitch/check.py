@@ -88,8 +88,8 @@ _MAX_PIECES = 256
 #: whose ray test (``_ray_winding``) is not certain, or of any inverted shell when a
 #: component is open; past it, the rest count as inverted.
 _WINDING_BUDGET = 200_000_000
-#: Barycentric weights of the points of a shell's largest face from which the ray test
-#: is tried, in turn, until it is certain (its centroid first).
+#: Barycentric weights of the points of a shell's flattest face (largest seen from above)
+#: from which the ray test is tried, in turn, until it is certain (its centroid first).
 _RAY_QUERY_WEIGHTS = (
     np.full(3, 1.0 / 3.0),
     np.array([0.5, 0.3, 0.2]),
@@ -141,9 +141,13 @@ class CheckReport:
         Connected components of faces linked across shared edges.
     n_inverted_components : int
         Closed components (without boundary edges) with negative volume that are not
-        cavities, i.e. not enclosed by the rest of the mesh: the generalized winding number
-        of the other components at the centroid of the component's largest face is below
-        0.5. (Open components have no meaningful orientation and are never counted.)
+        cavities, i.e. not enclosed by the rest of the mesh: the winding number of the
+        other components at a point of the component is at most 0. It is counted exactly
+        by the crossings of a ray along +z from a point of the component's flattest face;
+        where the ray meets an edge, a vertex or a plane, and in meshes with an open
+        component, the generalized winding number (solid angles) at the centroid of its
+        largest face, below 0.5, within a budget of evaluations past which the rest
+        count. (Open components have no meaningful orientation and are never counted.)
     unused_vertices : (K,) int64
     boundary_edges : (K, 3) int64
         Rows ``(v0, v1, face)``: edge ``v0 < v1`` and the lowest face using it.
