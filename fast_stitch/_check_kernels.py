@@ -799,6 +799,33 @@ def component_rep_faces(labels, area, n_components):
     return rep
 
 
+@numba.njit(parallel=True, cache=True)
+def straddling_pairs(vertices, faces, pairs):
+    """Whether each face of each pair has corners strictly on both sides of the other's
+    plane (exact ``orient3d`` signs): two intersecting faces that pass through each other,
+    not faces that only touch (at an edge, a vertex, or coplanar).
+
+    vertices : (V, 3) float64, faces : (F, 3) int64, pairs : (P, 2) int64 face indices.
+    Returns (P,) bool.
+    """
+    n = pairs.shape[0]
+    out = np.zeros(n, np.bool_)
+    for k in numba.prange(n):
+        fa, fb = pairs[k, 0], pairs[k, 1]
+        both = True
+        for one, other in ((fa, fb), (fb, fa)):
+            a, b, c = faces[other, 0], faces[other, 1], faces[other, 2]
+            pos = False
+            neg = False
+            for m in range(3):
+                s = orient3d(vertices, a, b, c, faces[one, m])
+                pos |= s > 0
+                neg |= s < 0
+            both &= pos and neg
+        out[k] = both
+    return out
+
+
 @numba.njit(cache=True)
 def flattest_faces(vertices, faces, labels, wanted):
     """Face of each wanted component whose projection on the xy plane is largest (lowest

@@ -75,7 +75,7 @@ from numpy.typing import NDArray
 from fast_stitch import _check_kernels as _k
 from fast_stitch._predicates import box_stats
 
-__all__ = ["check", "CheckReport"]
+__all__ = ["check", "CheckReport", "crossing_pairs"]
 
 #: Bound on the grid entries per face; the cell grows when it would be exceeded.
 _MAX_ENTRIES_PER_FACE = 8
@@ -458,6 +458,30 @@ def _inverted_components(
     w = _k.winding_numbers(vertices, faces, labels, queries, np.ascontiguousarray(tested))
     inverted = np.concatenate([inverted, tested[w < 0.5], by_size[n_test:]])
     return np.sort(inverted).astype(np.int64)
+
+
+def crossing_pairs(mesh: Any, pairs: Any) -> NDArray[np.bool_]:
+    """Which intersecting face pairs pass through each other (each face has corners strictly
+    on both sides of the other's plane; exact signs), as opposed to pairs that only touch:
+    along an edge or at a vertex, or coplanar. Bodies that touch (blocks sharing an edge)
+    give touching pairs; a surface that folds through itself gives crossing ones.
+
+    Parameters
+    ----------
+    mesh : Mesh, trimesh.Trimesh or tuple
+        As for :func:`check`.
+    pairs : (P, 2) int
+        Face index pairs, e.g. ``CheckReport.self_intersection_pairs``.
+
+    Returns
+    -------
+    crossing : (P,) bool
+    """
+    vertices, faces = _as_arrays(mesh)
+    pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
+    if len(pairs) and (pairs.min() < 0 or pairs.max() >= len(faces)):
+        raise ValueError(f"pairs name faces outside 0 .. {len(faces) - 1}")
+    return _k.straddling_pairs(vertices, faces, pairs)
 
 
 def _ray_winding(

@@ -394,6 +394,10 @@ AUTO_INSIDE_SHARE = 0.2
 #: any rounding: the folded pipe elbow 4.9 % (9,139 pairs), never repaired; a noisy scan's
 #: cut 0.03 % (32 pairs) or a noisy bunny's 0.003 % (4), repaired by the fold collapses.
 TRIM_HOPELESS_SHARE = 0.01
+#: ``conformal.Part.self_crossings`` tells crossing pairs of the part's triangles from
+#: touching ones (solids sharing an edge) up to this many pairs; past it all count (a
+#: surface folded that much is folded, whatever a few of its pairs do).
+CROSSING_PAIRS_CLASSIFIED = 1_000_000
 #: ``conformal.Part.folds``: a B-rep part whose tessellation crosses itself in more than
 #: TRIM_HOPELESS_SHARE of its triangles is tessellated this many times finer (unchecked)
 #: to tell a fold of its surface (it stays) from chords meeting across a thin feature.
