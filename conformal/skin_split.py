@@ -201,7 +201,7 @@ class SplitLattice:
         if n_pieces <= 1:
             return n_pieces - len(voids), voids
         anchored = np.zeros(n_groups, dtype=bool)
-        anchored[group[:n_pieces][vols < 0]] = True  # cavity walls are kept
+        anchored[group[:n_pieces][neg]] = True  # cavity walls are kept
         bodies = 0
         by_piece = np.argsort(vlabel, kind="stable")
         starts = np.searchsorted(vlabel[by_piece], np.arange(n_pieces + 1))

@@ -771,11 +771,7 @@ def _mesh_faces_finer(
             dev[:] = dev0
             return shape, [], sorted(over)
         # BRepMesh ran on the whole shape again: measure every face, not only these
-        todo = {}
-        for i, got in _measured(faces, range(len(faces)), limit, cache).items():
-            dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
-            if got is not None and _over(faces[i], dev[i], limit):
-                todo[i] = float(dev[i])
+        todo = _measure_all(faces, limit, dev, cache)
         if todo and dev.max() > dev0.max():
             # the finer meshing made the worst face worse than before it (BRepMesh does not
             # follow it: a shoe midsole's B-spline loft, made outside shared/data, went from
@@ -784,14 +780,21 @@ def _mesh_faces_finer(
             # plain mesh, as before this stage, measured again
             BRepTools.Clean_s(shape)
             _mesh(shape, deflection, angular, parallel)
-            faces = _faces(shape)
-            still = []
-            for i, got in _measured(faces, range(len(faces)), limit, cache).items():
-                dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
-                if got is not None and _over(faces[i], dev[i], limit):
-                    still.append(i)
-            return shape, [], sorted(still)
+            return shape, [], sorted(_measure_all(_faces(shape), limit, dev, cache))
     return shape, sorted(i for i in scale if i not in todo), sorted(todo)
+
+
+def _measure_all(
+    faces: list[Any], limit: float, dev: NDArray[np.float64], cache: _Cache
+) -> dict[int, float]:
+    """Measure every face (``dev`` (F,) float64 updated in place with each one's largest
+    deviation, mm); the faces over ``limit`` with their deviations."""
+    over: dict[int, float] = {}
+    for i, got in _measured(faces, range(len(faces)), limit, cache).items():
+        dev[i] = 0.0 if got is None or not len(got[0]) else got[0].max()
+        if got is not None and _over(faces[i], dev[i], limit):
+            over[i] = float(dev[i])
+    return over
 
 
 def mesh_checked(
