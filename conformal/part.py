@@ -114,6 +114,9 @@ class Part:
         self.face_triangles: list[tuple[NDArray[np.int64], NDArray[np.float64]]] | None = None
         #: Whether the patches of closed holes cross the surface (said by ``load_part``).
         self._patch_crossings = False
+        #: (3,) float64: the translation ``load_part(..., move_to_origin=True)`` applied to
+        #: the file's coordinates (zero when the part is where its file or shape put it).
+        self.moved_by: NDArray[np.float64] = np.zeros(3)
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -328,6 +331,7 @@ class Part:
                 )  # fmt: skip
             self.__dict__["_meshed_at"] = key[:2]
             cache[key].unrefined = self
+            cache[key].moved_by = self.moved_by  # (the solids are the moved ones)
         return cache[key]
 
     # ------------------------------------------------------------ indexes
@@ -660,6 +664,7 @@ def load_part(
     angular_deflection: float = 0.3,
     close_holes: bool = False,
     on_solids: Callable[[list[Any]], None] | None = None,
+    move_to_origin: bool = False,
 ) -> Part:
     """Load a part to fill with a lattice.
 
@@ -690,6 +695,11 @@ def load_part(
         as soon as they are known, before they are tessellated and checked; e.g.
         ``lattice_cad.Lattice.fill`` starts OCCT's skin offsets there, in a child
         process, so that they compute while this one tessellates.
+    move_to_origin : bool
+        Move the part so that the centre of its bounding box is the origin (the B-rep
+        before it is tessellated); :attr:`Part.moved_by` keeps the translation. For parts
+        exported in plant or site coordinates (kilometres from the origin), where single
+        precision (STL, 3MF) cannot resolve struts of the radius asked.
 
     Returns
     -------
@@ -744,6 +754,7 @@ def load_part(
                     angular_deflection,
                     measure=True,
                     on_solids=on_solids,
+                    move_to_origin=move_to_origin,
                 )
             )
         if suffix in _MESH_SUFFIXES:
@@ -752,11 +763,10 @@ def load_part(
                     f"{path.name}: 3MF files declare their own unit (converted to mm); "
                     "do not pass units="
                 )
-            return _said_crossings(
-                _from_mesh_file(
-                    path, _unit_scale(units), unit_given=units is not None, close_holes=close_holes
-                )
+            part = _from_mesh_file(
+                path, _unit_scale(units), unit_given=units is not None, close_holes=close_holes
             )
+            return _said_crossings(_centred(part) if move_to_origin else part)
         raise PartError(
             f"{path}: unsupported file type {suffix or '(no suffix)'!r}; use STEP "
             f"({', '.join(sorted(_STEP_SUFFIXES))}) or a mesh ({', '.join(sorted(_MESH_SUFFIXES))})"
@@ -779,8 +789,24 @@ def load_part(
             angular_deflection,
             measure=True,
             on_solids=on_solids,
+            move_to_origin=move_to_origin,
         )
     )
+
+
+def _centre(box: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The centre of a bounding box ``(2, 3)`` float64, rounded to a float32-exact value
+    (the translation a file's coordinates take is then exact for float32 inputs)."""
+    return np.asarray(0.5 * (box[0] + box[1]), dtype=np.float32).astype(np.float64)
+
+
+def _centred(part: Part) -> Part:
+    """A mesh part moved so that its bounding box is centred on the origin."""
+    c = _centre(part.bounds)
+    out = Part(part.vertices - c, part.faces, name=part.name, deflection=part.deflection)
+    out._patch_crossings = part._patch_crossings
+    out.moved_by = -c
+    return out
 
 
 def _said_crossings(part: Part) -> Part:
@@ -834,6 +860,7 @@ def _from_shape(
     split: dict[int, Any] | None = None,
     on_solids: Callable[[list[Any]], None] | None = None,
     prior: tuple[float, list[tuple[NDArray[np.int64], NDArray[np.float64]]]] | None = None,
+    move_to_origin: bool = False,
 ) -> Part:
     """The part of a B-rep ``shape``; ``measure`` (an unchecked tessellation): also bound its
     chord error (``Part.chord_bound``). With ``split`` (solid index: what
@@ -841,9 +868,13 @@ def _from_shape(
     are meshed as patches; the part's ``shape`` stays the solids as they were.
     ``on_solids``: see :func:`load_part`. ``prior``: the deflection and ``face_triangles``
     of a coarser tessellation of the same solids, from which ``split_dense_faces`` may
-    tell at once that no face is dense."""
+    tell at once that no face is dense. ``move_to_origin``: see :func:`load_part`."""
     from lattice_cad.occ_impl import shapes as _occ
 
+    moved = np.zeros(3)
+    if move_to_origin:
+        moved = -_centre(_occ.bounds(shape))
+        shape = _occ.translated(shape, moved)
     solids = _occ.solids(shape)
     if not solids:
         solids = _solids_of_surfaces(shape, name)
@@ -889,6 +920,7 @@ def _from_shape(
             stacklevel=3,
         )
     part = Part(v, f, name=name, shape=solids, deflection=defl)
+    part.moved_by = moved
     part.chord_bound = bound
     if all(len(n) == len(g) for n, g in counts):
         part.face_triangles = counts

@@ -335,9 +335,13 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             keep=args.keep,
             units=args.units,
             close_holes=args.close_holes,
+            move_to_origin=args.move_to_origin,
             progress=progress,
         )
     lat.progress = con.bars
+    if args.move_to_origin and lat.part is not None:
+        shift = ", ".join(f"{float(c):.6g}" for c in lat.part.moved_by)
+        con.say(f"part moved by ({shift}) to centre it on the origin")
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
     rep = lat.build_report
     if rep is not None:
@@ -456,8 +460,10 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
     src = Path(args.input)
     _first_run_note(con)
     if src.suffix.lower() in suffixes(Kind.GRAPH, action="read"):
-        if args.units is not None or args.close_holes:
-            raise ValueError("--units and --close-holes apply to part files, not to a graph")
+        if args.units is not None or args.close_holes or args.move_to_origin:
+            raise ValueError(
+                "--units, --close-holes and --move-to-origin apply to part files, not to a graph"
+            )
         lat = Lattice(_load_graph(args.input), segments=args.segments, profile=args.profile)
         _graph_print_options(lat, args)
     else:
@@ -474,6 +480,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
                 **_print_kwargs(args),
                 units=args.units,
                 close_holes=args.close_holes,
+                move_to_origin=args.move_to_origin,
             )
     rep = _write_report(con, lat, args.report, args)
     strict = args.tolerance is not None or args.tolerance_volume is not None
@@ -612,6 +619,13 @@ def _add_part_file_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="close the holes of an open mesh part with least-area patches (a warning says "
         "how many and where) instead of refusing it",
+    )
+    p.add_argument(
+        "--move-to-origin",
+        action="store_true",
+        help="move the part so that its bounding box is centred on the origin before filling "
+        "it (for parts in plant coordinates, far from the origin, whose struts single "
+        "precision cannot resolve); the files written are in the moved coordinates",
     )
 
 
@@ -1154,6 +1168,7 @@ def _cmd_fill_sharded(args: argparse.Namespace, con: _Console) -> int:
             ("--self-supporting", args.self_supporting),
             ("--node-set/--material", bool(args.node_set or args.material)),
             ("--close-holes", args.close_holes),
+            ("--move-to-origin", args.move_to_origin),
         )
         if on
     ]

@@ -68,16 +68,28 @@ def _load_part(
     units: str | float | None = None,
     close_holes: bool = False,
     on_solids: Any = None,
+    move_to_origin: bool = False,
 ) -> Any:
-    """A ``conformal.Part`` from anything :func:`conformal.load_part` accepts (``on_solids``:
-    see there)."""
+    """A ``conformal.Part`` from anything :func:`conformal.load_part` accepts (``on_solids``,
+    ``move_to_origin``: see there)."""
     from conformal.part import Part, load_part
 
     if isinstance(source, Part):
         if units is not None:
             raise ValueError("units= applies to mesh files; a loaded Part is in millimetres")
+        if move_to_origin:
+            raise ValueError(
+                "move_to_origin applies when loading a part; load it with "
+                "conformal.load_part(..., move_to_origin=True) instead"
+            )
         return source
-    return load_part(source, units=units, close_holes=close_holes, on_solids=on_solids)
+    return load_part(
+        source,
+        units=units,
+        close_holes=close_holes,
+        on_solids=on_solids,
+        move_to_origin=move_to_origin,
+    )
 
 
 def _fill_graph(
@@ -523,6 +535,7 @@ class Lattice:
         keep: Any = None,
         units: str | float | None = None,
         close_holes: bool = False,
+        move_to_origin: bool = False,
         progress: Callable[[str, int, int], None] | None = None,
     ) -> Lattice:
         """Fill a part with a lattice.
@@ -600,6 +613,13 @@ class Lattice:
         close_holes : bool
             Close the holes of an open mesh file with least-area patches, with a warning
             (see :func:`conformal.load_part`), instead of refusing it.
+        move_to_origin : bool
+            Move the part so that its bounding box is centred on the origin before filling
+            it; ``lattice.part.moved_by`` is the translation, and the lattice and every file
+            written are in the moved coordinates (as are ``origin``, keep boxes and
+            ``escape_at``). For parts far from the origin (plant coordinates), where single
+            precision (STL, 3MF) cannot resolve the struts; slicers place the part on their
+            bed anyway.
         progress : callable, optional
             ``progress(stage, done, total)`` says which step of the fill runs (for
             ``method="tet"``: which gmsh attempt; see ``conformal.tet_mesh``).
@@ -660,7 +680,9 @@ class Lattice:
         worker = _offset_worker(part, skin)  # OCCT's offsets start while the lattice is built
         early = _EarlyOffsets(worker, skin) if worker is not None and skin is not None else None
         try:
-            the_part = _load_part(part, units, close_holes, on_solids=early)
+            the_part = _load_part(
+                part, units, close_holes, on_solids=early, move_to_origin=move_to_origin
+            )
         except BaseException:
             if worker is not None:
                 worker.close()
