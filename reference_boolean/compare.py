@@ -415,7 +415,7 @@ def two_sided_deviations(
     import sys
     from concurrent.futures import ProcessPoolExecutor
 
-    from lattice_cad.core.isolate import kill_pool
+    from lattice_cad.core.isolate import die_with_parent, kill_pool
 
     meshes = list(meshes)
     if not meshes:
@@ -429,7 +429,9 @@ def two_sided_deviations(
         p2, d2s = _from_reference(meshes, reference, samples, seed + 1)
     else:
         _FORKED["pair"] = (meshes, reference)
-        pool = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("fork"))
+        pool = ProcessPoolExecutor(
+            max_workers=1, mp_context=mp.get_context("fork"), initializer=die_with_parent
+        )
         try:
             future = pool.submit(_forked_deviation, samples, seed + 1)
             first = _to_reference(meshes, reference, samples, seed)

@@ -52,7 +52,7 @@ from lattice_cad.core.checks import check_workers
 from lattice_cad.core.errors import DirtyLatticeError, ReferenceBuildError
 from lattice_cad.core.formats import Kind, resolve
 from lattice_cad.core.graph import LatticeGraph
-from lattice_cad.core.isolate import kill_pool
+from lattice_cad.core.isolate import die_with_parent, kill_pool
 from lattice_cad.core.mesh import Mesh
 from reference_boolean.frame import frame_scale, scale_spec, unscale_result
 from reference_boolean.rotations import Congruence, RotationCache
@@ -570,7 +570,7 @@ def _run(
     todo = list(range(len(specs)))
     done_count = 0
     while todo:
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=die_with_parent)
         try:
             timed_out = _run_pool(
                 pool, specs, todo, results, (deflection, angular, keep), timeout,

@@ -376,6 +376,10 @@ MESH_SPLIT_MIN = 30_000
 #: predicts the fine count as this many times its own (triangles grow at most as 1 / chord
 #: error: exact for doubly curved faces, pessimistic for cylinders and planes).
 MESH_SPLIT_COARSE = 16.0
+#: The split runs in a child process (ShapeUpgrade_FaceDivideArea dies of a segmentation
+#: fault on some B-spline faces); one that takes longer than this many seconds is killed and
+#: the faces are meshed whole (the M6 screw's thread: about 1 s, plus the child's start).
+MESH_SPLIT_SECONDS = 120.0
 #: A refined tessellation (``conformal.Part.refined``, so the cutting one) is checked face by
 #: face against the exact surface (``occ_impl.chord``): B-spline faces whose triangles
 #: deviate by more than this factor times the chord error asked get knots inserted where

@@ -13,7 +13,54 @@ from typing import Any, TypeVar
 
 from lattice_cad.core.errors import ExternalCrash, ExternalTimeout
 
-__all__ = ["run_isolated", "IsolatedWorker"]
+__all__ = ["run_isolated", "IsolatedWorker", "die_with_parent"]
+
+#: Linux's ``prctl`` option that sends the calling process a signal when its parent ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent() -> None:
+    """In a child process (a pool's ``initializer``): be killed when its parent ends.
+
+    A child computing OpenCascade's offsets kept running, at full CPU, for minutes after
+    the process that started it died of a segmentation fault (a trefoil knot made outside
+    shared/data), and held the pipes of the command's output open: whoever ran the
+    command waited for it. On Linux the child asks the kernel for ``SIGKILL`` when its
+    parent exits (``prctl(PR_SET_PDEATHSIG)``); elsewhere nothing.
+
+    The parent of a fork server's child is the fork server, which exits when no process
+    holds its "alive" pipe any more; each child gets a copy of that pipe's write end
+    (``multiprocessing.forkserver``), which kept the fork server, and so the child, alive
+    after the process that asked for the child died. The child closes its copy here: the
+    fork server then ends with that process, and the kernel ends the child.
+    """
+    import os
+    import signal
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+    from multiprocessing import forkserver
+
+    server = getattr(forkserver, "_forkserver", None)
+    alive = getattr(server, "_forkserver_alive_fd", None)
+    if isinstance(alive, int) and mp.parent_process() is not None:
+        try:
+            os.close(alive)
+        except OSError:  # pragma: no cover - already closed
+            pass
+        server._forkserver_alive_fd = None  # type: ignore[union-attr]
+
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):  # pragma: no cover - no prctl in this libc
+        return
+    if os.getppid() != parent:  # the parent ended before the request: end now
+        os._exit(1)
+
 
 T = TypeVar("T")
 
@@ -35,7 +82,7 @@ def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) ->
     """
     method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
     ctx = mp.get_context(method)
-    pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=die_with_parent)
     try:
         future = pool.submit(fn, *args)
         try:
@@ -75,7 +122,7 @@ class IsolatedWorker:
 
         method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         self._pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
-            max_workers=1, mp_context=mp.get_context(method)
+            max_workers=1, mp_context=mp.get_context(method), initializer=die_with_parent
         )
         self._future: Any = None
         self._finalizer = weakref.finalize(self, _shutdown, self._pool)

@@ -318,7 +318,10 @@ def split_dense_faces(
     edge was cut gets the same new edges and vertices: the patches share their edge nodes
     with each other and with the neighbours when meshed. BRepMesh's time per face grows
     faster than its triangle count, and the patches are meshed in parallel: the M6 screw's
-    cutting tessellation at 0.5 % r takes 17 s as 28 faces, 3.4 s as 116.
+    cutting tessellation at 0.5 % r takes 17 s as 28 faces, 3.4 s as 116. The split runs
+    in a child process (``lattice_cad.core.isolate``): OCCT's face split can die of a
+    segmentation fault, and then (or after ``config.MESH_SPLIT_SECONDS``) the faces are
+    meshed whole (None).
 
     ``prior``, ``(d0, counts, growth)``: the triangles of each face (TopExp order) in a
     tessellation at chord error ``d0`` and the power of ``1 / chord error`` each grows at
@@ -336,13 +339,6 @@ def split_dense_faces(
         For each face of ``split`` (TopExp order), the TopExp index of the face of ``shape``
         it is part of.
     """
-    from OCP.BRepCheck import BRepCheck_Analyzer
-    from OCP.ShapeBuild import ShapeBuild_ReShape
-    from OCP.ShapeExtend import ShapeExtend_Status
-    from OCP.ShapeFix import ShapeFix_Shape
-    from OCP.ShapeUpgrade import ShapeUpgrade_FaceDivideArea
-    from OCP.TopTools import TopTools_IndexedMapOfShape
-
     from lattice_cad.occ_impl.shapes import face_area
 
     target = int(config.MESH_FACE_TRIANGLES if target is None else target)
@@ -369,15 +365,61 @@ def split_dense_faces(
     dense = np.flatnonzero(predicted > limit)
     if not len(dense):
         return None
+    areas = {i: face_area(faces[i]) for i in dense.tolist()}
+    asks = [(i, a * target / float(predicted[i])) for i, a in areas.items() if a > 0]
+    if not asks:
+        return None
+    from lattice_cad.core.errors import ExternalCrash
+    from lattice_cad.core.isolate import run_isolated
+    from lattice_cad.occ_impl.shapes import from_bytes, to_bytes
+
+    # in a child process: ShapeUpgrade_FaceDivideArea dies of a segmentation fault on some
+    # B-spline faces (a trefoil knot swept as three fused tubes, made outside shared/data:
+    # every fill of it ended the user's process); a face that crashes it, or a split that
+    # hangs, is meshed whole
+    try:
+        got = run_isolated(
+            _divided_faces,
+            to_bytes(shape),
+            len(faces),
+            asks,
+            timeout=config.MESH_SPLIT_SECONDS,
+            what="OCCT's split of dense faces (ShapeUpgrade_FaceDivideArea)",
+        )
+    except ExternalCrash:
+        return None
+    if got is None:
+        return None
+    return from_bytes(got[0]), got[1]
+
+
+def _divided_faces(
+    data: bytes, n_faces: int, asks: list[tuple[int, float]]
+) -> tuple[bytes, NDArray[np.int64]] | None:
+    """:func:`split_dense_faces`' split, in a child process: the shape (``to_bytes``, its
+    ``n_faces`` faces in TopExp order) with face ``i`` split into patches of at most
+    ``max_area`` for each ``(i, max_area)`` of ``asks``; the result as bytes, and for each
+    of its faces (TopExp order) the index of the face it is part of. None when no face
+    was split or the result fails BRepCheck."""
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.ShapeBuild import ShapeBuild_ReShape
+    from OCP.ShapeExtend import ShapeExtend_Status
+    from OCP.ShapeFix import ShapeFix_Shape
+    from OCP.ShapeUpgrade import ShapeUpgrade_FaceDivideArea
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    from lattice_cad.occ_impl.shapes import from_bytes, to_bytes
+
+    shape = from_bytes(data)
+    faces = _faces(shape)
+    if len(faces) != n_faces:  # (cannot be: the bytes keep the shape's structure)
+        return None
     context = ShapeBuild_ReShape()
     done = 0
-    for i in dense.tolist():
+    for i, max_area in asks:
         face = faces[i]
-        area = face_area(face)
-        if not area > 0:
-            continue
         tool = ShapeUpgrade_FaceDivideArea(face)
-        tool.MaxArea = area * target / float(predicted[i])
+        tool.MaxArea = max_area
         tool.SetContext(context)
         try:
             tool.Perform()
@@ -414,7 +456,7 @@ def split_dense_faces(
                 face_of[j - 1] = i
     if (face_of < 0).any():  # not traced: do not risk a wrong map, mesh the faces as they are
         return None
-    return out, face_of
+    return to_bytes(out), face_of
 
 
 def face_deviations(shape: TopoDS_Shape, screen: float = 0.0) -> NDArray[np.float64]:
