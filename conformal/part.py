@@ -1505,6 +1505,14 @@ def _from_mesh_file(
             LatticeWarning,
             stacklevel=3,
         )
+    elif not unit_given and path.suffix.lower() != ".3mf" and across > config.LARGE_MESH_MM:
+        warnings.warn(
+            f"{path}: the mesh is {across:.4g} mm across, read as millimetres; if its unit "
+            f"is micrometres ({across / 1000:.4g} mm across), pass it (units='um', or "
+            "--units um)",
+            LatticeWarning,
+            stacklevel=3,
+        )
     part = Part(v, f, name=str(path))
     part._patch_crossings = patch_crossings
     return part

@@ -471,6 +471,56 @@ def test_3mf_part_is_read_as_built_in_its_unit(tmp_path):
     assert part.volume == pytest.approx(2 * 6.0 * inch**3, rel=1e-6)
 
 
+def test_a_mesh_in_micrometres_gets_a_hint(tmp_path):
+    """Regression (s33's micro gear made outside shared/data): a 5 mm part written in
+    micrometres read as 5 m and was filled with 332 mm cells without a word; a mesh over
+    ``config.LARGE_MESH_MM`` across now says so, and ``units='um'`` reads it right."""
+    import trimesh
+
+    tm = trimesh.creation.cylinder(radius=2.5, height=0.8, sections=48)
+    tm.apply_scale(1000.0)  # micrometres
+    path = tmp_path / "gear_in_um.stl"
+    tm.export(path)
+    with pytest.warns(LatticeWarning, match=r"5000 mm across.*micrometres \(5 mm across\)"):
+        part = load_part(path)
+    assert part.size.max() == pytest.approx(5000.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        part = load_part(path, units="um")
+    assert part.size.max() == pytest.approx(5.0)
+
+
+def test_3mf_mirrored_build_item_stays_outward(tmp_path):
+    """Regression (s33's bed plate made outside shared/data): a slicer's mirror is a build
+    transform with a negative determinant, which reverses the triangles' winding; the part
+    loaded right, but with a warning that blamed the file ("1 of 4 bodies had flipped
+    (inward-facing) triangles"). The mirrored object's triangles are reversed with it."""
+    import lib3mf
+    import trimesh
+
+    from lattice_cad.io.exchange import _set_geometry
+
+    wrapper = lib3mf.get_wrapper()
+    model = wrapper.CreateModel()
+    box = trimesh.creation.box(extents=(10.0, 20.0, 5.0))
+    box.apply_translation((5.0, 10.0, 2.5))  # in the positive octant
+    mesh = model.AddMeshObject()
+    _set_geometry(lib3mf, mesh, box.vertices, box.faces)
+    mirror = wrapper.GetIdentityTransform()
+    mirror.Fields[0][0] = -1.0  # x -> -x
+    mirror.Fields[3][0] = 100.0  # then moved to x = 90 .. 100
+    model.AddBuildItem(mesh, mirror)
+    path = tmp_path / "mirrored.3mf"
+    model.QueryWriter("3mf").WriteToFile(str(path))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing flipped
+        part = load_part(path)
+    np.testing.assert_allclose(part.bounds, [[90.0, 0.0, 0.0], [100.0, 20.0, 5.0]], atol=1e-5)
+    assert part.volume == pytest.approx(1000.0, rel=1e-6)
+    assert part.contains(np.array([[95.0, 10.0, 2.5]])).all()
+
+
 def test_a_closed_cavity_in_a_mesh_stays_a_cavity(tmp_path):
     """Regression (s24's parts made outside shared/data): a hollow box saved as one STL, its
     outer shell facing out and its closed inner shell facing in (a valid void), loaded as

@@ -20,6 +20,9 @@ DEFAULT_SEGMENTS = 6
 #: A mesh part file (no unit stored) smaller than this (mm, largest extent) read as
 #: millimetres gets a warning: it is likely in metres or inches (conformal.load_part).
 SMALL_MESH_MM = 1.0
+#: ... and one larger than this, a hint that it may be in micrometres (a 5 mm part written in
+#: um reads as 5 m, and was filled with 332 mm cells without a word).
+LARGE_MESH_MM = 1000.0
 #: Holes of a mesh part are closed (``close_holes=True``) up to this many rim edges each:
 #: the minimal-area patch is O(n^3) in time (1000 edges: about 1.5 s) and O(n^2) in memory.
 CLOSE_HOLES_MAX_EDGES = 1000

@@ -839,7 +839,9 @@ def _3mf_built(
     assembly of instances), scaled by the model's unit. Support objects, the clipping
     meshes of beam lattices and the beams themselves are left out (the triangles of a
     beam-lattice object are its representation for readers without the extension). A
-    file without build items gives its mesh objects as they are."""
+    mirroring transform (negative determinant) reverses the triangles' order too, so the
+    mirrored object stays outward. A file without build items gives its mesh objects as
+    they are."""
     objs = _mesh_objects(model)
     skip = set()
     for obj in objs:
@@ -864,6 +866,8 @@ def _3mf_built(
             v, f = v[keep], (np.cumsum(keep) - 1)[f]
         if m is not None:
             v = v @ m[:3, :3] + m[3, :3]
+            if np.linalg.det(m[:3, :3]) < 0:  # a mirror (a slicer's): the winding too
+                f = f[:, ::-1]
         out.append((v * mm if mm != 1.0 else v, f))
 
     def visit(obj: Any, m: NDArray[np.float64] | None, depth: int) -> None:
