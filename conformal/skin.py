@@ -891,12 +891,13 @@ def no_room_message(thickness: float, greatest: float) -> str:
             f"the inset of the part by the skin thickness {thickness:g} mm came out empty: "
             f"its greatest thickness is about {greatest:.3g} mm, but only in spots too small "
             f"for a cavity to hold a lattice; a skin thinner than about "
-            f"{0.4 * greatest:.3g} mm leaves a cavity there"
+            f"{0.4 * greatest:.3g} mm leaves a cavity for the lattice there"
         )
     return (
         f"the part is nowhere thicker than twice the skin thickness {thickness:g} mm: "
         f"no room for a lattice; its greatest thickness is about {greatest:.3g} mm, so a "
-        f"skin thinner than about {0.4 * greatest:.3g} mm leaves a cavity"
+        f"skin thinner than about {0.4 * greatest:.3g} mm leaves a cavity for the lattice, "
+        "or fill it without a skin"
     )
 
 

@@ -355,7 +355,7 @@ def test_a_fill_whose_struts_are_thicker_than_the_part_is_refused(tmp_path):
     path = tmp_path / "beam.stl"
     trimesh.util.concatenate([web, top, bottom]).export(path)
     with pytest.warns(LatticeWarning, match="united"):
-        beam = load_part(path)
+        beam = load_part(path, units="mm")  # (said: over 1 m, no micrometres hint)
     for fill in ("auto", "conform", "clip"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", LatticeWarning)  # (loose pieces before the fit)
