@@ -803,7 +803,9 @@ def _centre(box: NDArray[np.float64]) -> NDArray[np.float64]:
 def _centred(part: Part) -> Part:
     """A mesh part moved so that its bounding box is centred on the origin."""
     c = _centre(part.bounds)
-    out = Part(part.vertices - c, part.faces, name=part.name, deflection=part.deflection)
+    move = np.eye(4)
+    move[:3, 3] = -c
+    out = part.transformed(move)
     out._patch_crossings = part._patch_crossings
     out.moved_by = -c
     return out
@@ -1495,7 +1497,8 @@ def _from_mesh_file(
     if diag == 0:
         raise PartError(f"{path}: the mesh has zero size")
     across = float(np.max(v.max(axis=0) - v.min(axis=0)))
-    if not unit_given and path.suffix.lower() != ".3mf" and across < config.SMALL_MESH_MM:
+    unitless = not unit_given and path.suffix.lower() != ".3mf"
+    if unitless and across < config.SMALL_MESH_MM:
         # STL, OBJ, PLY and OFF store no unit: a part in metres or inches reads as tiny
         warnings.warn(
             f"{path}: the mesh is {across:.3g} mm across, read as millimetres; if its unit "
@@ -1505,7 +1508,7 @@ def _from_mesh_file(
             LatticeWarning,
             stacklevel=3,
         )
-    elif not unit_given and path.suffix.lower() != ".3mf" and across > config.LARGE_MESH_MM:
+    elif unitless and across > config.LARGE_MESH_MM:  # ... and one in micrometres as huge
         warnings.warn(
             f"{path}: the mesh is {across:.4g} mm across, read as millimetres; if its unit "
             f"is micrometres ({across / 1000:.4g} mm across), pass it (units='um', or "

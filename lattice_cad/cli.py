@@ -339,9 +339,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             progress=progress,
         )
     lat.progress = con.bars
-    if args.move_to_origin and lat.part is not None:
-        shift = ", ".join(f"{float(c):.6g}" for c in lat.part.moved_by)
-        con.say(f"part moved by ({shift}) to centre it on the origin")
+    _say_moved(con, lat)
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
     rep = lat.build_report
     if rep is not None:
@@ -404,6 +402,14 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     if args.report:
         _write_report(con, lat, args.report, args)
     return 0
+
+
+def _say_moved(con: _Console, lat: Any) -> None:
+    """The translation ``--move-to-origin`` applied to the part, if any."""
+    moved = getattr(lat.part, "moved_by", None)
+    if moved is not None and moved.any():
+        shift = ", ".join(f"{float(c):.6g}" for c in moved)
+        con.say(f"part moved by ({shift}) to centre it on the origin")
 
 
 def _save_step(con: _Console, lat: Any, out: Path, max_struts: int | None) -> None:
@@ -482,6 +488,7 @@ def _cmd_validate(args: argparse.Namespace, con: _Console) -> int:
                 close_holes=args.close_holes,
                 move_to_origin=args.move_to_origin,
             )
+        _say_moved(con, lat)
     rep = _write_report(con, lat, args.report, args)
     strict = args.tolerance is not None or args.tolerance_volume is not None
     return 1 if strict and not rep.verdict().passed else 0

@@ -759,17 +759,17 @@ def precision_problem(
         f"supported for {dtype}); give it a radius of at least {scale[e] / limit:.4g}"
     )
     shift = "(" + ", ".join(f"{-float(c):.6g}" for c in centre) + ")"
+    move = (
+        f"move the lattice by {shift} (centre it on the origin; a fill does that with "
+        "move_to_origin=True)"
+    )
     if ratio_c.max() <= limit:
-        msg += (
-            f", or move the lattice by {shift} (centre it on the origin; a fill does that with "
-            "move_to_origin=True): it then fits as is"
-        )
+        msg += f", or {move}: it then fits as is"
     elif ratio_c.max() < 0.5 * ratio.max():
         ec = int(np.argmax(ratio_c))
         need = float(np.max(np.maximum(centred[edges[:, 0]], centred[edges[:, 1]]))) / limit
         msg += (
-            f", or move the lattice by {shift} (centre it on the origin; a fill does that "
-            f"with move_to_origin=True), after which radii of at least {need:.4g} suffice "
+            f", or {move}, after which radii of at least {need:.4g} suffice "
             f"(edge {ec} is then the worst)"
         )
     return msg
