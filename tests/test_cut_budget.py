@@ -58,6 +58,65 @@ def test_budget_binds(monkeypatch):
     assert 0.2 * cut.deflection < d.max() <= 1.05 * cut.deflection
 
 
+def _trials(monkeypatch):
+    """The (deflection, checked) of every ``Part.refined`` call, in order."""
+    from conformal.part import Part
+
+    calls = []
+    refined = Part.refined
+
+    def spy(self, deflection, **kw):
+        calls.append((deflection, kw.get("checked", True)))
+        return refined(self, deflection, **kw)
+
+    monkeypatch.setattr(Part, "refined", spy)
+    return calls
+
+
+def test_first_trial_at_the_chord_asked_when_the_estimate_is_near(monkeypatch):
+    # the estimate is an upper bound (1.1 - 8 x the count on the shared parts): within
+    # TRY_WANTED x the budget, the chord error asked is tried first (the Ventilator's
+    # pessimistic trial at 1.5 x the chord error asked cost 3 s and was thrown away)
+    from conformal import trim
+    from lattice_cad.core import config
+
+    part, r = _part(), 0.5
+    want = trim._wanted(part, r, None)
+    n = len(part.refined(want, angular=config.CUT_ANGULAR_DEFLECTION).faces)
+    estimate = part.triangles_at(want)
+    assert estimate > n  # the estimate is high here too
+    budget = n  # the estimate binds, but the mesh fits
+    assert n <= budget < estimate <= trim.TRY_WANTED * budget
+    monkeypatch.setattr(config, "CUT_MAX_TRIANGLES", budget)
+    calls = _trials(monkeypatch)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CutBudgetWarning)
+        cut = trim.cutting_part(part, r)
+    assert calls == [(want, False), (want, True)]  # no trial at a coarser guess
+    assert cut.deflection == pytest.approx(want)
+
+
+def test_a_first_trial_far_over_the_budget_is_followed_by_a_coarser_one(monkeypatch):
+    from conformal import trim
+    from conformal.part import Part
+    from lattice_cad.core import config
+
+    part, r = _part(), 0.5
+    want = trim._wanted(part, r, None)
+    n = len(part.refined(want, angular=config.CUT_ANGULAR_DEFLECTION, checked=False).faces)
+    budget = n // 3
+    monkeypatch.setattr(config, "CUT_MAX_TRIANGLES", budget)
+    # an estimate that is low for once: within TRY_WANTED x the budget at every chord
+    monkeypatch.setattr(Part, "triangles_at", lambda self, d: 1.2 * budget)
+    calls = _trials(monkeypatch)
+    with pytest.warns(CutBudgetWarning, match="budget"):
+        cut = trim.cutting_part(part, r)
+    assert calls[0] == (want, False)
+    assert calls[1][0] == pytest.approx(want * n / budget) and not calls[1][1]
+    assert calls[-1][1] and calls[-1][0] > want
+    assert len(cut.faces) <= trim.OVER_BUDGET * budget
+
+
 @pytest.mark.filterwarnings("ignore:.*struts were thinned")
 def test_lattice_reports_the_budget(monkeypatch):
     from lattice_cad.core import config
