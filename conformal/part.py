@@ -647,12 +647,15 @@ class Part:
 
 
 def _as_points(points: ArrayLike) -> NDArray[np.float64]:
+    """(P, 3) float64 C-contiguous, a read-only view (``core.arrays.read_only``)."""
+    from lattice_cad.core.arrays import read_only
+
     p = np.ascontiguousarray(points, dtype=np.float64)
     if p.size == 0:
-        return np.zeros((0, 3))
+        p = np.zeros((0, 3))
     if p.ndim != 2 or p.shape[1] != 3:
         raise ValueError(f"points must have shape (P, 3), got {p.shape}")
-    return p
+    return read_only(p)
 
 
 # ======================================================================= load

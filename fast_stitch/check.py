@@ -74,6 +74,7 @@ from numpy.typing import NDArray
 
 from fast_stitch import _check_kernels as _k
 from fast_stitch._predicates import box_stats
+from lattice_cad.core.arrays import read_only
 
 __all__ = ["check", "CheckReport", "crossing_pairs"]
 
@@ -362,7 +363,7 @@ def _as_arrays(mesh: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     if not finite.all():
         i = int(np.flatnonzero(~finite)[0])
         raise ValueError(f"vertex {i} has non-finite coordinates {v[i].tolist()}")
-    return v, f
+    return read_only(v), read_only(f)  # one kernel version for writable and read-only
 
 
 def _start_threads() -> None:

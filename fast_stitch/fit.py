@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 from fast_stitch import _fit_kernels, _kernels
 from fast_stitch.hubvolume import profile_factor
 from lattice_cad.core import config
+from lattice_cad.core.arrays import read_only
 from lattice_cad.core.checks import check_segments
 
 __all__ = ["end_offsets", "misfits", "clashes"]
@@ -86,7 +87,7 @@ def _incidence(
         offsets = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
         return offsets, order // 2, (order % 2).astype(np.int8)  # type: ignore[return-value]
-    return _fit_kernels.incidence(edges, n)
+    return _fit_kernels.incidence(read_only(edges), n)
 
 
 def _radii_array(radii: ArrayLike, shape: tuple[int, int]) -> NDArray[np.float64]:
@@ -271,6 +272,7 @@ def _clashes(
     slab finds the pairs whose home cell it holds. Same pairs and distances as one pass.
     """
     n, m = len(nodes), len(edges)
+    nodes, edges, radii = read_only(nodes), read_only(edges), read_only(radii)
     offsets, inc_edge, inc_side = inc
     pad = 1.0 + margin
     n_el = m + n

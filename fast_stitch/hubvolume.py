@@ -83,6 +83,7 @@ from numpy.typing import NDArray
 
 from fast_stitch import _hub_kernels
 from lattice_cad.core import config
+from lattice_cad.core.arrays import read_only
 
 __all__ = [
     "Profile",
@@ -215,7 +216,7 @@ def taper_cone_pairs(
     n = len(offsets) - 1
     args = (
         np.ascontiguousarray(nodes, dtype=np.float64), edges, offsets, inc_edge, inc_side,
-        np.ascontiguousarray(length, dtype=np.float64),
+        read_only(np.ascontiguousarray(length, dtype=np.float64)),
         np.ascontiguousarray(base, dtype=np.float64), off_a, rad_a, off_b, rad_b,
         far_off_a, far_rad_a, far_off_b, far_rad_b,
     )  # fmt: skip

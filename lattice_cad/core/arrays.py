@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["edge_uses", "unique_rows"]
+__all__ = ["edge_uses", "read_only", "unique_rows"]
 
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -92,3 +92,17 @@ def edge_uses(
     und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
     rows, inverse, counts = unique_rows(und, return_inverse=True, return_counts=True)
     return rows, np.asarray(inverse).reshape(-1), counts
+
+
+def read_only(a: NDArray[Any]) -> NDArray[Any]:
+    """A read-only view of ``a`` (no copy; ``a`` itself stays writable if it was).
+
+    numba compiles (and loads from its cache) one version of a kernel per argument type,
+    and a read-only array is another type than a writable one: inputs passed as read-only
+    views whatever the caller had (a ``Mesh``'s and a ``LatticeGraph``'s arrays are
+    read-only, fresh ones are not) keep it to one version, each costing 5-20 ms to load
+    in every process and seconds to compile once.
+    """
+    view = a.view()
+    view.flags.writeable = False
+    return view
