@@ -324,7 +324,7 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
     from fast_stitch.recheck import recheck, with_topology
     from lattice_cad import io
     from lattice_cad.core.mesh import Mesh, weld
-    from lattice_cad.io.rounding import weld_merges
+    from lattice_cad.io.rounding import cancel_opposite_faces, weld_merges
 
     out, _ = io.single_precision(mesh, name=name)
     # readers that merge vertices closer than config.NEAR_VERTEX (trimesh, and the tools
@@ -335,6 +335,7 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
         from lattice_cad.io.rounding import pinched_vertices, repair_rounded
 
         v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
+        v2, f2, _ = cancel_opposite_faces(v2, f2)  # fins thinner than that: back to back
         if len(pinched_vertices(f2, len(v2))):  # two sheets merged there: separated again
             v2, f2 = repair_rounded(v2, f2)
         out = Mesh(vertices=v2, faces=f2)
@@ -361,6 +362,7 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
         if attempt == 1 or not weld_merges(out.vertices, config.NEAR_VERTEX):
             break
         v2, f2 = weld(out.vertices, out.faces, tol=config.NEAR_VERTEX)
+        v2, f2, _ = cancel_opposite_faces(v2, f2)
         out = Mesh(vertices=v2, faces=f2)
     return out
 

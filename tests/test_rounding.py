@@ -89,6 +89,41 @@ def _skin_part(name: str):
         return load_part(DATA / "step" / name)
 
 
+def test_a_fin_thinner_than_float32_that_rounds_to_two_faces_back_to_back_is_removed():
+    """A coffee mug's skin (session 34, made outside shared/data: a 3 mm wall under a
+    1.33 mm skin) had a fin of its cavity thinner than a float32 step on an edge of the
+    surface: rounded, its two sides became two triangles on the same three vertices, on an
+    edge of four faces, which no flip, collapse or separation repaired: every retry of the
+    skin was refused after it (ten minutes). Here: a unit cube, and a flat tetrahedron
+    (its own corners p', q' under half a float32 step off the cube's edge p-q, and two
+    corners r, r' as close) that rounds onto that edge as two faces back to back."""
+    from lattice_cad.io.rounding import cancel_opposite_faces
+
+    base = np.array([100.25, -40.5, 30.75])  # float32 steps: 7.6e-6, 3.8e-6, 1.9e-6
+    off = np.array([0.0, -4e-7, -4e-7])
+    p, q = _CUBE_V[0] + off, _CUBE_V[1] + off  # off the cube's edge along x at y = z = 0
+    r = np.array([0.5, -0.375, -0.25])
+    v = np.vstack([_CUBE_V, p, q, r, r + [0.0, 4e-7, -4e-7]]) + base
+    fin = np.array([[8, 10, 9], [8, 9, 11], [9, 10, 11], [8, 11, 10]])  # outward
+    assert _volume(v, fin) > 0
+    f = np.vstack([_CUBE_F, fin])
+    assert fast_stitch.check((v, f)).valid  # a valid closed mesh in float64
+    out, repaired = io.single_precision(Mesh(vertices=v, faces=f), name="fin")
+    assert repaired >= 2
+    # the cube alone, as it was (its vertices renumbered by the weld)
+    assert len(out.faces) == 12 and len(out.vertices) == 8
+    np.testing.assert_array_equal(
+        np.unique(out.vertices, axis=0), np.unique((_CUBE_V + base).astype(np.float32), axis=0)
+    )
+    assert _volume(out.vertices, out.faces) == pytest.approx(1.0)
+    assert fast_stitch.check(out).valid
+    # the pair alone: two faces on the same vertices, opposite; a same-way double stays
+    g = np.array([[0, 1, 2], [1, 0, 2], [0, 2, 3], [0, 2, 3], [4, 5, 6]])
+    w, g2, removed = cancel_opposite_faces(np.zeros((8, 3)), g)
+    assert removed == 2 and len(w) == 6  # vertex 1 is used no more, 7 never was: dropped
+    np.testing.assert_array_equal(g2, [[0, 1, 2], [0, 1, 2], [3, 4, 5]])
+
+
 def test_skin_stays_inside_the_part_and_its_wall_is_exact():
     """Issue 13 item 2: the socket-head cap screw's skin stood 5.9 % of the strut radius
     out of the part (OCCT's fine tessellation of the convex head outside the part mesh's

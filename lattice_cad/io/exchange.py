@@ -113,8 +113,12 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
     v32 = v.astype(np.float32).astype(np.float64)
     v2, f2 = weld(v32, f)
     merged = len(f) - len(f2)  # triangles that lost a vertex to rounding
+    from lattice_cad.io.rounding import cancel_opposite_faces, pinched_vertices, repair_rounded
+
+    if len(v2) < len(v):  # fins thinner than a float32 step: two faces back to back
+        v2, f2, cancelled = cancel_opposite_faces(v2, f2)
+        merged += cancelled
     bad = _flat_triangles(v2, f2)
-    from lattice_cad.io.rounding import pinched_vertices, repair_rounded
 
     if bad.any():
         v3, f3 = v2, f2
