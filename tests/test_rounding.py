@@ -166,3 +166,41 @@ def test_flange_skin_at_the_benchmark_setting_is_written():
     # against the finer one a trim would cut by, it stands out by less than 1 % r
     assert protrusion(cutting_part(part, r), mesh.vertices) <= 0.01 * r
     assert lat.skin_report.bodies == 1
+
+
+def test_collapses_of_folds_that_diverge_are_given_up(monkeypatch):
+    """The coffee mug's skin (session 34): rounded, 9,623 pairs of faces crossed; each
+    round of collapses made more (15,486, 22,720, ... 41,997), and after 20 rounds of 50 s
+    8,776 were left. A round that leaves more than ``COLLAPSE_DIVERGES`` times the folds
+    the mesh had at first ends the collapses: the result is refused at once (for the
+    callers' other ways), not after 20 rounds."""
+    import dataclasses
+
+    import fast_stitch.recheck as recheck_module
+    from lattice_cad import lattice as lattice_module
+    from lattice_cad.core import config
+    from lattice_cad.core.errors import ExportError
+
+    base = np.array([100.25, -40.5, 30.75])
+    cube = Mesh(vertices=_CUBE_V + base, faces=_CUBE_F)
+    real_check = fast_stitch.check
+    folds = iter([3 * config.COLLAPSE_DIVERGES_FROM] + [10**6] * 40)
+
+    def check(mesh, **kw):  # the first check finds folds (as the mug's did)
+        report = real_check(mesh, **kw)
+        return dataclasses.replace(
+            report, n_self_intersections=next(folds), self_intersection_pairs=np.zeros((0, 2))
+        )
+
+    rounds = []
+
+    def recheck(before, report, after, **kw):  # every round leaves far more
+        rounds.append(1)
+        return dataclasses.replace(report, n_self_intersections=next(folds))
+
+    monkeypatch.setattr(fast_stitch, "check", check)
+    monkeypatch.setattr(recheck_module, "recheck", recheck)
+    monkeypatch.setattr(lattice_module, "_collapse_folds", lambda out, report: out)
+    with pytest.raises(ExportError, match="single precision"):
+        lattice_module._checked_single_precision_once(cube, "the lattice")
+    assert len(rounds) == 1  # not 20

@@ -272,6 +272,11 @@ SIMPLIFY_ULPS = 4
 #: (fast_stitch.recheck needs a complete list; with the check's default of 100, the GE
 #: bracket's tet trim at 5 mm went through two whole checks and 9 rounds).
 COLLAPSE_MAX_REPORT = 20_000
+#: The collapses of folds stop when a round leaves more than this many times the folds
+#: (self-intersecting pairs and zero-area faces) the mesh had at first (counted from
+#: ``COLLAPSE_DIVERGES_FROM`` folds): they diverge.
+COLLAPSE_DIVERGES = 2.0
+COLLAPSE_DIVERGES_FROM = 100
 
 #: Default number of surface samples per mesh for the deviation measures.
 DEFAULT_SAMPLES = 50_000
