@@ -402,6 +402,7 @@ def split_lattice(
         or when the float32 rounding touches a deep element.
     """
     from conformal._skin_kernels import any_flat_triangle
+    from lattice_cad.core.mesh import without_unused_vertices
     from lattice_cad.io._rounding_kernels import has_equal_rows
 
     v = np.asarray(vertices, dtype=np.float64)
@@ -545,7 +546,7 @@ def split_lattice(
     if has_equal_rows(u, u.view(np.uint64)):
         return None  # two deep vertices became one
     near_f = np.vstack([f[fcls == _NEAR], caps])
-    nv, nf = _compact(v32, near_f)
+    nv, nf = without_unused_vertices(v32, near_f)
     dmap = np.full(len(v), -1, dtype=np.int64)
     mask[caps[cap_deep].ravel()] = True
     dverts = np.flatnonzero(mask)
@@ -743,12 +744,3 @@ def _deep_pieces(
         return None
     # the pieces numbered 0 .. D - 1
     return np.unique(ring_piece, return_inverse=True)[1].astype(np.int64).ravel()
-
-
-def _compact(
-    v: NDArray[np.float64], f: NDArray[np.int64]
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    used = np.zeros(len(v), dtype=bool)
-    used[f.ravel()] = True
-    new_id = np.cumsum(used) - 1
-    return v[used], new_id[f]

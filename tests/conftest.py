@@ -21,6 +21,23 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 @pytest.fixture
+def refined_calls(monkeypatch: pytest.MonkeyPatch) -> list[tuple[float, bool]]:
+    """The ``(deflection, checked)`` of every ``conformal.Part.refined`` call the test makes,
+    in order (the tessellations the cutting part asks for)."""
+    from conformal.part import Part
+
+    calls: list[tuple[float, bool]] = []
+    real = Part.refined
+
+    def refined(self, deflection, **kw):
+        calls.append((deflection, kw.get("checked", True)))
+        return real(self, deflection, **kw)
+
+    monkeypatch.setattr(Part, "refined", refined)
+    return calls
+
+
+@pytest.fixture
 def rng() -> np.random.Generator:
     """A seeded generator: every random test is reproducible."""
     return np.random.default_rng(20261121)

@@ -58,22 +58,7 @@ def test_budget_binds(monkeypatch):
     assert 0.2 * cut.deflection < d.max() <= 1.05 * cut.deflection
 
 
-def _trials(monkeypatch):
-    """The (deflection, checked) of every ``Part.refined`` call, in order."""
-    from conformal.part import Part
-
-    calls = []
-    refined = Part.refined
-
-    def spy(self, deflection, **kw):
-        calls.append((deflection, kw.get("checked", True)))
-        return refined(self, deflection, **kw)
-
-    monkeypatch.setattr(Part, "refined", spy)
-    return calls
-
-
-def test_first_trial_at_the_chord_asked_when_the_estimate_is_near(monkeypatch):
+def test_first_trial_at_the_chord_asked_when_the_estimate_is_near(monkeypatch, refined_calls):
     # the estimate is an upper bound (1.1 - 8 x the count on the shared parts): within
     # TRY_WANTED x the budget, the chord error asked is tried first (the Ventilator's
     # pessimistic trial at 1.5 x the chord error asked cost 3 s and was thrown away)
@@ -88,7 +73,8 @@ def test_first_trial_at_the_chord_asked_when_the_estimate_is_near(monkeypatch):
     budget = n  # the estimate binds, but the mesh fits
     assert n <= budget < estimate <= trim.TRY_WANTED * budget
     monkeypatch.setattr(config, "CUT_MAX_TRIANGLES", budget)
-    calls = _trials(monkeypatch)
+    calls = refined_calls
+    calls.clear()  # the counts above are not the cutting part's
     with warnings.catch_warnings():
         warnings.simplefilter("error", CutBudgetWarning)
         cut = trim.cutting_part(part, r)
@@ -96,7 +82,7 @@ def test_first_trial_at_the_chord_asked_when_the_estimate_is_near(monkeypatch):
     assert cut.deflection == pytest.approx(want)
 
 
-def test_a_first_trial_far_over_the_budget_is_followed_by_a_coarser_one(monkeypatch):
+def test_a_first_trial_far_over_the_budget_is_followed_by_a_coarser_one(monkeypatch, refined_calls):
     from conformal import trim
     from conformal.part import Part
     from lattice_cad.core import config
@@ -108,7 +94,8 @@ def test_a_first_trial_far_over_the_budget_is_followed_by_a_coarser_one(monkeypa
     monkeypatch.setattr(config, "CUT_MAX_TRIANGLES", budget)
     # an estimate that is low for once: within TRY_WANTED x the budget at every chord
     monkeypatch.setattr(Part, "triangles_at", lambda self, d: 1.2 * budget)
-    calls = _trials(monkeypatch)
+    calls = refined_calls
+    calls.clear()  # the counts above are not the cutting part's
     with pytest.warns(CutBudgetWarning, match="budget"):
         cut = trim.cutting_part(part, r)
     assert calls[0] == (want, False)

@@ -45,21 +45,14 @@ def plate(tmp_path_factory):
         return load_part(path)
 
 
-def test_the_triangle_bound_holds_and_the_cut_is_meshed_once(plate, monkeypatch):
+def test_the_triangle_bound_holds_and_the_cut_is_meshed_once(plate, monkeypatch, refined_calls):
     r = 0.6667  # the parts benchmark's radius for a 120 mm part
     want = trim._wanted(plate, r, None)
     bound = plate.triangles_at(want)
     # from the part's own counts: a bound, and under the budget (1 / chord error: 2 M)
     assert bound is not None and bound < config.CUT_MAX_TRIANGLES
     assert plate.deflection * len(plate.faces) / want > config.CUT_MAX_TRIANGLES
-    calls = []
-    real = Part.refined
-
-    def refined(self, deflection, **kw):
-        calls.append((deflection, kw.get("checked", True)))
-        return real(self, deflection, **kw)
-
-    monkeypatch.setattr(Part, "refined", refined)
+    calls = refined_calls
     meshes = []
     from lattice_cad.occ_impl import chord
 

@@ -31,6 +31,7 @@ __all__ = [
     "stl_records",
     "mesh_arrays",
     "weld",
+    "without_unused_vertices",
 ]
 
 #: 80-byte binary STL header; must not start with "solid" (ASCII STL marker).
@@ -69,6 +70,19 @@ def mesh_arrays(obj: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]] | Non
     if v is not None and f is not None and not callable(v) and not callable(f):
         return np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int64)
     return None
+
+
+def without_unused_vertices(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The vertices some face uses, in their order, and the faces renumbered into them.
+
+    vertices : (V, 3) float64, faces : (F, 3) int64; returns (V', 3), (F, 3).
+    """
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.ravel()] = True
+    new_id = np.cumsum(used) - 1
+    return vertices[used], new_id[faces]
 
 
 def weld(

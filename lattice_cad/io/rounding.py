@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lattice_cad.core.arrays import unique_rows
+from lattice_cad.core.mesh import without_unused_vertices
 
 __all__ = [
     "cancel_opposite_faces",
@@ -212,13 +213,8 @@ def cancel_opposite_faces(
         return v, f, 0
     keep = np.ones(len(f), dtype=bool)
     keep[drop] = False
-    f = f[keep]
-    used = np.zeros(len(v), dtype=bool)
-    used[f.ravel()] = True
-    if used.all():
-        return v, f, len(drop)
-    index = np.cumsum(used) - 1
-    return v[used], index[f], len(drop)
+    v, f = without_unused_vertices(v, f[keep])
+    return v, f, len(drop)
 
 
 def repair_rounded(
