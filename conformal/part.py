@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from conformal import _kernels
 from lattice_cad.core import config
-from lattice_cad.core.arrays import edge_uses, unique_rows
+from lattice_cad.core.arrays import edge_uses, point_text, unique_rows
 from lattice_cad.core.errors import LatticeWarning, MissingFileError, PartError
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
@@ -250,7 +250,7 @@ class Part:
             return ""
         return (
             f"the part's surface crosses itself ({pairs} pair(s) of its triangles, e.g. at "
-            f"{_fmt_point(at)}): the solid overlaps itself there (a sweep folding over its "
+            f"{point_text(at)}): the solid overlaps itself there (a sweep folding over its "
             "path, bodies overlapping in one shell), two of its faces lie closer than its "
             "tessellation, or two of its bodies touch there (face to face or along an edge)"
         )
@@ -951,7 +951,7 @@ def _solids_of_surfaces(shape: Any, name: str) -> list[Any]:
 
     def named(items: list[tuple[int, NDArray[np.float64]]]) -> str:
         shown = [
-            f"face {k} (free edge {_fmt_point(w[0])} - {_fmt_point(w[1])})" for k, w in items[:3]
+            f"face {k} (free edge {point_text(w[0])} - {point_text(w[1])})" for k, w in items[:3]
         ]
         return ", ".join(shown) + (f" and {len(items) - 3} more" if len(items) > 3 else "")
 
@@ -969,10 +969,6 @@ def _solids_of_surfaces(shape: Any, name: str) -> list[Any]:
         stacklevel=4,
     )
     return made
-
-
-def _fmt_point(p: NDArray[np.float64]) -> str:
-    return "(" + ", ".join(f"{x:.4g}" for x in p) + ")"
 
 
 def _mesh_volume(t: NDArray[np.float64]) -> float:

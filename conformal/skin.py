@@ -1195,7 +1195,8 @@ def folded_wall(surface: Any, *, name: str | None = None) -> SkinError | None:
     return SkinError(
         f"{name or surface.name}: {surface.crossing_note()}; the skin's outer wall is that "
         "surface, so a skin of this part cannot be one solid until the part is repaired "
-        "(its overlapping bodies united); fill it without a skin, or repair it and fill again"
+        "(its overlapping bodies united, or a face that folds over itself remade); fill it "
+        "without a skin, or repair it and fill again"
     )
 
 

@@ -38,6 +38,7 @@ __all__ = [
     "protrusion",
     "cutting_part",
     "cut_shortfall",
+    "unfolded_tessellation",
 ]
 
 
@@ -270,6 +271,45 @@ def cutting_part(part: Any, radius: float, *, chord: float | None = None) -> Any
             stacklevel=2,
         )
     return cut
+
+
+def unfolded_tessellation(part: Any, finer: Any) -> Any:
+    """The finest tessellation of ``part``'s B-rep coarser than ``finer`` (a
+    :func:`cutting_part` of it that crosses itself) that crosses itself in no more pairs of
+    triangles than ``part`` as loaded does; ``part`` itself when none does.
+
+    A face that folds over itself by less than the part's own chord error (a B-spline
+    fillet corner of a wheel hub made outside shared/data, folding by about 0.05 mm: 0
+    pairs at load, 0.287 mm; 0 at 0.072 mm; 18 at 0.036 mm; 695 at the skin's 0.011 mm)
+    shows only in the finer tessellations. The chord error is doubled from
+    ``finer.deflection`` until one holds; each trial is one BRepMesh run and one check.
+
+    Parameters
+    ----------
+    part : conformal.Part
+        As loaded.
+    finer : conformal.Part
+        A finer tessellation of the same B-rep.
+
+    Returns
+    -------
+    conformal.Part
+    """
+    from lattice_cad.core.errors import PartError
+
+    if getattr(part, "shape", None) is None or finer is part:
+        return part
+    allowed = part.self_crossings[0]
+    deflection = 2.0 * finer.deflection
+    while deflection < part.deflection:
+        try:
+            tried = part.refined(deflection)
+        except PartError:
+            tried = None
+        if tried is not None and tried.self_crossings[0] <= allowed:
+            return tried
+        deflection *= 2.0
+    return part
 
 
 def _budget_guess(part: Any, want: float, budget: int) -> float:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 
 from lattice_cad.core import config
+from lattice_cad.core.arrays import point_text
 from lattice_cad.core.checks import check_positive
 from lattice_cad.core.errors import (
     EscapeHoleError,
@@ -851,7 +852,7 @@ class Lattice:
         local = split and lattice is self._lattice_mesh and self.escape_holes is None
         # (a B-rep whose surface folds over itself, Part.folds: its rebuild, conformal.unfold,
         # with the voxel skin: OCCT's offset of such a surface folds too)
-        cut = self.part if coarse else self._cutting_part
+        cut = self._coarse_cut if coarse else self._cutting_part
         if self.part is not None and self.part.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
             # the part's tessellation folds over itself (said at load): when the one the
             # skin is built on folds too, its outer wall would, and the skinned mesh could
@@ -928,7 +929,18 @@ class Lattice:
                     # last: the part's own (load) tessellation instead of the finer cutting
                     # one, whose near-coincident facets float32 may not hold (said in a warning)
                     tries = [(0.0, True, False), (0.25, False, False), (0.25, True, False)]
+                    folded = None
                     if self._cutting_part is not self.part:
+                        # a fine cutting tessellation that folds over itself where the
+                        # part's own does not (a B-spline fillet corner folding by 0.05 mm:
+                        # a wheel hub made outside shared/data, 0 pairs at load, 652 at the
+                        # skin's chord): the outer wall folds in every retry on it, and the
+                        # mid-wall one is refused for it (conformal.skin.folded_wall);
+                        # straight to the part's own tessellation
+                        from conformal.skin import folded_wall
+
+                        folded = folded_wall(self._cutting_part)
+                        tries = [] if folded is not None else tries
                         tries.append((0.0, False, True))
                     for shift, mid_wall, coarse in tries:
                         try:
@@ -936,7 +948,7 @@ class Lattice:
                                 self._skinned(shift=shift, mid_wall=mid_wall, coarse=coarse),
                                 "the lattice",
                             )
-                            mesh = self._glue_deep(mesh)  # a split skin (the coarse one)
+                            mesh = self._glue_deep(mesh, coarse=coarse)  # a split skin
                         except ExportError:
                             continue
                         self.skin_retry = (
@@ -945,16 +957,12 @@ class Lattice:
                             else ("shifted " if shift else "") + ("mid-wall" if mid_wall else "")
                         ).strip()
                         if coarse:
-                            warnings.warn(
-                                "float32 (STL, 3MF) could not hold the skin built on the fine "
-                                "cutting tessellation; it was built on the part's own "
-                                "tessellation, which may stand further out of the exact surface",
-                                LatticeWarning,
-                                stacklevel=2,
-                            )
+                            self._warn_coarse_skin(folded)
                         if self.escape_holes is not None:
                             self._verify_escape(mesh)
                         return mesh
+                    if folded is not None:
+                        raise folded from exc
                     raise
                 self.__dict__.pop("_split", None)
                 if self.keep or self.trim_report is None:
@@ -981,10 +989,40 @@ class Lattice:
             self._verify_escape(mesh)
         return mesh
 
-    def _glue_deep(self, mesh: Mesh) -> Mesh:
+    def _warn_coarse_skin(self, folded: Exception | None) -> None:
+        """The :class:`LatticeWarning` for a skin built on the part's own tessellation
+        instead of the fine cutting one (``folded``: the cutting one's
+        ``conformal.skin.folded_wall`` error, when that was why)."""
+        assert self.part is not None
+        used = self._coarse_cut
+        bound = used.chord_bound if used is self.part else used.chord_error
+        off = (
+            f"up to {bound:.3g} mm (its chord error, measured)"
+            if bound is not None
+            else f"up to about {used.deflection:.3g} mm (its chord error)"
+        )
+        why = (
+            "the fine cutting tessellation crosses itself "
+            f"({self._cutting_part.self_crossings[0]} pair(s) of triangles, e.g. at "
+            f"{point_text(self._cutting_part.self_crossings[1])}: a face of the part folds "
+            "over itself, on a scale finer than the part's own tessellation), so no skin "
+            "built on it could be written"
+            if folded is not None
+            else "float32 (STL, 3MF) could not hold the skin built on the fine cutting tessellation"
+        )
+        warnings.warn(
+            f"{self.part.name}: {why}; it was built on "
+            + ("the part's own tessellation" if used is self.part else "a coarser tessellation")
+            + f", whose surface stands {off} off the exact one",
+            LatticeWarning,
+            stacklevel=3,
+        )
+
+    def _glue_deep(self, mesh: Mesh, *, coarse: bool = False) -> Mesh:
         """The checked skin or trim of the struts near the wall or the part's surface with
         the deep struts glued back (``conformal.skin_split``); if a cap of the split did not
-        come out of the booleans as it went in, the booleans on the whole lattice, checked."""
+        come out of the booleans as it went in, the booleans on the whole lattice, checked
+        (a skin on the same part's tessellation: ``coarse`` as ``_skinned``'s)."""
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
@@ -995,7 +1033,8 @@ class Lattice:
         if glued is not None:
             return Mesh(vertices=glued[0], faces=glued[1])
         if self.skin is not None:
-            return _checked_single_precision(self._skinned(split=False), "the lattice")
+            whole = self._skinned(split=False, coarse=coarse)
+            return _checked_single_precision(whole, "the lattice")
         trimmed = self._cut(split=False)
         self.trim_report = trimmed.report
         v, f = _skin.to_arrays(trimmed.solid)
@@ -1156,6 +1195,20 @@ class Lattice:
         from conformal.trim import cutting_part
 
         return cutting_part(self.part, float(self.graph.radii.max()), chord=self._cut_chord)
+
+    @cached_property
+    def _coarse_cut(self) -> Any:
+        """The part a skin's last retry is built on (``_skinned(coarse=True)``): the part's
+        own tessellation, or when the fine cutting one crosses itself, the finest one
+        between them that does not (``conformal.trim.unfolded_tessellation``)."""
+        from conformal.skin import folded_wall
+
+        cut = self._cutting_part
+        if self.part is None or cut is self.part or folded_wall(cut) is None:
+            return self.part
+        from conformal.trim import unfolded_tessellation
+
+        return unfolded_tessellation(self.part, cut)
 
     @property
     def _cut_chord(self) -> float | None:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["edge_uses", "read_only", "unique_rows"]
+__all__ = ["edge_uses", "point_text", "read_only", "unique_rows"]
 
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -106,3 +106,11 @@ def read_only(a: NDArray[Any]) -> NDArray[Any]:
     view = a.view()
     view.flags.writeable = False
     return view
+
+
+def point_text(p: Any, *, digits: int = 4) -> str:
+    """A point for messages, ``(x, y, z)`` with ``digits`` significant digits each.
+
+    ``p`` : (3,) float64 (any sequence of numbers).
+    """
+    return "(" + ", ".join(f"{float(c):.{digits}g}" for c in p) + ")"

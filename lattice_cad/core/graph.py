@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lattice_cad.core import config
+from lattice_cad.core.arrays import point_text
 from lattice_cad.core.atomic import atomic_write
 from lattice_cad.core.errors import (
     InputFileError,
@@ -35,10 +36,6 @@ __all__ = ["LatticeGraph", "precision_problem"]
 
 _FORMAT = "lattice-cad-graph"
 _VERSION = 1
-
-
-def _fmt_point(p: NDArray[np.float64]) -> str:
-    return "(" + ", ".join(f"{float(c):.6g}" for c in p) + ")"
 
 
 class LatticeGraph:
@@ -568,10 +565,10 @@ def _validate(
     if huge is not None:
         n = huge
         raise InvalidGraphError(
-            f"node {n} at {_fmt_point(nodes[n])} is beyond the largest supported coordinate "
-            f"{config.MAX_COORDINATE:g} (lengths' squares and the exact predicates' products "
-            "would overflow); use a larger length unit (smaller numbers) or move the lattice to "
-            "the origin"
+            f"node {n} at {point_text(nodes[n], digits=6)} is beyond the largest supported "
+            f"coordinate {config.MAX_COORDINATE:g} (lengths' squares and the exact predicates' "
+            "products would overflow); use a larger length unit (smaller numbers) or move the "
+            "lattice to the origin"
         )
     loop = _first_row(m, lambda s, t: edges[s:t, 0] == edges[s:t, 1])
     if loop is not None:
@@ -614,7 +611,7 @@ def _validate(
         a, b = (int(v) for v in edges[e])
         raise InvalidGraphError(
             f"edge {e} ({a}, {b}) has zero length: nodes {a} and {b} coincide at "
-            f"{_fmt_point(nodes[a])}"
+            f"{point_text(nodes[a], digits=6)}"
         )
     if fat is not None:
         e = fat
@@ -687,7 +684,7 @@ def _check_coincident(nodes: NDArray[np.float64], edges: NDArray[np.int64]) -> N
     same = np.flatnonzero((pts[order][1:] == pts[order][:-1]).all(axis=1))
     if len(same):
         a, b = sorted((int(used[order[same[0]]]), int(used[order[same[0] + 1]])))
-        raise InvalidGraphError(f"nodes {a} and {b} coincide at {_fmt_point(nodes[a])}")
+        raise InvalidGraphError(f"nodes {a} and {b} coincide at {point_text(nodes[a], digits=6)}")
 
 
 def precision_problem(
@@ -723,7 +720,7 @@ def precision_problem(
         if big.max() > config.MAX_COORDINATE_F32:
             n = int(used[np.argmax(big)])
             return (
-                f"node {n} at {_fmt_point(nodes[n])} is beyond the largest coordinate of "
+                f"node {n} at {point_text(nodes[n], digits=6)} is beyond the largest coordinate of "
                 f"single-precision files (STL, 3MF: {config.MAX_COORDINATE_F32:g}); use a "
                 "larger length unit or move the lattice to the origin"
             )
