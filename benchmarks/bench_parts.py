@@ -577,10 +577,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         what = "part folder" if args.data else "shared data"
         sys.exit(f"error: {what} not found: {', '.join(map(str, missing))}")
     paths = sorted((f for d in dirs for f in d.iterdir() if f.is_file()), key=lambda f: f.name)
+    empty = [d for d in dirs if not any(f.is_file() for f in d.iterdir())]
+    if empty:
+        # (a folder of folders, as ../shared/data is: each is given with its own --data)
+        d = empty[0]
+        inside = sorted(f.name for f in d.iterdir() if f.is_dir())
+        sys.exit(
+            f"error: {d} holds no part files"
+            + (f" (only the folders {', '.join(inside)}: give each with --data)" if inside else "")
+        )
     if args.parts:
         paths = [f for f in paths if any(s in f.name for s in args.parts)]
-    if not paths:
-        sys.exit("error: no part matches --parts")
+        if not paths:
+            sys.exit(f"error: no part matches --parts {' '.join(args.parts)}")
     settings = [s for s in SETTINGS if s in (args.settings or DEFAULT_SETTINGS)]
 
     keep = args.out is not None
