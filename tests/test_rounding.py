@@ -204,3 +204,32 @@ def test_collapses_of_folds_that_diverge_are_given_up(monkeypatch):
     with pytest.raises(ExportError, match="single precision"):
         lattice_module._checked_single_precision_once(cube, "the lattice")
     assert len(rounds) == 1  # not 20
+
+
+@pytest.mark.parametrize("far", [False, True])
+def test_a_refused_rounding_says_to_move_the_lattice_only_when_that_would_help(far, monkeypatch):
+    """s34: a coffee mug's skin at the origin was refused with "move the lattice closer to
+    the origin", where moving gains nothing. The fin above on a 200 mm cube centred at the
+    origin (and 5 m away), with every repair of the rounding switched off so that the
+    refusal is reached: only the far one is told to move."""
+    from lattice_cad.core.errors import ExportError
+    from lattice_cad.io import exchange, rounding
+
+    size = 200.0
+    base = np.full(3, 5000.0 if far else 0.0) - size / 2
+    cube = _CUBE_V * size + base
+    off = np.array([0.0, -4e-7, -4e-7])  # under half a float32 step (7.6e-6 at 100)
+    p, q = cube[0] + off, cube[1] + off
+    r = cube[0] + [size / 2, -0.375, -0.25]
+    v = np.vstack([cube, p, q, r, r + [0.0, 4e-7, -4e-7]])
+    fin = np.array([[8, 10, 9], [8, 9, 11], [9, 10, 11], [8, 11, 10]])
+    f = np.vstack([_CUBE_F, fin])
+    assert fast_stitch.check((v, f)).valid
+    monkeypatch.setattr(rounding, "cancel_opposite_faces", lambda v, f: (v, f, 0))
+    monkeypatch.setattr(rounding, "repair_rounded", lambda v, f: (v, f))
+    monkeypatch.setattr(exchange, "_collapse_flat", lambda v, f: (v, f))
+    with pytest.raises(ExportError, match="triangle.* collapse") as err:
+        io.single_precision(Mesh(vertices=v, faces=f), name="fin")
+    said = str(err.value)
+    assert ("move the lattice closer to the origin" in said) is far, said
+    assert ("closer there than a float32 step" in said) is not far, said
