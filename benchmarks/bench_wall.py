@@ -101,7 +101,7 @@ def main() -> None:
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    surfaces, used, fallback, _ = S._surfaces(part, t, method, None)
+                    surfaces, used, fallback, _, _ = S._surfaces(part, t, method, None)
                     outer = S._as_part(surfaces[0])
                     raw = S.wall_thickness(surfaces[1], outer) if not surfaces[1].is_empty() else []
                     res = S.build_skin(manifold3d.Manifold(), part, t, method=method, check=False)

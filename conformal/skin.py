@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 from conformal.skin_crease import revert_flips
 from conformal.skin_untangle import unfolded, untangle
 from lattice_cad.core import config
+from lattice_cad.core.arrays import point_text
 from lattice_cad.core.errors import LatticeWarning, OCCTFailure, SkinError
 from lattice_cad.core.mesh import Mesh, mesh_arrays, weld
 
@@ -102,6 +103,15 @@ SIMPLIFY_BACKOFF = (1.0, 0.5, 0.25, 0.1)
 #: wall goes from +9..+14 % to +0.5..+12 % but the max stays +13..+22 % (thin-cavity
 #: rims), for 2-4x the voxel method's CPU time. Off until it is cheaper.
 SHARPEN_CREASES = False
+#: With ``build_skin(min_cavity=)``, the voxel method closes (makes solid wall of) the parts
+#: of the cavity that are thinner than ``min_cavity = 2 rho``: the cavity points farther
+#: than ``sqrt(3) rho + OPEN_SLACK * h`` from every point deeper than ``thickness + rho``
+#: (an opening on the grid, step ``h``, that leaves a box-shaped cavity's corners, sqrt(3)
+#: rho from that core, as they are; the slack covers the grid distances' error of about h).
+OPEN_SLACK = 1.5
+#: ... unless what it would close is less than this share of the cavity's volume (the tips
+#: of acute cavity corners, which the opening also reaches: left as they were).
+CLOSE_MIN_SHARE = 0.005
 
 
 @dataclass(frozen=True)
@@ -159,6 +169,11 @@ class SkinReport:
     #: When the part's surface folds over itself (``conformal.Part.folds``): the spacing
     #: (mm) of the grid its outside was rebuilt on (``conformal.unfold``); else 0.
     rebuilt: float = 0.0
+    #: With ``build_skin(min_cavity=)`` (``Lattice`` passes the struts' diameter): the
+    #: volume (mm^3, on the voxel grid) of the cavity made solid because it was thinner
+    #: than ``min_cavity`` (mm) there; 0 when none was.
+    closed: float = 0.0
+    min_cavity: float = 0.0
 
     def summary(self) -> str:
         """One line for logs and the CLI."""
@@ -182,7 +197,13 @@ class SkinReport:
         voids = f", {self.voids:,} sealed void(s)" if self.voids else ""
         if self.pockets:
             voids += f" and {self.pockets:,} pocket(s) of at most {self.pocket_volume:.2g} mm^3"
-        return f"skin by {how}: {wall}, {ok}; {self.bodies} body(ies){voids}{islands}"
+        closed = (
+            f"; the cavity thinner than {self.min_cavity:.3g} mm made solid ({self.closed:.3g} "
+            "mm^3): the wall is thicker there"
+            if self.closed
+            else ""
+        )
+        return f"skin by {how}: {wall}, {ok}{closed}; {self.bodies} body(ies){voids}{islands}"
 
 
 @dataclass(frozen=True)
@@ -635,15 +656,16 @@ def _finish(steps: Any) -> Any:
 
 def _voxel_surfaces(
     part: Any, thickness: float, h: float, mid_wall: bool = False
-) -> tuple[Any, ...]:
-    """Outer and inner (and mid-wall) surfaces of a part from its distance field (Manifolds)."""
+) -> tuple[tuple[Any, ...], tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """Outer and inner (and mid-wall) surfaces of a part from its distance field
+    (Manifolds), and that field (``depth``, ``origin``: :func:`_distance_field`)."""
     return _finish(_voxel_steps(part, thickness, h, mid_wall))
 
 
 def _voxel_steps(part: Any, thickness: float, h: float, mid_wall: bool = False) -> Any:
     """:func:`_voxel_surfaces` as a generator of its stages (yields between them, returns
-    the surfaces), so that it can run while OCCT's offset is still computing in its child
-    and be left off when that succeeds (:func:`_surfaces`)."""
+    what it returns), so that it can run while OCCT's offset is still computing in its
+    child and be left off when that succeeds (:func:`_surfaces`)."""
     import manifold3d
 
     low = 0.5 * thickness if mid_wall else None
@@ -670,7 +692,87 @@ def _voxel_steps(part: Any, thickness: float, h: float, mid_wall: bool = False) 
         del v, f
         yield
         out.append(_simplified(man, tol, f"the inset by {level:g}"))
-    return tuple(out)
+    return tuple(out), (depth, origin)
+
+
+def _closed_cavity(
+    surfaces: tuple[Any, ...],
+    field: tuple[NDArray[np.float64], NDArray[np.float64]],
+    h: float,
+    thickness: float,
+    min_cavity: float | None,
+) -> tuple[tuple[Any, ...], tuple[float, NDArray[np.float64]] | None]:
+    """The voxel method's ``surfaces`` with the cavity closed where it is thinner than
+    ``min_cavity`` (:func:`_cavity_closing` on ``field``, the distance field they were
+    extracted from), and what was closed (volume, a point) or None. Done only once the
+    voxel surfaces are the ones used, not while OCCT's offsets compute: there it delayed
+    the GE bracket's skin, whose offsets succeed (its surfaces' stage 5.5 s against 3.7 s
+    in alternating runs on a loaded machine)."""
+    if not min_cavity:
+        return surfaces, None
+    depth, origin = field
+    closing = _cavity_closing(depth, origin, h, thickness, 0.5 * float(min_cavity))
+    if closing is None:
+        return surfaces, None
+    room, volume, at = closing
+    out = list(surfaces)
+    out[1] = out[1] ^ room  # the cavity where struts fit
+    return tuple(out), (volume, at)
+
+
+def _cavity_closing(
+    depth: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    h: float,
+    thickness: float,
+    rho: float,
+) -> tuple[Any, float, NDArray[np.float64]] | None:
+    """Where the skin's cavity (``depth > thickness``) is thinner than ``2 rho``: None when
+    nowhere (or in less than ``CLOSE_MIN_SHARE`` of it); else the region the cavity is kept
+    in (a Manifold: the points within ``sqrt(3) rho + OPEN_SLACK * h`` of the points deeper
+    than ``thickness + rho``; empty when none is),
+    the volume of the cavity outside it (mm^3) and (3,) float64 one point of that.
+
+    A 3 mm mug wall under a 1.33 mm skin left a 0.34 mm cavity, thinner than the voxel
+    grid and than the struts (1.33 mm across): the struts cut into it fell into ~1,000
+    sealed slivers that float32 could not hold, and every retry of the skin failed (made
+    outside shared/data, s34). Such a cavity holds no strut: it is made wall instead.
+
+    Parameters
+    ----------
+    depth : (nx, ny, nz) float64
+        The distance field (:func:`_distance_field`).
+    origin : (3,) float64
+        Position of its grid point ``[0, 0, 0]``.
+    """
+    from conformal._skin_kernels import edt_squared
+
+    cavity = depth > thickness
+    if not cavity.any():
+        return None
+    core = depth > thickness + rho
+    reach = math.sqrt(3.0) * rho + OPEN_SLACK * h
+    near = edt_squared(~core, h) if core.any() else None  # squared distance to the core
+    closed = cavity if near is None else cavity & (near > reach * reach)
+    n = int(np.count_nonzero(closed))
+    if not n or (near is not None and n < CLOSE_MIN_SHARE * np.count_nonzero(cavity)):
+        return None
+    at = origin + np.argwhere(closed)[0] * h
+    if near is None:
+        return _empty_manifold(), n * h**3, at
+    field = reach - np.sqrt(np.minimum(near, 4.0 * reach * reach))
+    v, f = marching_tets(field, origin, h)
+    if not len(f):
+        return _empty_manifold(), n * h**3, at
+    room = _manifold(v, f, "the cavity's room for struts")
+    tol = SIMPLIFY_FRACTION * WALL_RTOL * thickness
+    return _simplified(room, tol, "the cavity's room for struts"), n * h**3, at
+
+
+def _empty_manifold() -> Any:
+    import manifold3d
+
+    return manifold3d.Manifold()
 
 
 def _simplified(man: Any, tol: float, name: str) -> Any:
@@ -854,7 +956,7 @@ def inset(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
     _check_thickness(thickness)
     p = _as_part(part)
     h = float(voxel) if voxel is not None else _grid_spacing(p.size, thickness)
-    return checked(_voxel_surfaces(p, thickness, h)[1], f"the inset by {thickness:g}")
+    return checked(_voxel_surfaces(p, thickness, h)[0][1], f"the inset by {thickness:g}")
 
 
 def hollow(part: Any, thickness: float, *, voxel: float | None = None) -> Any:
@@ -880,10 +982,23 @@ def _check_thickness(thickness: Any) -> None:
         raise ValueError(f"skin thickness must be a positive number, got {thickness!r}")
 
 
-def no_room_message(thickness: float, greatest: float) -> str:
+def no_room_message(thickness: float, greatest: float, *, strut: float | None = None) -> str:
     """Why a skin of ``thickness`` (mm) leaves no cavity for a lattice in a part whose
     greatest thickness is ``greatest`` (mm; twice ``Part.inscribed_radius``), and which
-    skin would."""
+    skin would; ``strut``: the cavity left was nowhere as thick as this (mm, the struts'
+    diameter: ``build_skin(min_cavity=)``)."""
+    if strut is not None:
+        room = greatest - strut
+        better = (
+            f"a skin thinner than about {0.4 * room:.3g} mm leaves room for them"
+            if room > 0
+            else "thinner struts and a thinner skin would be needed"
+        )
+        return (
+            f"the skin of {thickness:g} mm leaves a cavity nowhere as thick as the struts "
+            f"({strut:.3g} mm across): no room for the lattice; the part's greatest "
+            f"thickness is about {greatest:.3g} mm, so {better}, or fill it without a skin"
+        )
     if greatest > 2.0 * thickness:
         # (the inset came out empty though the part is thicker somewhere: its thick spots,
         # rib crossings of a machine bed, are narrower than the voxel grid resolves)
@@ -919,8 +1034,11 @@ def _surfaces(
     voxel: float | None,
     mid_wall: bool = False,
     pending: PendingOffsets | None = None,
-) -> tuple[tuple[Any, ...], str, str, float]:
-    """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size.
+    min_cavity: float | None = None,
+) -> tuple[tuple[Any, ...], str, str, float, tuple[float, NDArray[np.float64]] | None]:
+    """(outer, inner[, mid]), the method used, why OCCT was not used, the voxel size, and
+    what the voxel method closed of a cavity thinner than ``min_cavity`` (volume, a point;
+    see :func:`_cavity_closing`) or None.
 
     With ``method="auto"`` and OCCT's offsets still computing in their child (``pending``),
     the voxel surfaces are computed meanwhile, stage by stage, until the child is done:
@@ -944,14 +1062,16 @@ def _surfaces(
                 next(steps)
         except StopIteration as stop:
             voxel_done = stop.value
-        if voxel_done is not None and voxel_done[1].is_empty() and _no_room(part, thickness):
+        if voxel_done is not None and voxel_done[0][1].is_empty() and _no_room(part, thickness):
             # no room for the inset, proven: the offsets, which cannot succeed, are not
             # waited for (trimesh_box_sides: OCCT tried its ways for 30 s before failing)
             pending.worker.close()
-            return voxel_done, "voxel", "the part is thinner than twice the skin", h
+            why = "the part is thinner than twice the skin"
+            return voxel_done[0], "voxel", why, h, None
     if method in ("auto", "occt") and part.shape is not None:
         try:
-            return _occt_surfaces(part, thickness, mid_wall, pending), "occt", "", float("nan")
+            occt = _occt_surfaces(part, thickness, mid_wall, pending)
+            return occt, "occt", "", float("nan"), None
         except (OCCTFailure, SkinError) as exc:
             if method == "occt":
                 raise SkinError(f"OpenCascade's offset failed: {exc}") from exc
@@ -965,9 +1085,11 @@ def _surfaces(
     if pending is not None:
         pending.worker.close()
     if steps is not None:
-        surfaces = voxel_done if voxel_done is not None else _finish(steps)
-        return surfaces, "voxel", fallback, h
-    return _voxel_surfaces(part, thickness, h, mid_wall), "voxel", fallback, h
+        surfaces, field = voxel_done if voxel_done is not None else _finish(steps)
+    else:
+        surfaces, field = _voxel_surfaces(part, thickness, h, mid_wall)
+    surfaces, closed = _closed_cavity(surfaces, field, h, thickness, min_cavity)
+    return surfaces, "voxel", fallback, h, closed
 
 
 def _keep_attached(solid: Any, outer: Any) -> tuple[Any, int, int, NDArray[np.float64]]:
@@ -1027,6 +1149,7 @@ def build_skin(
     mid_wall: bool = False,
     offsets: PendingOffsets | None = None,
     graph: Any = None,
+    min_cavity: float | None = None,
 ) -> SkinResult:
     """One solid per solid of the part: its skin united with the lattice inside it.
 
@@ -1058,6 +1181,13 @@ def build_skin(
         The graph ``lattice`` was stitched from (``fast_stitch.stitch``), with
         ``check=False``: the booleans then run on the lattice's elements near the wall only
         and ``SkinResult.split`` glues the deep ones back (see :mod:`conformal.skin_split`).
+    min_cavity : float, optional
+        The thinnest cavity (mm) a lattice is kept in, e.g. its struts' diameter: with the
+        voxel method, where the cavity inside the wall is thinner than this it is made
+        wall (solid), said in a warning and in the report (``closed``). A cavity that thin
+        holds slivers of struts only (a 0.34 mm cavity in a mug's 3 mm wall under a
+        1.33 mm skin: ~1,000 of them, which float32 could not hold). Not applied to
+        OCCT's offsets.
 
     Returns
     -------
@@ -1069,10 +1199,23 @@ def build_skin(
         raise ValueError(f"method must be 'auto', 'occt' or 'voxel', got {method!r}")
     t0 = time.perf_counter()
     p = _as_part(part)
-    surfaces, used, fallback, h = _surfaces(p, thickness, method, voxel, mid_wall, offsets)
+    surfaces, used, fallback, h, closed = _surfaces(
+        p, thickness, method, voxel, mid_wall, offsets, min_cavity
+    )
     outer, inner = surfaces[0], surfaces[1]
     if inner.is_empty():
-        raise SkinError(no_room_message(thickness, 2.0 * p.inscribed_radius()))
+        strut = min_cavity if closed is not None else None
+        raise SkinError(no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=strut))
+    if closed is not None:
+        warnings.warn(
+            f"{p.name}: the skin of {thickness:g} mm leaves a cavity thinner than the struts "
+            f"({min_cavity:.3g} mm across) in places, e.g. at {point_text(closed[1])}: "
+            f"{closed[0]:.3g} mm^3 of it was made solid (the part is less than "
+            f"{2 * thickness + float(min_cavity or 0.0):.3g} mm thick there, twice the skin "
+            "and a strut); a thinner skin or thinner struts keep a lattice there",
+            LatticeWarning,
+            stacklevel=2,
+        )
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)
@@ -1171,6 +1314,8 @@ def build_skin(
         split=dict(split.counts) if split is not None else {},
         untangled=untangled,
         rebuilt=float(getattr(p, "rebuilt", None) or 0.0),
+        closed=closed[0] if closed is not None else 0.0,
+        min_cavity=float(min_cavity or 0.0),
         seconds={
             "surfaces": t1 - t0,
             "booleans": t2 - t1 - t_wall,

@@ -868,6 +868,7 @@ class Lattice:
             mid_wall=mid_wall,
             offsets=pending,
             graph=self.graph if local else None,
+            min_cavity=2.0 * float(self.graph.radii.max()),
         )
         self._split = result.split
         self.skin_report = result.report

@@ -157,10 +157,10 @@ def test_voxel_surfaces_begun_while_occt_computes_are_the_same(polls, monkeypatc
     t, h = 1.5, 0.5
     worker = _SlowFailingWorker(polls)
     pending = skin.PendingOffsets(worker, part, t, False)
-    surfaces, used, fallback, h_used = skin._surfaces(part, t, "auto", h, False, pending)
+    surfaces, used, fallback, h_used, _ = skin._surfaces(part, t, "auto", h, False, pending)
     assert used == "voxel" and "invalid shape" in fallback and h_used == h
     assert worker.closed
-    ref = skin._voxel_surfaces(part, t, h)
+    ref = skin._voxel_surfaces(part, t, h)[0]
     for a, b in zip(surfaces, ref, strict=True):
         va, fa = skin.to_arrays(a)
         vb, fb = skin.to_arrays(b)
@@ -202,7 +202,7 @@ def test_offsets_get_their_time_from_their_start_not_from_when_they_are_waited_f
         worker.submit(time.sleep, 60.0)  # an offset that never ends
         pending = skin.PendingOffsets(worker, part, 1.5, False)
         time.sleep(2.5)  # the lattice build, meanwhile
-        _, used, fallback, _ = skin._surfaces(part, 1.5, "auto", 0.5, False, pending)
+        _, used, fallback, _, _ = skin._surfaces(part, 1.5, "auto", 0.5, False, pending)
     finally:
         worker.close()
     assert used == "voxel" and "did not finish within 3 s of its start" in fallback, fallback

@@ -75,7 +75,7 @@ def flange_split():
 
     p = lat.part
     h = skin._grid_spacing(p.size, lat.skin)
-    inner = skin._voxel_surfaces(p, lat.skin, h)[1]
+    inner = skin._voxel_surfaces(p, lat.skin, h)[0][1]
     m = lat._lattice_mesh
     split = skin_split.split_lattice(
         lat.graph, m.vertices, m.faces, Part(*skin.to_arrays(inner)), margin=0.02

@@ -129,7 +129,7 @@ def test_skin_wall_and_outer_surface_follow_the_exact_brep():
     t, r = cell / 6, cell / 12
     part = cutting_part(part0, r)
     assert part.deflection <= 0.005 * r + 1e-12
-    surfaces, used, fallback, _ = S._surfaces(part, t, "auto", None)
+    surfaces, used, fallback, _, _ = S._surfaces(part, t, "auto", None)
     assert used == "occt", fallback
     outer = S._as_part(surfaces[0])
     inner = S._project_to_offset(surfaces[1], outer, t, refine=True)
