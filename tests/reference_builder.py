@@ -14,8 +14,9 @@ from numpy.typing import NDArray
 
 from conformal.cells import _COORD_LIMIT, _INT64_MAX, UnitCell, _unique_sorted
 from lattice_cad.core import config
+from lattice_cad.core.arrays import point_text
 from lattice_cad.core.errors import InvalidGraphError
-from lattice_cad.core.graph import _fmt_point, precision_problem
+from lattice_cad.core.graph import precision_problem
 
 
 def _unique_inverse(keys: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -191,10 +192,10 @@ def old_validate(
     if huge.any():
         n = int(np.flatnonzero(huge)[0])
         raise InvalidGraphError(
-            f"node {n} at {_fmt_point(nodes[n])} is beyond the largest supported coordinate "
-            f"{config.MAX_COORDINATE:g} (lengths' squares and the exact predicates' products "
-            "would overflow); use a larger length unit (smaller numbers) or move the lattice to "
-            "the origin"
+            f"node {n} at {point_text(nodes[n], digits=6)} is beyond the largest supported "
+            f"coordinate {config.MAX_COORDINATE:g} (lengths' squares and the exact predicates' "
+            "products would overflow); use a larger length unit (smaller numbers) or move the "
+            "lattice to the origin"
         )
     loops = edges[:, 0] == edges[:, 1]
     if loops.any():
@@ -239,7 +240,7 @@ def old_validate(
         a, b = (int(v) for v in edges[e])
         raise InvalidGraphError(
             f"edge {e} ({a}, {b}) has zero length: nodes {a} and {b} coincide at "
-            f"{_fmt_point(nodes[a])}"
+            f"{point_text(nodes[a], digits=6)}"
         )
     fat = radii.max(axis=1) >= 0.5 * length
     if fat.any():
@@ -260,7 +261,8 @@ def old_validate(
         same = np.flatnonzero((pts[order][1:] == pts[order][:-1]).all(axis=1))
         if len(same):
             a, b = sorted((int(used[order[same[0]]]), int(used[order[same[0] + 1]])))
-            raise InvalidGraphError(f"nodes {a} and {b} coincide at {_fmt_point(nodes[a])}")
+            at = point_text(nodes[a], digits=6)
+            raise InvalidGraphError(f"nodes {a} and {b} coincide at {at}")
 
 
 # ------------------------------------------------ fast_stitch.fit.clashes before the slabs
