@@ -730,8 +730,8 @@ def _cavity_closing(
     """Where the skin's cavity (``depth > thickness``) is thinner than ``2 rho``: None when
     nowhere (or in less than ``CLOSE_MIN_SHARE`` of it); else the region the cavity is kept
     in (a Manifold: the points within ``sqrt(3) rho + OPEN_SLACK * h`` of the points deeper
-    than ``thickness + rho``; empty when none is),
-    the volume of the cavity outside it (mm^3) and (3,) float64 one point of that.
+    than ``thickness + rho``; empty when none is), the volume of the cavity outside it
+    (mm^3) and (3,) float64 one point of that.
 
     A 3 mm mug wall under a 1.33 mm skin left a 0.34 mm cavity, thinner than the voxel
     grid and than the struts (1.33 mm across): the struts cut into it fell into ~1,000
