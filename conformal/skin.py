@@ -745,6 +745,8 @@ def _cavity_closing(
     origin : (3,) float64
         Position of its grid point ``[0, 0, 0]``.
     """
+    import manifold3d
+
     from conformal._skin_kernels import edt_squared
 
     cavity = depth > thickness
@@ -759,20 +761,14 @@ def _cavity_closing(
         return None
     at = origin + np.argwhere(closed)[0] * h
     if near is None:
-        return _empty_manifold(), n * h**3, at
+        return manifold3d.Manifold(), n * h**3, at
     field = reach - np.sqrt(np.minimum(near, 4.0 * reach * reach))
     v, f = marching_tets(field, origin, h)
     if not len(f):
-        return _empty_manifold(), n * h**3, at
+        return manifold3d.Manifold(), n * h**3, at
     room = _manifold(v, f, "the cavity's room for struts")
     tol = SIMPLIFY_FRACTION * WALL_RTOL * thickness
     return _simplified(room, tol, "the cavity's room for struts"), n * h**3, at
-
-
-def _empty_manifold() -> Any:
-    import manifold3d
-
-    return manifold3d.Manifold()
 
 
 def _simplified(man: Any, tol: float, name: str) -> Any:

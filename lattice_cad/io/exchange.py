@@ -136,7 +136,6 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
     if bad.any() or len(pinched):
         if _flat_triangles(v2, f2).any() or not _closed_manifold(f2) or len(f2) == 0:
             where = v32[f[np.flatnonzero(bad)[0]]].mean(axis=0) if bad.any() else where_pinch
-            step = float(np.spacing(np.float32(np.abs(where).max())))
             lo, hi = v.min(axis=0), v.max(axis=0)
             if np.abs(v).max() > 2.0 * float((hi - lo).max()):
                 # moved to the origin, its coordinates (and their steps) would be smaller
@@ -145,6 +144,7 @@ def single_precision(mesh: Any, *, name: str = "mesh") -> tuple[Mesh, int]:
                     "the lattice closer to the origin or use thicker struts"
                 )
             else:  # (a coffee mug's skin at the origin was told to move, s34)
+                step = float(np.spacing(np.float32(np.abs(where).max())))
                 why = (
                     f"two of its surfaces lie closer there than a float32 step ({step:.2g} "
                     "mm), a fin or sliver too thin to be stored (it is near the origin "
