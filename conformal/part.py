@@ -117,6 +117,9 @@ class Part:
         #: (3,) float64: the translation ``load_part(..., move_to_origin=True)`` applied to
         #: the file's coordinates (zero when the part is where its file or shape put it).
         self.moved_by: NDArray[np.float64] = np.zeros(3)
+        #: True for a part read from a mesh file that stores no unit (STL, OBJ, PLY, OFF)
+        #: without ``units=``: its numbers were taken as millimetres.
+        self.unit_assumed = False
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -811,6 +814,7 @@ def _centred(part: Part) -> Part:
     out = part.transformed(move)
     out._patch_crossings = part._patch_crossings
     out.moved_by = -c
+    out.unit_assumed = part.unit_assumed
     return out
 
 
@@ -1517,6 +1521,7 @@ def _from_mesh_file(
         )
     part = Part(v, f, name=str(path))
     part._patch_crossings = patch_crossings
+    part.unit_assumed = unitless
     return part
 
 

@@ -339,6 +339,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             progress=progress,
         )
     lat.progress = con.bars
+    _say_part(con, lat)
     _say_moved(con, lat)
     con.say(f"{lat.graph.num_edges:,} struts, {lat.graph.num_nodes:,} nodes")
     rep = lat.build_report
@@ -402,6 +403,23 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
     if args.report:
         _write_report(con, lat, args.report, args)
     return 0
+
+
+def _say_part(con: _Console, lat: Any) -> None:
+    """The part's size and volume as read; for a mesh file that stores no unit, that its
+    numbers were taken as millimetres (a part drawn in inches reads 25.4 times too small,
+    and is filled at that size without any other sign of it)."""
+    part = lat.part
+    if part is None:
+        return
+    size = " x ".join(f"{float(s):.4g}" for s in part.size)
+    line = f"part {size} mm, volume {part.volume:.6g} mm^3"
+    if getattr(part, "unit_assumed", False):
+        line += (
+            f" ({Path(part.name).suffix.lstrip('.').upper()} stores no unit: read as "
+            "millimetres; --units in, --units m, ... if it is in another)"
+        )
+    con.say(line)
 
 
 def _say_moved(con: _Console, lat: Any) -> None:

@@ -276,6 +276,29 @@ def test_fill_units_of_a_mesh_in_metres(capsys, tmp_path):
     assert code == 1 and "STEP files declare their own unit" in err
 
 
+def test_fill_says_the_part_size_and_an_assumed_unit(capsys, tmp_path, box_step):
+    """The fill says the part's size as read; for a mesh file that stores no unit, that it
+    was read as millimetres (a bracket drawn in inches, 3 x 2 x 1.5, above the tiny-part
+    warning's 1 mm, was filled 25.4 times too small with no sign of it: s34's new parts)."""
+    import trimesh
+
+    src = tmp_path / "bracket_in_inches.stl"
+    trimesh.creation.box(extents=(3.0, 2.0, 1.5)).export(src)
+    out = tmp_path / "out.stl"
+    code, text, err = run(capsys, "fill", src, "-o", out, "--cell-size", "0.5", "--radius", "0.04")
+    assert code == 0, err
+    assert "part 3 x 2 x 1.5 mm, volume 9 mm^3 (STL stores no unit: read as millimetres" in text
+    code, text, err = run(
+        capsys, "fill", src, "-o", out, "--units", "in", "--cell-size", "12", "--radius", "1"
+    )
+    assert code == 0, err
+    assert "part 76.2 x 50.8 x 38.1 mm, volume 147484 mm^3\n" in text
+    assert "stores no unit" not in text
+    code, text, err = run(capsys, "fill", box_step, "-o", out, "--cell-size", "4")
+    assert code == 0, err
+    assert "part 20 x 16 x 12 mm, volume 3840 mm^3\n" in text
+
+
 def test_stitch_check_preview(capsys, graph_json, tmp_path):
     stl = tmp_path / "g.stl"
     code, stdout, err = run(capsys, "stitch", graph_json, "-o", stl, "--segments", "8")
