@@ -966,9 +966,16 @@ def _solids_of_surfaces(shape: Any, name: str) -> list[Any]:
             "(close the surfaces into a solid in your CAD tool)"
         )
     note = f"; {len(left)} face(s) that do not close were left out: {named(left)}" if left else ""
+    n_shells = sum(_occ.shell_count(s) for s in made)
+    cavities = (
+        f" ({n_shells - len(made)} of the shells facing inward inside another: the walls of "
+        "closed cavities)"
+        if n_shells > len(made)
+        else ""
+    )
     warnings.warn(
         f"{name}: the file holds surfaces, not a solid: {n_faces - len(left)} face(s) were "
-        f"sewn into {len(made)} closed shell(s) and made solid(s){note}",
+        f"sewn into {n_shells} closed shell(s) and made {len(made)} solid(s){cavities}{note}",
         LatticeWarning,
         stacklevel=4,
     )

@@ -1202,16 +1202,6 @@ def build_skin(
     if inner.is_empty():
         strut = min_cavity if closed is not None else None
         raise SkinError(no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=strut))
-    if closed is not None:
-        warnings.warn(
-            f"{p.name}: the skin of {thickness:g} mm leaves a cavity thinner than the struts "
-            f"({min_cavity:.3g} mm across) in places, e.g. at {point_text(closed[1])}: "
-            f"{closed[0]:.3g} mm^3 of it was made solid (the part is less than "
-            f"{2 * thickness + float(min_cavity or 0.0):.3g} mm thick there, twice the skin "
-            "and a strut); a thinner skin or thinner struts keep a lattice there",
-            LatticeWarning,
-            stacklevel=2,
-        )
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)
@@ -1223,51 +1213,78 @@ def build_skin(
     t1 = time.perf_counter()
     wall = wall_thickness(inner, surface)
     t_wall = time.perf_counter() - t1
-    split = None
-    if graph is not None and not mid_wall and not check:
-        split = _split(lattice, graph, inner, thickness)
-    if split is not None:
-        # the booleans on the elements near the wall only (conformal.skin_split)
-        near = _manifold(split.near_vertices, split.near_faces, "the lattice near the wall")
-        solid = _outer_minus(outer, inner - near, inner, surface, wall, thickness)
-        tol = 1e-4 * float(np.linalg.norm(surface.size))
 
-        def touches(v: NDArray[np.float64]) -> bool:
-            sample = v[:: max(1, len(v) // 2000)]
-            return bool(surface.distance(sample, max_distance=2 * tol).min() <= tol)
+    def booleans(inner: Any) -> tuple[Any, Any, int, int, NDArray[np.float64]]:
+        """(solid, split or None, bodies, islands removed, sealed voids' volumes)."""
+        split = None
+        if graph is not None and not mid_wall and not check:
+            split = _split(lattice, graph, inner, thickness)
+        if split is not None:
+            # the booleans on the elements near the wall only (conformal.skin_split)
+            near = _manifold(split.near_vertices, split.near_faces, "the lattice near the wall")
+            solid = _outer_minus(outer, inner - near, inner, surface, wall, thickness)
+            tol = 1e-4 * float(np.linalg.norm(surface.size))
 
-        # pieces found on the arrays (one vertex per position: no vertex properties)
-        n_bodies = (
-            split.bodies(*to_arrays(solid), touches)
-            if isinstance(solid, Mesh) or solid.num_prop() == 0
-            else None
-        )
-        if n_bodies is None:  # islands: the booleans on the whole lattice remove them
-            split = None
-        else:
-            (bodies, voids), islands = n_bodies, 0
-    folded = folded_wall(surface, name=p.name) if split is None else None
-    if folded is not None:
-        # the booleans on the whole lattice with an outer wall that folds over itself (a
-        # pipe elbow swept past its path, too thin for the split) ran for more than 10
-        # minutes; that wall bounds no solid, so their result could not be written anyway
-        raise folded
-    if split is None and getattr(p, "rebuilt", None) and graph is not None:
-        # the outside rebuilt from a folded surface (conformal.unfold): where the lattice
-        # near the wall cannot be split off (the folded elbow: a 2 mm tube wall under a
-        # 0.96 mm skin, a 0.1 mm cavity), the booleans on the whole lattice fell apart into
-        # 3,043 pieces that float32 could not hold, after 201 s: refused here instead
-        raise SkinError(
-            f"{p.name}: the part's surface folds over itself, and on its surface rebuilt on a "
-            f"{p.rebuilt:.3g} mm grid the skin of {thickness:g} mm leaves a cavity too thin "
-            "for the lattice to be joined to the wall: fill it without a skin, or with a "
-            "thinner skin, or repair the part (its overlapping bodies united) and fill again"
-        )
-    if split is None:
-        lat = as_manifold(lattice, name="lattice mesh")
-        # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
-        solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
-        solid, bodies, islands, voids = _keep_attached(solid, surface)
+            def touches(v: NDArray[np.float64]) -> bool:
+                sample = v[:: max(1, len(v) // 2000)]
+                return bool(surface.distance(sample, max_distance=2 * tol).min() <= tol)
+
+            # pieces found on the arrays (one vertex per position: no vertex properties)
+            n_bodies = (
+                split.bodies(*to_arrays(solid), touches)
+                if isinstance(solid, Mesh) or solid.num_prop() == 0
+                else None
+            )
+            if n_bodies is None:  # islands: the booleans on the whole lattice remove them
+                split = None
+            else:
+                (bodies, voids), islands = n_bodies, 0
+        folded = folded_wall(surface, name=p.name) if split is None else None
+        if folded is not None:
+            # the booleans on the whole lattice with an outer wall that folds over itself (a
+            # pipe elbow swept past its path, too thin for the split) ran for more than 10
+            # minutes; that wall bounds no solid, so their result could not be written anyway
+            raise folded
+        if split is None and getattr(p, "rebuilt", None) and graph is not None:
+            # the outside rebuilt from a folded surface (conformal.unfold): where the lattice
+            # near the wall cannot be split off (the folded elbow: a 2 mm tube wall under a
+            # 0.96 mm skin, a 0.1 mm cavity), the booleans on the whole lattice fell apart into
+            # 3,043 pieces that float32 could not hold, after 201 s: refused here instead
+            raise SkinError(
+                f"{p.name}: the part's surface folds over itself, and on its surface rebuilt on a "
+                f"{p.rebuilt:.3g} mm grid the skin of {thickness:g} mm leaves a cavity too thin "
+                "for the lattice to be joined to the wall: fill it without a skin, or with a "
+                "thinner skin, or repair the part (its overlapping bodies united) and fill again"
+            )
+        if split is None:
+            lat = as_manifold(lattice, name="lattice mesh")
+            # (outer - inner) + (lat ^ inner) as two differences: the lattice in one boolean only
+            solid = (outer - inner) + (lat ^ surfaces[2]) if mid_wall else outer - (inner - lat)
+            solid, bodies, islands, voids = _keep_attached(solid, surface)
+        return solid, split, bodies, islands, voids
+
+    solid, split, bodies, islands, voids = booleans(inner)
+    if used == "occt" and min_cavity and _fragmented(voids, inner, outer):
+        # the struts cut the cavity between OCCT's offsets into more sealed voids than it
+        # has pieces: it is thinner than they are somewhere (a 3.4 mm fin under a 1.4 mm
+        # skin, 1.2 mm struts: 67 voids; made outside shared/data). Closed as the voxel
+        # method closes it (on the voxel field, computed for this only), and the booleans
+        # run again on the offset with the closed region taken out
+        h = _grid_spacing(p.size, thickness)
+        depth, origin = _distance_field(p, thickness, h)
+        closing = _cavity_closing(depth, origin, h, thickness, 0.5 * float(min_cavity))
+        del depth
+        if closing is not None:
+            room, volume, at = closing
+            closed = (volume, at)
+            inner = inner ^ room
+            if inner.is_empty():
+                raise SkinError(
+                    no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=min_cavity)
+                )
+            solid, split, bodies, islands, voids = booleans(inner)
+    if closed is not None:
+        _warn_closed(p.name, thickness, float(min_cavity or 0.0), closed)
     t2 = time.perf_counter()
     stats = {
         "min": float(wall.min()),
@@ -1321,6 +1338,36 @@ def build_skin(
     if check:
         solid = checked(solid, "the skinned lattice")
     return SkinResult(solid=solid, report=report, split=split)
+
+
+def _warn_closed(
+    name: str, thickness: float, min_cavity: float, closed: tuple[float, NDArray[np.float64]]
+) -> None:
+    """The warning for a cavity closed where it is thinner than the struts."""
+    warnings.warn(
+        f"{name}: the skin of {thickness:g} mm leaves a cavity thinner than the struts "
+        f"({min_cavity:.3g} mm across) in places, e.g. at {point_text(closed[1])}: "
+        f"{closed[0]:.3g} mm^3 of it was made solid (the part is less than "
+        f"{2 * thickness + min_cavity:.3g} mm thick there, twice the skin and a strut); a "
+        "thinner skin or thinner struts keep a lattice there",
+        LatticeWarning,
+        stacklevel=3,
+    )
+
+
+def _fragmented(voids: NDArray[np.float64], inner: Any, outer: Any) -> bool:
+    """Whether a skin's result has more sealed voids (``voids``: their volumes, those
+    under ``POCKET_SHARE`` of the largest not counted) than its cavity has pieces (the
+    pieces of the inner surface, ``inner``) plus the part's own closed voids (``outer``'s
+    inward pieces): the struts then cut the cavity apart somewhere."""
+    from conformal.skin_split import pieces
+
+    n_voids = int(np.count_nonzero(voids >= POCKET_SHARE * voids.max(initial=0.0)))
+    if n_voids <= 1:
+        return False
+    _, _, vin = pieces(*to_arrays(inner))
+    _, _, vout = pieces(*to_arrays(outer))
+    return n_voids > int(np.count_nonzero(vin > 0)) + int(np.count_nonzero(vout < 0))
 
 
 def folded_wall(surface: Any, *, name: str | None = None) -> SkinError | None:

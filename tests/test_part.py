@@ -374,6 +374,43 @@ def test_a_closed_shell_without_a_solid_loads_as_a_solid(tmp_path):
     assert len(_occ.solids(part.shape[0])) == 1
 
 
+def test_a_surface_model_of_a_hollow_solid_keeps_its_cavity(tmp_path):
+    """Regression: a closed hollow vessel (CadQuery's ``shell()`` with no face open) is
+    written as a surface model of two closed shells, the cavity's facing inward; each was
+    made a solid on its own and their union filled the cavity (69,344 mm^3 read for
+    28,636; made outside shared/data). Nested as a solid's shells are, they make one solid
+    with a void; two disjoint shells stay two solids."""
+    import cadquery as cq
+
+    from lattice_cad.occ_impl import shapes as _occ
+
+    hollow = cq.Workplane().box(60, 40, 30).edges().fillet(5).shell(-3.4)
+    path = tmp_path / "vessel.step"
+    cq.exporters.export(hollow, str(path))
+    text = path.read_text(errors="ignore")
+    assert "SHELL_BASED_SURFACE_MODEL" in text and "MANIFOLD_SOLID_BREP" not in text
+    with pytest.warns(
+        LatticeWarning,
+        match=r"sewn into 2 closed shell\(s\) and made 1 solid\(s\) \(1 of the shells facing in",
+    ):
+        part = load_part(path)
+    exact = hollow.val().Volume()
+    assert part.volume == pytest.approx(exact, rel=2e-3)
+    assert len(part.shape) == 1 and _occ.shell_count(part.shape[0]) == 2
+    assert _occ.is_valid(part.shape[0])
+    assert bool(part.contains(np.array([[0.0, 0.0, 0.0]]))[0]) is False  # the cavity
+    assert bool(part.contains(np.array([[0.0, 0.0, 13.3]]))[0])  # the wall
+    # two boxes apart, written as surfaces: two solids, each facing out
+    a = cq.Workplane().box(10, 10, 10).val()
+    b = cq.Workplane().box(10, 10, 10).translate((20, 0, 0)).val()
+    path2 = tmp_path / "two.step"
+    cq.exporters.export(cq.Workplane().add(a.Shells()[0]).add(b.Shells()[0]), str(path2))
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        two = load_part(path2)
+    assert two.volume == pytest.approx(2000.0, rel=1e-6) and len(two.shape) == 2
+
+
 def test_open_faces_are_named(tmp_path):
     """A box missing its top face does not close even when sewn: the error names the faces
     with a free edge and where that edge is."""

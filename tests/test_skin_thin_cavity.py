@@ -116,3 +116,41 @@ def test_the_mug_s_skin_is_written_with_its_thin_wall_solid(tmp_path):
     path = tmp_path / "mug.stl"
     lat.save(path)
     assert main(["check", str(path)]) == 0
+
+
+def test_occt_skin_closes_a_cavity_the_struts_cut_apart(tmp_path):
+    """Regression (s36): OCCT's offsets are exact, and the cavity between them in a fin
+    3.4 mm thick under a 1.4 mm skin is 0.6 mm, half the struts' diameter: the struts cut
+    it into 67 sealed voids (trapped powder or resin in each), where the voxel method
+    closes such a cavity. More sealed voids than the cavity has pieces now closes it on
+    the voxel field too, and the booleans run again on the offset with it taken out."""
+    import cadquery as cq
+    import trimesh
+
+    from lattice_cad import Lattice
+    from lattice_cad.cli import main
+
+    fin = cq.Workplane().box(40, 40, 20).faces(">Z").workplane().rect(30, 3.4).extrude(30)
+    path = tmp_path / "fin.step"
+    cq.exporters.export(fin, str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(path, cell="octet", cell_size=5.0, radius=0.6, skin=1.4)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        mesh = lat.mesh()
+    said = [str(w.message) for w in caught]
+    assert [m for m in said if "cavity thinner than the struts" in m], said
+    rep = lat.skin_report
+    assert rep.method == "occt" and rep.accurate, rep.summary()
+    # the fin's cavity: 0.6 mm x 27.2 mm x ~28.6 mm (up to the opening's reach) ~ 470 mm^3
+    assert 250.0 < rep.closed < 600.0, rep.summary()
+    assert rep.bodies == 1 and rep.voids == 1, rep.summary()  # the block's cavity only
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent and tm.volume > 0
+    # the fin is solid above the block's cavity: no lattice, no void between its walls
+    # (a point in the middle of the fin, 12 mm up, 0.2 mm off its mid-plane)
+    assert bool(tm.contains([[0.0, 0.2, 22.0]])[0]) and bool(tm.contains([[5.0, -0.2, 30.0]])[0])
+    out = tmp_path / "fin.stl"
+    lat.save(out)
+    assert main(["check", str(out)]) == 0

@@ -1211,6 +1211,11 @@ def open_shells(shape: TopoDS_Shape) -> int:
     return count(shape, TopAbs_SHELL, TopAbs_SOLID)
 
 
+def shell_count(shape: TopoDS_Shape) -> int:
+    """Number of shells of ``shape`` (a solid with closed cavities has one more for each)."""
+    return count(shape, TopAbs_SHELL)
+
+
 def faces_outside_solids(shape: TopoDS_Shape) -> int:
     """Number of faces of ``shape`` that are not part of a solid."""
     return count(shape, TopAbs_FACE, TopAbs_SOLID)
@@ -1261,6 +1266,7 @@ def solids_from_surfaces(
     if sewn is None or sewn.IsNull():
         return [], [(k, bounds(face)) for k, face in loose]
     made: list[TopoDS_Shape] = []
+    shells: list[Any] = []  # each solid's shell as sewn, and its signed volume so
     exp = TopExp_Explorer(sewn, TopAbs_SHELL)
     while exp.More():
         shell = TopoDS.Shell_s(exp.Current())
@@ -1270,11 +1276,14 @@ def solids_from_surfaces(
         mk = BRepBuilderAPI_MakeSolid(shell)
         if not mk.IsDone():
             continue
+        signed = volume(mk.Solid())
         fix = ShapeFix_Solid(mk.Solid())
         fix.Perform()
         got = solids(fix.Solid())
         if len(got) == 1 and is_valid(got[0]) and volume(got[0]) > 0.0:
             made.append(got[0])
+            shells.append((shell, signed))
+    made = _with_cavities(made, shells)
     in_made = _shape_map(made, TopAbs_FACE)
     edge_faces = TopTools_IndexedDataMapOfShapeListOfShape()
     TopExp.MapShapesAndAncestors_s(sewn, TopAbs_EDGE, TopAbs_FACE, edge_faces)
@@ -1295,6 +1304,54 @@ def solids_from_surfaces(
                 break
         left.append((k, where))
     return made, left
+
+
+def _with_cavities(made: list[TopoDS_Shape], shells: list[Any]) -> list[TopoDS_Shape]:
+    """The solids :func:`solids_from_surfaces` made of closed shells (``made``, each
+    oriented outward; ``shells``: each one's shell as sewn and the signed volume it
+    encloses so), with every shell that faced inward and lies inside an odd number of the
+    others made a cavity of the smallest of those (a hollow vessel written as a surface
+    model, its outer wall facing out and its cavity's wall facing in, as a solid with a
+    void is; each made a solid on its own, their union was the full vessel). A cavity's
+    solid that BRepCheck refuses leaves the two solids as they were."""
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.TopAbs import TopAbs_IN, TopAbs_VERTEX
+
+    inward = [k for k, (_, signed) in enumerate(shells) if signed < 0.0]
+    if not inward or len(made) < 2:
+        return made
+    vols = [volume(s) for s in made]
+    holder = [-1] * len(made)
+    for k in inward:
+        exp = TopExp_Explorer(made[k], TopAbs_VERTEX)
+        point = BRep_Tool.Pnt_s(TopoDS.Vertex_s(exp.Current()))
+        around = []
+        for j, solid in enumerate(made):
+            if j != k:
+                inside = BRepClass3d_SolidClassifier(solid, point, 1e-7)
+                if inside.State() == TopAbs_IN:
+                    around.append(j)
+        if len(around) % 2 == 1:
+            holder[k] = min(around, key=lambda j: vols[j])
+    # (a cavity inside a cavity is from overlapping shells, not nested ones: left alone)
+    holder = [h if h < 0 or holder[h] < 0 else -1 for h in holder]
+    out = list(made)
+    for j in sorted(set(holder) - {-1}):
+        cavities = [k for k, h in enumerate(holder) if h == j]
+        mk = BRepBuilderAPI_MakeSolid(TopoDS.Solid_s(made[j]))
+        for k in cavities:
+            mk.Add(shells[k][0])  # facing inward, as sewn
+        if not mk.IsDone():
+            continue
+        fix = ShapeFix_Solid(mk.Solid())
+        fix.Perform()
+        got = solids(fix.Solid())
+        expect = vols[j] - sum(vols[k] for k in cavities)
+        if len(got) == 1 and is_valid(got[0]) and abs(volume(got[0]) - expect) <= 1e-6 * vols[j]:
+            out[j] = got[0]
+            for k in cavities:
+                out[k] = None
+    return [s for s in out if s is not None]
 
 
 def _shape_map(shapes: list[TopoDS_Shape], kind: Any) -> Any:
