@@ -534,3 +534,46 @@ def test_gmsh_attempts_stop_at_their_budget_and_the_error_says_what_fills_it(cyl
     assert "--method voxel" in str(info.value)
     assert sum(calls) <= config.TET_TOTAL_ATTEMPTS * 0.4 + 1e-6
     assert 2 <= len(calls) <= 4 and spent < config.TET_TOTAL_ATTEMPTS * 0.4 + 5.0
+
+
+WING = Path(__file__).parent / "regression_wing_naca0012.step"  # made by CadQuery (s36)
+
+
+def test_tetrahedra_on_nodes_gmsh_does_not_list_are_a_failed_attempt(tmp_path):
+    """Regression (s36): a tapered NACA 0012 wing, 500 mm span (made outside shared/data):
+    gmsh's delaunay on its surface re-parametrised at 40 deg returned 315 nodes and 872
+    tetrahedra, 38 of whose corners were node 7688, which it did not list. The tet fill
+    stopped with "index 7688 is out of bounds for axis 0 with size 316" and never tried
+    the other ways; such a mesh is now a failed attempt, and the next way is tried."""
+    from conformal import tet as _tet
+    from lattice_cad.core.isolate import run_isolated
+
+    part = load_part(WING)
+    (surface,) = _tet._GmshInputs(part, 33.3333).files("surface", tmp_path)
+    with pytest.raises(_tet._GmshFailure, match=r"38 tetrahedra use nodes gmsh does not list"):
+        run_isolated(
+            _tet._gmsh_tets, str(surface), 33.3333, "reparametrized", 40.0, "delaunay",
+            timeout=120.0, what="gmsh",
+        )  # fmt: skip
+
+
+def test_a_dense_mesh_part_is_resampled_before_gmsh_gets_its_surface(tmp_path):
+    """Regression (s36): a 20 mm knob of 986,904 triangles (made outside shared/data) was
+    refused after 349 s: each of gmsh's attempts at its surface as it is took 70-83 s and
+    failed, and the budget ran out before its resampled surface (1.1 s) was tried. A mesh
+    of far more triangles than the size needs goes to the resampled surface first (42 s,
+    written); a coarser one keeps the order."""
+    sphere = trimesh.creation.icosphere(subdivisions=7, radius=10.0)  # 327,680 triangles
+    path = tmp_path / "dense_sphere.stl"
+    sphere.export(path)
+    part = load_part(path)
+    said: list[str] = []
+    nodes, tets = tet_mesh(part, 1.5, progress=lambda what, *_: said.append(what))
+    assert said[0].startswith("gmsh, resampled surface"), said
+    assert len(tets) > 1000 and np.isfinite(nodes).all()
+    coarse = trimesh.creation.icosphere(subdivisions=4, radius=10.0)  # 5,120
+    path2 = tmp_path / "sphere.stl"
+    coarse.export(path2)
+    said.clear()
+    tet_mesh(load_part(path2), 1.5, progress=lambda what, *_: said.append(what))
+    assert said[0].startswith("gmsh, surface, reparametrized"), said

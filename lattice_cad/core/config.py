@@ -445,6 +445,14 @@ TET_TOTAL_ATTEMPTS = 2.5
 #: against 320 squares; gmsh failed on it after 37 s; CAD meshes: at most 0.02, the
 #: smooth scans 0.04-0.12; the dragon 0.73 and the hammer 0.81, which gmsh fails on too).
 TET_FEATURE_PATCH_SHARE = 0.5
+#: A mesh part's surface of more than ``TET_DENSE_TRIANGLES`` triangles and more than
+#: ``TET_DENSE_PER_SQUARE`` per square of the tet size is resampled before gmsh is given
+#: it as it is (conformal.tet_mesh): a 20 mm knob of 986,904 triangles (1,237 per square
+#: at 1.33 mm; made outside shared/data) took gmsh 70-83 s per failed re-parametrisation,
+#: and the budget ran out before its resampled surface (1.1 s) was tried. The shared
+#: meshes: at most 60,160 triangles (the hammer, 777 per square).
+TET_DENSE_TRIANGLES = 200_000
+TET_DENSE_PER_SQUARE = 200.0
 
 #: Fewest nodes gmsh puts on a B-rep circle (on an arc in proportion to its angle), and
 #: on any other curve, for the tet method (gmsh's defaults: 7 and 3). At gmsh's defaults
