@@ -978,11 +978,13 @@ def _check_thickness(thickness: Any) -> None:
         raise ValueError(f"skin thickness must be a positive number, got {thickness!r}")
 
 
-def no_room_message(thickness: float, greatest: float, *, strut: float | None = None) -> str:
+def no_room_message(
+    thickness: float, greatest: float, *, strut: float | None = None, grid: float | None = None
+) -> str:
     """Why a skin of ``thickness`` (mm) leaves no cavity for a lattice in a part whose
     greatest thickness is ``greatest`` (mm; twice ``Part.inscribed_radius``), and which
     skin would; ``strut``: the cavity left was nowhere as thick as this (mm, the struts'
-    diameter: ``build_skin(min_cavity=)``)."""
+    diameter: ``build_skin(min_cavity=)``) on the voxel grid of step ``grid`` (mm)."""
     if strut is not None:
         room = greatest - strut
         better = (
@@ -990,10 +992,19 @@ def no_room_message(thickness: float, greatest: float, *, strut: float | None = 
             if room > 0
             else "thinner struts and a thinner skin would be needed"
         )
+        where = f"nowhere as thick as the struts ({strut:.3g} mm across)"
+        if grid is not None and math.isfinite(grid) and greatest > 2.0 * thickness + strut:
+            # (a tapered wing 17.7 mm thick under a 5.56 mm skin, 5.56 mm struts: its cavity
+            # is that thick only within about 0.4 mm of its mid-surface; made outside
+            # shared/data)
+            where = (
+                f"as thick as the struts ({strut:.3g} mm across) only in spots narrower than "
+                f"its voxel grid keeps ({grid:.3g} mm)"
+            )
         return (
-            f"the skin of {thickness:g} mm leaves a cavity nowhere as thick as the struts "
-            f"({strut:.3g} mm across): no room for the lattice; the part's greatest "
-            f"thickness is about {greatest:.3g} mm, so {better}, or fill it without a skin"
+            f"the skin of {thickness:g} mm leaves a cavity {where}: no room for the lattice; "
+            f"the part's greatest thickness is about {greatest:.3g} mm, so {better}, or fill "
+            "it without a skin"
         )
     if greatest > 2.0 * thickness:
         # (the inset came out empty though the part is thicker somewhere: its thick spots,
@@ -1201,7 +1212,7 @@ def build_skin(
     outer, inner = surfaces[0], surfaces[1]
     if inner.is_empty():
         strut = min_cavity if closed is not None else None
-        raise SkinError(no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=strut))
+        raise SkinError(no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=strut, grid=h))
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)
@@ -1280,7 +1291,7 @@ def build_skin(
             inner = inner ^ room
             if inner.is_empty():
                 raise SkinError(
-                    no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=min_cavity)
+                    no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=min_cavity, grid=h)
                 )
             solid, split, bodies, islands, voids = booleans(inner)
     if closed is not None:
