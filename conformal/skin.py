@@ -702,12 +702,13 @@ def _closed_cavity(
     thickness: float,
     min_cavity: float | None,
 ) -> tuple[tuple[Any, ...], tuple[float, NDArray[np.float64]] | None]:
-    """The voxel method's ``surfaces`` with the cavity closed where it is thinner than
-    ``min_cavity`` (:func:`_cavity_closing` on ``field``, the distance field they were
-    extracted from), and what was closed (volume, a point) or None. Done only once the
-    voxel surfaces are the ones used, not while OCCT's offsets compute: there it delayed
-    the GE bracket's skin, whose offsets succeed (its surfaces' stage 5.5 s against 3.7 s
-    in alternating runs on a loaded machine)."""
+    """The skin's ``surfaces`` (outer, inner, ...) with the cavity closed where it is thinner
+    than ``min_cavity`` (:func:`_cavity_closing` on ``field``, the part's distance field:
+    the one the voxel method's surfaces were extracted from, or one computed for OCCT's
+    offsets), and what was closed (volume, a point) or None. For the voxel method, done
+    only once the voxel surfaces are the ones used, not while OCCT's offsets compute:
+    there it delayed the GE bracket's skin, whose offsets succeed (its surfaces' stage
+    5.5 s against 3.7 s in alternating runs on a loaded machine)."""
     if not min_cavity:
         return surfaces, None
     depth, origin = field
@@ -1282,13 +1283,10 @@ def build_skin(
         # method closes it (on the voxel field, computed for this only), and the booleans
         # run again on the offset with the closed region taken out
         h = _grid_spacing(p.size, thickness)
-        depth, origin = _distance_field(p, thickness, h)
-        closing = _cavity_closing(depth, origin, h, thickness, 0.5 * float(min_cavity))
-        del depth
-        if closing is not None:
-            room, volume, at = closing
-            closed = (volume, at)
-            inner = inner ^ room
+        field = _distance_field(p, thickness, h)
+        (_, inner), closed = _closed_cavity((outer, inner), field, h, thickness, min_cavity)
+        del field
+        if closed is not None:
             if inner.is_empty():
                 raise SkinError(
                     no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=min_cavity, grid=h)

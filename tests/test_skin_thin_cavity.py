@@ -31,6 +31,20 @@ def _part(man: manifold3d.Manifold, name: str) -> Part:
     return Part(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts), name=name)
 
 
+def _skinned(path: Path, **kw: float):
+    """An octet fill of ``path`` with a skin (``Lattice.fill`` keywords ``kw``; its
+    warnings ignored), its mesh, and the warnings the mesh gave."""
+    from lattice_cad import Lattice
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        lat = Lattice.fill(path, cell="octet", **kw)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        mesh = lat.mesh()
+    return lat, mesh, [str(w.message) for w in caught]
+
+
 def _block_with_fin() -> Part:
     """A 20 mm cube with a 3 mm thick fin, 30 x 20 mm, off one side."""
     cube = manifold3d.Manifold.cube([20.0, 20.0, 20.0])
@@ -94,17 +108,10 @@ def test_no_room_for_the_struts_anywhere_is_said_with_what_would_fit():
 
 @pytest.mark.slow
 def test_the_mug_s_skin_is_written_with_its_thin_wall_solid(tmp_path):
-    from lattice_cad import Lattice
     from lattice_cad.cli import main
     from tests.conftest import assert_valid
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", LatticeWarning)
-        lat = Lattice.fill(MUG, cell="octet", cell_size=7.981, radius=0.665083, skin=1.33017)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        mesh = lat.mesh()
-    said = [str(w.message) for w in caught]
+    lat, mesh, said = _skinned(MUG, cell_size=7.981, radius=0.665083, skin=1.33017)
     assert [m for m in said if "cavity thinner than the struts" in m], said
     assert not [m for m in said if "could not hold" in m or "cannot be written" in m], said
     rep = lat.skin_report
@@ -127,19 +134,12 @@ def test_occt_skin_closes_a_cavity_the_struts_cut_apart(tmp_path):
     import cadquery as cq
     import trimesh
 
-    from lattice_cad import Lattice
     from lattice_cad.cli import main
 
     fin = cq.Workplane().box(40, 40, 20).faces(">Z").workplane().rect(30, 3.4).extrude(30)
     path = tmp_path / "fin.step"
     cq.exporters.export(fin, str(path))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", LatticeWarning)
-        lat = Lattice.fill(path, cell="octet", cell_size=5.0, radius=0.6, skin=1.4)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        mesh = lat.mesh()
-    said = [str(w.message) for w in caught]
+    lat, mesh, said = _skinned(path, cell_size=5.0, radius=0.6, skin=1.4)
     assert [m for m in said if "cavity thinner than the struts" in m], said
     rep = lat.skin_report
     assert rep.method == "occt" and rep.accurate, rep.summary()
