@@ -11,7 +11,7 @@ import time
 import pytest
 
 from lattice_cad.core.errors import ExternalCrash
-from lattice_cad.core.isolate import run_isolated
+from lattice_cad.core.isolate import IsolatedWorker, run_isolated
 
 
 def test_result_comes_back():
@@ -26,6 +26,26 @@ def test_exceptions_are_reraised():
 def test_a_crash_is_an_external_crash():
     with pytest.raises(ExternalCrash, match="abort crashed"):
         run_isolated(os.abort, timeout=60, what="abort")
+
+
+def test_a_crash_names_the_signal_or_the_exit_code():
+    """gmsh's crash on a NACA wing (made outside shared/data) was a glibc abort, "double
+    free or corruption"; the message said only that the child had died."""
+    died = r"crashed \(the child process died of {}\)"
+    with pytest.raises(ExternalCrash, match="abort " + died.format("SIGABRT")):
+        run_isolated(os.abort, timeout=60, what="abort")
+    with pytest.raises(ExternalCrash, match=r"exit crashed \(the child process exited with code 3"):
+        run_isolated(os._exit, 3, timeout=60, what="exit")
+    worker = IsolatedWorker()
+    worker.submit(_segfault)
+    with pytest.raises(ExternalCrash, match="segv " + died.format("SIGSEGV")):
+        worker.result(timeout=60, what="segv")
+
+
+def _segfault() -> None:
+    import ctypes
+
+    ctypes.string_at(0)
 
 
 def test_a_hang_is_killed():

@@ -90,9 +90,34 @@ def run_isolated(fn: Callable[..., T], *args: Any, timeout: float, what: str) ->
         except FutureTimeout:
             raise ExternalTimeout(f"{what} did not finish within {timeout:g} s") from None
         except BrokenProcessPool:
-            raise ExternalCrash(f"{what} crashed (the child process died)") from None
+            raise ExternalCrash(f"{what} crashed ({_death(pool)})") from None
     finally:
         kill_pool(pool, wait=False)
+
+
+def _death(pool: ProcessPoolExecutor) -> str:
+    """How the pool's child ended, for a crash's message: "the child process died of
+    SIGSEGV" (a signal), "... exited with code 3", or "the child process died" when its
+    exit status is unknown. gmsh's crashes on a NACA wing (made outside shared/data) were
+    a glibc abort ("double free or corruption"), which its message did not say."""
+    import signal
+
+    codes: list[int] = []
+    for p in list((getattr(pool, "_processes", None) or {}).values()):
+        if p.exitcode is None:  # the fork server reports the status a moment after
+            p.join(timeout=2.0)
+        if p.exitcode is not None:
+            codes.append(p.exitcode)
+    if not codes or codes[0] == 0:
+        return "the child process died"
+    code = codes[0]
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        return f"the child process died of {name}"
+    return f"the child process exited with code {code}"
 
 
 def _import(module: str) -> None:
@@ -159,7 +184,9 @@ class IsolatedWorker:
         except FutureTimeout:
             raise ExternalTimeout(f"{what} did not finish within {timeout:g} s") from None
         except BrokenProcessPool:
-            raise ExternalCrash(f"{what} crashed (the child process died)") from None
+            raise ExternalCrash(
+                f"{what} crashed ({_death(self._pool) if self._pool else 'the child process died'})"
+            ) from None
         finally:
             self.close()
 
