@@ -108,11 +108,13 @@ def _fill_graph(
     profile: Profile = "volume",
     auto_fallback: Literal["conform", "clip"] = "conform",
     progress: Any = None,
+    skin: float | None = None,
 ) -> tuple[LatticeGraph, Any]:
     """Call the conformal engine (imported lazily) for ``method``: the graph and its report.
 
     The radii are fitted for the profile polygons the lattice will be stitched with
-    (``segments`` sides, ``profile``).
+    (``segments`` sides, ``profile``); with a ``skin``, the voxel method leaves out the
+    struts that lie wholly inside its wall (``conformal.voxel_lattice(wall=)``).
     """
     import conformal
 
@@ -131,6 +133,7 @@ def _fill_graph(
             min_radius=min_radius,
             profile=profile,
             auto_fallback=auto_fallback,
+            wall=skin,
         )
     else:
         built = conformal.tet_lattice(
@@ -721,6 +724,7 @@ class Lattice:
                     # a self-supporting grid stays so only if the struts keep their directions
                     auto_fallback="clip" if self_supporting else "conform",
                     progress=progress,
+                    skin=skin,
                 )
             except FillError as exc:
                 raise _with_skin_room(exc, the_part, skin) from exc
