@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from conformal import _kernels
 from lattice_cad.core import config
 from lattice_cad.core.arrays import edge_uses, point_text, unique_rows
-from lattice_cad.core.errors import LatticeWarning, MissingFileError, PartError
+from lattice_cad.core.errors import LatticeWarning, MissingFileError, OCCTFailure, PartError
 
 __all__ = ["Part", "PartError", "load_part", "UNITS"]
 
@@ -120,6 +120,9 @@ class Part:
         #: True for a part read from a mesh file that stores no unit (STL, OBJ, PLY, OFF)
         #: without ``units=``: its numbers were taken as millimetres.
         self.unit_assumed = False
+        #: For B-rep parts whose solids touched or overlapped: how many there were before
+        #: OCCT's fuse united them (``shape`` holds the united ones); else 0.
+        self.united_from = 0
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -331,7 +334,9 @@ class Part:
                     shape, self.name, key[0], key[1], checked=checked, reuse=reuse, split=split,
                     prior=None if self.face_triangles is None else
                     (self.deflection, self.face_triangles),
+                    snap=self.united_from > 1,
                 )  # fmt: skip
+            cache[key].united_from = self.united_from
             self.__dict__["_meshed_at"] = key[:2]
             cache[key].unrefined = self
             cache[key].moved_by = self.moved_by  # (the solids are the moved ones)
@@ -761,6 +766,7 @@ def load_part(
                     measure=True,
                     on_solids=on_solids,
                     move_to_origin=move_to_origin,
+                    unite=True,
                 )
             )
         if suffix in _MESH_SUFFIXES:
@@ -796,6 +802,7 @@ def load_part(
             measure=True,
             on_solids=on_solids,
             move_to_origin=move_to_origin,
+            unite=True,
         )
     )
 
@@ -870,6 +877,8 @@ def _from_shape(
     on_solids: Callable[[list[Any]], None] | None = None,
     prior: tuple[float, list[tuple[NDArray[np.int64], NDArray[np.float64]]]] | None = None,
     move_to_origin: bool = False,
+    unite: bool = False,
+    snap: bool = False,
 ) -> Part:
     """The part of a B-rep ``shape``; ``measure`` (an unchecked tessellation): also bound its
     chord error (``Part.chord_bound``). With ``split`` (solid index: what
@@ -877,7 +886,12 @@ def _from_shape(
     are meshed as patches; the part's ``shape`` stays the solids as they were.
     ``on_solids``: see :func:`load_part`. ``prior``: the deflection and ``face_triangles``
     of a coarser tessellation of the same solids, from which ``split_dense_faces`` may
-    tell at once that no face is dense. ``move_to_origin``: see :func:`load_part`."""
+    tell at once that no face is dense. ``move_to_origin``: see :func:`load_part`.
+    ``unite``: solids that touch or overlap are united by OCCT's fuse before they are
+    tessellated (``occ_impl.shapes.united_solids``; the part's ``shape`` is then the
+    united solids), else, or when a united solid does not tessellate closed, their
+    tessellations are united (manifold3d). ``snap``: a single solid's tessellation too is
+    rounded to the union's grid (a finer tessellation of united solids, as theirs was)."""
     from lattice_cad.occ_impl import shapes as _occ
 
     moved = np.zeros(3)
@@ -887,6 +901,10 @@ def _from_shape(
     solids = _occ.solids(shape)
     if not solids:
         solids = _solids_of_surfaces(shape, name)
+    given = solids
+    united = _occ.united_solids(solids) if unite and len(solids) > 1 else None
+    if united is not None:
+        solids = united
     if on_solids is not None:
         on_solids(solids)
     box = _occ.bounds(_occ.compound(solids) if len(solids) > 1 else solids[0])
@@ -894,41 +912,67 @@ def _from_shape(
     defl = 1e-3 * diag if deflection is None else float(deflection)
     if not defl > 0:
         raise ValueError(f"deflection must be > 0, got {deflection!r}")
-    pieces = []
-    chord_error, unresolved = 0.0, 0
     bound: float | None = 0.0 if measure and not checked else None
-    counts = []
-    for k, solid in enumerate(solids):
-        v, f, report, dev, per_face = _closed_tessellation(
-            solid, k, name, defl, angular, diag, checked, reuse, measure=bound is not None,
-            split=split, prior=None if prior is None else (prior[0], *prior[1][k]),
-        )  # fmt: skip
-        growth = _occ.triangle_growth(solid)
-        if 0 < len(per_face) <= len(growth):
-            per_face = np.pad(per_face, (0, len(growth) - len(per_face)))
-        counts.append((per_face, growth))
-        if bound is not None and dev is not None:
-            bound = max(bound, dev)
-        if report is not None:
-            chord_error = max(chord_error, report.max_deviation)
-            unresolved += len(report.unresolved)
-        t = v[f]
-        if np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() < 0:
-            f = f[:, ::-1]  # a solid with reversed orientation
-        pieces.append((v, f))
-    if len(pieces) == 1:
-        v, f = pieces[0]
-    else:
-        vols = sum(_mesh_volume(v[f]) for v, f in pieces)
+
+    def tessellated(solids: list[Any]) -> tuple[list[Any], list[Any], float | None, float, int]:
+        """(pieces, counts, bound, chord error, unresolved) of the solids' tessellations."""
+        pieces, counts = [], []
+        chord_error, unresolved, worst = 0.0, 0, bound
+        for k, solid in enumerate(solids):
+            v, f, report, dev, per_face = _closed_tessellation(
+                solid, k, name, defl, angular, diag, checked, reuse, measure=worst is not None,
+                split=split, prior=None if prior is None else (prior[0], *prior[1][k]),
+            )  # fmt: skip
+            growth = _occ.triangle_growth(solid)
+            if 0 < len(per_face) <= len(growth):
+                per_face = np.pad(per_face, (0, len(growth) - len(per_face)))
+            counts.append((per_face, growth))
+            if worst is not None and dev is not None:
+                worst = max(worst, dev)
+            if report is not None:
+                chord_error = max(chord_error, report.max_deviation)
+                unresolved += len(report.unresolved)
+            t = v[f]
+            if np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() < 0:
+                f = f[:, ::-1]  # a solid with reversed orientation
+            pieces.append((v, f))
+        return pieces, counts, worst, chord_error, unresolved
+
+    try:
+        pieces, counts, bound, chord_error, unresolved = tessellated(solids)
+    except Exception as exc:
+        if united is None or not (
+            isinstance(exc, (PartError, OCCTFailure)) or _occ.is_occt_error(exc)
+        ):
+            raise
+        # a united solid that does not tessellate closed (solids that touch along an edge
+        # only make one with a non-manifold edge; a face of the three overlapping solids of
+        # shared/data's spatula BRepMesh leaves bare): the given solids, their meshes united
+        united, solids = None, given
+        pieces, counts, bound, chord_error, unresolved = tessellated(solids)
+    if len(pieces) > 1 or united is not None or snap:
+        # (united solids too: snapped to the union's grid, their seams are as the meshes'
+        # union gives them; unsnapped, pymeshlab saw the GE bracket's seams, 1e-7 off the
+        # grid, cross in 33 faces)
         v, f = _union_meshes(pieces, name)
-        overlap = vols - _mesh_volume(v[f])
+    else:
+        v, f = pieces[0]
+    if len(given) > 1:
+        if united is not None:  # the B-rep's volumes (GProp's default rule is off by 0.3 %
+            # on a scaled sphere's B-spline faces: adaptive, 1e-6, 0.01-0.04 s a part)
+            vols = sum(_occ.volume(s, eps=1e-6) for s in given)
+            overlap = vols - sum(_occ.volume(s, eps=1e-6) for s in united)
+        else:
+            vols = sum(_mesh_volume(v[f]) for v, f in pieces)
+            overlap = vols - _mesh_volume(v[f])
         note = f", overlapping by {overlap:.4g} mm^3" if overlap > 1e-6 * vols else ""
         warnings.warn(
-            f"{name}: {len(solids)} solids were united into one part{note}",
+            f"{name}: {len(given)} solids were united into one part{note}",
             LatticeWarning,
             stacklevel=3,
         )
     part = Part(v, f, name=name, shape=solids, deflection=defl)
+    part.united_from = len(given) if united is not None else 0
     part.moved_by = moved
     part.chord_bound = bound
     if all(len(n) == len(g) for n, g in counts):

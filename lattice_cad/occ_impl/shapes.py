@@ -148,6 +148,39 @@ def fuse(
     return res
 
 
+def united_solids(shapes: list[TopoDS_Shape]) -> list[TopoDS_Shape] | None:
+    """The solids of the union of ``shapes`` (solids) where their boxes meet, by OCCT's fuse
+    (faces of one domain merged): solids that touch or overlap become one, with their
+    shared faces gone. None when no two boxes meet, or the fuse fails or gives a shape
+    BRepCheck refuses (the caller unites their tessellations instead).
+
+    Tessellated one by one, the faces two solids share are meshed twice, differently where
+    they are curved, and the union of the meshes keeps slivers between the two (a golf
+    club head and its face insert, made outside shared/data: a fill's cut had surfaces a
+    float32 step apart along the insert's rim and was refused).
+    """
+    if len(shapes) < 2:
+        return None
+    boxes = np.array([bounds(s) for s in shapes])  # (n, 2, 3)
+    tol = 1e-6 * float(np.abs(boxes).max(initial=1.0))
+    lo, hi = boxes[:, 0] - tol, boxes[:, 1] + tol
+    meet: NDArray[np.bool_] = np.asarray(
+        (lo[:, None, :] <= hi[None, :, :]).all(axis=2)
+        & (lo[None, :, :] <= hi[:, None, :]).all(axis=2)
+    )
+    np.fill_diagonal(meet, False)
+    if not meet.any():
+        return None
+    try:
+        with occt_errors("fuse of the solids"):
+            out = solids(fuse(list(shapes)))
+    except OCCTFailure:
+        return None
+    if not out or len(out) > len(shapes) or not all(is_valid(s) for s in out):
+        return None
+    return out
+
+
 def _offset_error(mk: Any) -> str:
     """The name of BRepOffset_MakeOffset's error code (``""`` when it has none)."""
     try:
