@@ -34,6 +34,7 @@ from lattice_cad.core.errors import (
     ExportError,
     FillError,
     LatticeWarning,
+    PartError,
     SkinError,
 )
 from lattice_cad.core.formats import Kind, format_for, resolve, suffixes
@@ -1081,29 +1082,50 @@ class Lattice:
         return mesh
 
     def _retrim(self) -> Mesh | None:
-        """The trim cut with the part moved off its surface by a quarter of the tolerance
-        (see ``conformal.trim.trim_to_part(shift=)``), or None if that fails too."""
+        """The trim cut again when the first cut cannot be written in float32: with the
+        part moved off its surface by a quarter of the tolerance (see
+        ``conformal.trim.trim_to_part(shift=)``), then, for a B-rep part, by a cutting
+        tessellation ``config.RETRIM_FINER`` times as fine; None if those fail too.
+
+        The second is for a cutting tessellation whose facets meet the lattice in surfaces
+        a float32 step apart wherever the part is moved (a rocket fin can made outside
+        shared/data, a fin's edge flush with its tube: the bcc fill was written uncut,
+        2.32 mm out of the part; cut at 0.8 x the chord, 0.0021 mm)."""
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
-        trimmed = self._cut(shift=0.25)
-        v, f = _skin.to_arrays(trimmed.solid)
-        try:
-            mesh = _checked_single_precision(Mesh(vertices=v, faces=f), "the lattice")
-        except ExportError:
-            return None
-        self.trim_report = trimmed.report
-        return mesh
+        tries: list[dict[str, Any]] = [{"shift": 0.25}]
+        if self.part is not None and self.part.shape is not None and not self.keep:
+            tries.append({"finer": config.RETRIM_FINER})
+        for kw in tries:
+            try:
+                trimmed = self._cut(**kw)
+            except PartError:  # (the finer tessellation could not be made closed)
+                continue
+            v, f = _skin.to_arrays(trimmed.solid)
+            try:
+                mesh = _checked_single_precision(Mesh(vertices=v, faces=f), "the lattice")
+            except ExportError:
+                continue
+            self.trim_report = trimmed.report
+            return mesh
+        return None
 
-    def _cut(self, *, shift: float = 0.0, split: bool = True) -> Any:
+    def _cut(self, *, shift: float = 0.0, split: bool = True, finer: float = 1.0) -> Any:
         """The lattice (with its keep zones) cut by the part's surface, not yet checked
         (``conformal.trim.trim_to_part``; ``shift``: see there); ``split``: the boolean on
-        the struts near the surface only, the deep ones in ``TrimResult.split``."""
+        the struts near the surface only, the deep ones in ``TrimResult.split``; ``finer``
+        < 1: by a tessellation of the B-rep with that fraction of the cutting one's chord
+        error, the whole lattice (a retry)."""
         from conformal.trim import trim_to_part
 
         radius = float(self.graph.radii.max())
         if self.keep:
             return self._cut_then_keep(shift=shift)
+        if finer < 1.0:
+            assert self.part is not None
+            cut_by = self.part.refined(self._cutting_part.deflection * finer)
+            return trim_to_part(self._kept_mesh, cut_by, radius=radius, check=False)
         if split and not shift and "_cutting_part" not in self.__dict__:
             # clear inside the part's own tessellation (an inside fill, usually): no finer
             # cutting tessellation (minutes on threads and small fillets) and no boolean

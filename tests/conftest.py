@@ -103,8 +103,9 @@ def independent_check(mesh, *, self_intersections: bool = True) -> dict:
         # flagged face counts when an exact test (rational arithmetic) confirms it
         from exact_intersect import confirmed_faces
 
-        out["self_intersecting_faces"] = len(confirmed_faces(v, f, flagged[:200]))
-        if len(flagged) > 200:  # too many to confirm one by one: trust the flag
+        # (a bcc cut along a rocket fin can's faces, s37: 277 flagged, none confirmed, 9 s)
+        out["self_intersecting_faces"] = len(confirmed_faces(v, f, flagged[:1000]))
+        if len(flagged) > 1000:  # too many to confirm one by one: trust the flag
             out["self_intersecting_faces"] = len(flagged)
     return out
 

@@ -352,6 +352,12 @@ MAX_BREP_STRUTS = 2_000
 #: the largest strut radius (``conformal.trim``; checked on every vertex and reported).
 TRIM_RTOL = 0.01
 
+#: When a cut by the part's cutting tessellation cannot be written in float32 (its facets
+#: meet the lattice in surfaces a float32 step apart, even with the part moved), it is
+#: cut again by a tessellation of the B-rep with this fraction of that chord error
+#: (``Lattice._retrim``).
+RETRIM_FINER = 0.8
+
 #: Before a lattice is cut by a B-rep part (trim, skin), the part is tessellated again with
 #: a chord error of this fraction of the largest strut radius (``conformal.trim.cutting_part``):
 #: the default tessellation (1e-3 of the diagonal) lies outside concave faces (holes, inner
