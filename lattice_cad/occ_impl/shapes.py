@@ -173,7 +173,7 @@ def united_solids(shapes: list[TopoDS_Shape]) -> list[TopoDS_Shape] | None:
         return None
     try:
         with occt_errors("fuse of the solids"):
-            out = solids(fuse(list(shapes)))
+            out = solids(fuse(list(shapes), simplify=True))
     except OCCTFailure:
         return None
     if not out or len(out) > len(shapes) or not all(is_valid(s) for s in out):
