@@ -313,6 +313,20 @@ def _checked_single_precision(mesh: Mesh, name: str) -> Mesh:
         return _checked_single_precision_once(Mesh(vertices=v, faces=f), name)
 
 
+def _short(message: str, limit: int) -> str:
+    """The first line of ``message``, cut to at most ``limit`` characters at the end of a
+    clause ("; ") or, failing that, of a word, with "..." (a trim's report ended "a fin or
+    sliver too thin to be stored (it is near t" mid-word: s37's new parts)."""
+    line = message.splitlines()[0] if message else ""
+    if len(line) <= limit:
+        return line
+    head = line[: limit - 3]
+    cut = head.rfind("; ")
+    if cut < limit // 3:
+        cut = len(head) if line[len(head)] == " " else head.rfind(" ")
+    return (head[:cut] if cut > 0 else head).rstrip(" ,;") + "..."
+
+
 def _too_folded(mesh: Mesh) -> bool:
     """Whether more than ``config.TRIM_HOPELESS_SHARE`` of the (float64) mesh's triangles
     intersect another, in pairs (``fast_stitch.check``): a cut too folded for the collapses
@@ -924,7 +938,7 @@ class Lattice:
                     raise SkinError(
                         f"{self.part.name}: {self.part.crossing_note()}; the skin built on "
                         f"its surface rebuilt on a {rebuilt:.3g} mm grid cannot be written "
-                        f"in single precision either ({str(exc).splitlines()[0][:200]}): "
+                        f"in single precision either ({_short(str(exc), 200)}): "
                         "fill it without a skin, or repair the part (its overlapping "
                         "bodies united) and fill again"
                     ) from exc
@@ -985,7 +999,7 @@ class Lattice:
                     f"{crossing}, and the cut by such a surface bounds no solid"
                     if crossing
                     else "the cut could not be written in single precision: "
-                    + str(exc).splitlines()[0][:300]
+                    + _short(str(exc), 300)
                 )
                 self.trim_report = dataclasses.replace(self.trim_report, failed=why)
                 return self._stitched_single_precision()
