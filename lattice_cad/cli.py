@@ -1151,6 +1151,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.quiet = getattr(args, "quiet", False)  # given before or after the command
     args.debug = getattr(args, "debug", False)
     con = _Console(args.quiet)
+    _SHOWN.clear()
     try:
         with warnings.catch_warnings():
             if args.quiet:
@@ -1169,8 +1170,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
 
 
+#: The warnings the command line has printed (each text once: the library's retries
+#: repeat theirs, and its own ``catch_warnings`` blocks reset Python's "default" registry;
+#: a golf head's skin printed the same wall warning four times, s37).
+_SHOWN: set[str] = set()
+
+
 def _show_warning(message: Any, category: Any, filename: str, lineno: int, *a: Any) -> None:
-    print(f"warning: {_cli_words(str(message))}", file=sys.stderr)
+    text = _cli_words(str(message))
+    if text in _SHOWN:
+        return
+    _SHOWN.add(text)
+    print(f"warning: {text}", file=sys.stderr)
 
 
 def _entry() -> None:  # pragma: no cover - console script

@@ -511,3 +511,31 @@ def test_messages_name_the_command_lines_options(capsys, tmp_path):
     )
     kept = "/tmp/close_holes/a_b.stl: Lattice(..., skin=MM), inside_share, x='y'"
     assert _cli_words(kept) == kept
+
+
+def test_a_warning_repeated_by_a_retry_is_printed_once(capsys, monkeypatch):
+    """Regression (s37's new parts): a golf head's skin printed the same wall warning four
+    times, once per retry (the library's own ``catch_warnings`` blocks reset Python's
+    registry of warnings shown)."""
+    import warnings
+
+    import lattice_cad.cli as cli
+    from lattice_cad.core.errors import LatticeWarning
+
+    def noisy(args, con):
+        for _ in range(3):
+            with warnings.catch_warnings():  # as the library's retries do
+                warnings.simplefilter("ignore", DeprecationWarning)
+            warnings.warn("the skin's wall is 1.39 .. 1.71 mm thick", LatticeWarning, stacklevel=1)
+        warnings.warn("another one", LatticeWarning, stacklevel=1)
+        return 0
+
+    parser = cli.build_parser()
+    args = parser.parse_args(["cells"])
+    args.func = noisy
+    monkeypatch.setattr(parser, "parse_args", lambda argv=None: args)
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    assert cli.main(["cells"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("the skin's wall is 1.39 .. 1.71 mm thick") == 1
+    assert err.count("another one") == 1
