@@ -120,9 +120,10 @@ class Part:
         #: True for a part read from a mesh file that stores no unit (STL, OBJ, PLY, OFF)
         #: without ``units=``: its numbers were taken as millimetres.
         self.unit_assumed = False
-        #: For B-rep parts whose solids touched or overlapped: how many there were before
-        #: OCCT's fuse united them (``shape`` holds the united ones); else 0.
-        self.united_from = 0
+        #: For B-rep parts whose solids touched or overlapped: the solids OCCT's fuse made
+        #: of them, which are tessellated (``shape`` keeps the solids as given: the faces a
+        #: keep zone's selector counts, the offsets' and the tet mesher's input); else None.
+        self.united: list[Any] | None = None
 
     def __repr__(self) -> str:
         size = " x ".join(f"{s:.4g}" for s in self.size)
@@ -318,7 +319,7 @@ class Part:
         if key not in cache:
             from lattice_cad.occ_impl import shapes as _occ
 
-            solids = list(self.shape)
+            solids = list(self.united if self.united is not None else self.shape)
             shape = solids[0] if len(solids) == 1 else _occ.compound(solids)
             # the solids are meshed in place; the last (deflection, angular) is kept so that
             # a checked call right after an unchecked one reuses BRepMesh's work
@@ -334,9 +335,9 @@ class Part:
                     shape, self.name, key[0], key[1], checked=checked, reuse=reuse, split=split,
                     prior=None if self.face_triangles is None else
                     (self.deflection, self.face_triangles),
-                    snap=self.united_from > 1,
+                    snap=self.united is not None,
                 )  # fmt: skip
-            cache[key].united_from = self.united_from
+            cache[key].shape, cache[key].united = self.shape, self.united
             self.__dict__["_meshed_at"] = key[:2]
             cache[key].unrefined = self
             cache[key].moved_by = self.moved_by  # (the solids are the moved ones)
@@ -888,9 +889,9 @@ def _from_shape(
     of a coarser tessellation of the same solids, from which ``split_dense_faces`` may
     tell at once that no face is dense. ``move_to_origin``: see :func:`load_part`.
     ``unite``: solids that touch or overlap are united by OCCT's fuse before they are
-    tessellated (``occ_impl.shapes.united_solids``; the part's ``shape`` is then the
-    united solids), else, or when a united solid does not tessellate closed, their
-    tessellations are united (manifold3d). ``snap``: a single solid's tessellation too is
+    tessellated (``occ_impl.shapes.united_solids``; the part's ``united``; its ``shape``
+    stays the solids as given), else, or when a united solid does not tessellate closed,
+    their tessellations are united (manifold3d). ``snap``: a single solid's tessellation too is
     rounded to the union's grid (a finer tessellation of united solids, as theirs was)."""
     from lattice_cad.occ_impl import shapes as _occ
 
@@ -902,11 +903,11 @@ def _from_shape(
     if not solids:
         solids = _solids_of_surfaces(shape, name)
     given = solids
+    if on_solids is not None:
+        on_solids(given)
     united = _occ.united_solids(solids) if unite and len(solids) > 1 else None
     if united is not None:
         solids = united
-    if on_solids is not None:
-        on_solids(solids)
     box = _occ.bounds(_occ.compound(solids) if len(solids) > 1 else solids[0])
     diag = float(np.linalg.norm(box[1] - box[0]))
     defl = 1e-3 * diag if deflection is None else float(deflection)
@@ -971,8 +972,8 @@ def _from_shape(
             LatticeWarning,
             stacklevel=3,
         )
-    part = Part(v, f, name=name, shape=solids, deflection=defl)
-    part.united_from = len(given) if united is not None else 0
+    part = Part(v, f, name=name, shape=given, deflection=defl)
+    part.united = united
     part.moved_by = moved
     part.chord_bound = bound
     if all(len(n) == len(g) for n, g in counts):

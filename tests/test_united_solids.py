@@ -39,15 +39,16 @@ def golf(tmp_path_factory):
 def test_touching_solids_are_one_solid_with_their_volumes(golf):
     with pytest.warns(LatticeWarning, match=r"2 solids were united into one part$"):
         part = load_part(golf)
-    assert part.united_from == 2 and len(part.shape) == 1
+    # tessellated as one solid; the solids as given stay the part's shape (keep selectors)
+    assert len(part.united) == 1 and len(part.shape) == 2
     # the shell (65,813 mm^3) and the insert (5,329.8 mm^3) do not overlap: their sum
     assert part.volume == pytest.approx(65813.03 + 5329.80, rel=1e-2)  # (chords: -0.44 %)
     from lattice_cad.occ_impl import shapes as occ
 
-    assert occ.volume(part.shape[0], eps=1e-6) == pytest.approx(71142.83, rel=1e-5)
+    assert occ.volume(part.united[0], eps=1e-6) == pytest.approx(71142.83, rel=1e-5)
     # a finer tessellation is of the united solid, on the same grid
     fine = part.refined(part.deflection / 4)
-    assert fine.united_from == 2
+    assert fine.united is part.united and fine.shape is part.shape
     assert_valid(fine)
 
 
