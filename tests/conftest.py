@@ -124,3 +124,15 @@ def assert_valid(mesh, *, self_intersections: bool = True) -> None:
     assert rep["min_area"] > 0.0, rep
     if self_intersections:
         assert rep["self_intersecting_faces"] == 0, rep
+
+
+def gunzipped(name: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``tests/NAME`` (a gzipped regression file, ``NAME`` ending in ``.gz``) unpacked into
+    a new temporary directory; its path, without the ``.gz``."""
+    import gzip
+    import shutil
+
+    out = tmp_path_factory.mktemp(name.split(".")[0]) / name[: -len(".gz")]
+    with gzip.open(Path(__file__).parent / name, "rb") as fin, open(out, "wb") as fout:
+        shutil.copyfileobj(fin, fout)
+    return out

@@ -11,26 +11,19 @@ the part. The cut is now made again by a tessellation with 0.8 x the chord error
 
 from __future__ import annotations
 
-import gzip
-import shutil
 import warnings
-from pathlib import Path
 
 import pytest
 
 from conformal.trim import protrusion
 from lattice_cad import Lattice
 from lattice_cad.core.errors import LatticeWarning
-from tests.conftest import assert_valid
+from tests.conftest import assert_valid, gunzipped
 
 
 @pytest.fixture(scope="module")
 def rocket(tmp_path_factory):
-    src = Path(__file__).parent / "regression_rocket_fins.step.gz"
-    out = tmp_path_factory.mktemp("rocket") / "rocket_fins.step"
-    with gzip.open(src, "rb") as fin, open(out, "wb") as fout:
-        shutil.copyfileobj(fin, fout)
-    return out
+    return gunzipped("regression_rocket_fins.step.gz", tmp_path_factory)
 
 
 @pytest.mark.slow

@@ -11,8 +11,6 @@ lattice written uncut, 1.66 mm out of the part); the skin was refused after 75 s
 
 from __future__ import annotations
 
-import gzip
-import shutil
 import warnings
 
 import numpy as np
@@ -22,18 +20,12 @@ from conformal import load_part
 from conformal.trim import protrusion
 from lattice_cad import Lattice
 from lattice_cad.core.errors import LatticeWarning
-from tests.conftest import assert_valid
+from tests.conftest import assert_valid, gunzipped
 
 
 @pytest.fixture(scope="module")
 def golf(tmp_path_factory):
-    from pathlib import Path
-
-    src = Path(__file__).parent / "regression_golf_head.step.gz"
-    out = tmp_path_factory.mktemp("golf") / "golf_head.step"
-    with gzip.open(src, "rb") as fin, open(out, "wb") as fout:
-        shutil.copyfileobj(fin, fout)
-    return out
+    return gunzipped("regression_golf_head.step.gz", tmp_path_factory)
 
 
 def test_touching_solids_are_one_solid_with_their_volumes(golf):
