@@ -355,7 +355,7 @@ def _cmd_fill(args: argparse.Namespace, con: _Console) -> int:
             notes.append("grid moved to put a node at the part's deepest point")
         if rep.removed_islands:
             notes.append(f"{rep.removed_islands} strut(s) in loose pieces removed")
-        if getattr(rep, "removed_in_wall", 0):
+        if rep.removed_in_wall:
             notes.append(f"{rep.removed_in_wall} strut(s) wholly inside the skin's wall left out")
         if rep.merged_nodes or rep.removed_short:
             notes.append(f"{rep.merged_nodes} merged, {rep.removed_short} removed")
