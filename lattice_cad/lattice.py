@@ -846,13 +846,14 @@ class Lattice:
 
     def _skinned(
         self, *, shift: float = 0.0, mid_wall: bool = False, split: bool = True,
-        coarse: bool = False,
+        coarse: bool = False, rebuilt: bool = False,
     ) -> Mesh:  # fmt: skip
         """The lattice (with its keep zones) inside its skin, not yet checked; ``shift``
         moves the lattice by that many trim tolerances (``config.TRIM_RTOL`` r) in a
         generic direction, and ``mid_wall`` builds the skin the older way (see
         ``conformal.skin.build_skin``), for the retries when float32 cannot hold the exact
-        result."""
+        result; ``coarse`` builds it on the part's own tessellation, ``rebuilt`` on the
+        part's surface rebuilt from the region it encloses (``conformal.unfold``)."""
         from conformal import skin as _skin
         from conformal.trim import SHIFT_DIRECTION
         from lattice_cad.core.mesh import Mesh
@@ -872,7 +873,9 @@ class Lattice:
         # (a B-rep whose surface folds over itself, Part.folds: its rebuild, conformal.unfold,
         # with the voxel skin: OCCT's offset of such a surface folds too)
         cut = self._coarse_cut if coarse else self._cutting_part
-        if self.part is not None and self.part.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
+        if rebuilt:
+            cut = self._rebuilt_part
+        elif self.part is not None and self.part.self_crossings[0] >= config.SKIN_FOLD_PAIRS:
             # the part's tessellation folds over itself (said at load): when the one the
             # skin is built on folds too, its outer wall would, and the skinned mesh could
             # not be written (a mesh part that folds: the folded elbow's tessellation as an
@@ -948,7 +951,12 @@ class Lattice:
                     # surface), then with the lattice moved a quarter of the trim tolerance
                     # last: the part's own (load) tessellation instead of the finer cutting
                     # one, whose near-coincident facets float32 may not hold (said in a warning)
-                    tries = [(0.0, True, False), (0.25, False, False), (0.25, True, False)]
+                    # (shift, mid_wall, coarse, rebuilt)
+                    tries = [
+                        (0.0, True, False, False),
+                        (0.25, False, False, False),
+                        (0.25, True, False, False),
+                    ]
                     folded = None
                     if self._cutting_part is not self.part:
                         # a fine cutting tessellation that folds over itself where the
@@ -961,19 +969,40 @@ class Lattice:
 
                         folded = folded_wall(self._cutting_part)
                         tries = [] if folded is not None else tries
-                        tries.append((0.0, False, True))
-                    for shift, mid_wall, coarse in tries:
+                        tries.append((0.0, False, True, False))
+                    if folded is None and self._cutting_part.self_crossings[0] > 0:
+                        # the surface the skin was built on crosses itself, in fewer pairs
+                        # than make a folded wall: the outer wall, that surface as it is,
+                        # crosses itself in every retry on it (a knee implant's OFF mesh
+                        # made outside shared/data, 16 pairs: 70 crossing faces in each of
+                        # four tries, 216 s, then refused). First the part's own
+                        # tessellation if that one does not cross, then the surface rebuilt
+                        # from the region it encloses (said in a warning), then the rest
+                        own = (
+                            self._cutting_part is not self.part
+                            and not (self.part.self_crossings[0])
+                        )
+                        first = [(0.0, False, True, False)] if own else []
+                        tries = [*first, (0.0, False, False, True)] + [
+                            t for t in tries if t not in first
+                        ]
+                    for shift, mid_wall, coarse, rebuild in tries:
                         try:
                             mesh = _checked_single_precision(
-                                self._skinned(shift=shift, mid_wall=mid_wall, coarse=coarse),
+                                self._skinned(
+                                    shift=shift, mid_wall=mid_wall, coarse=coarse, rebuilt=rebuild
+                                ),
                                 "the lattice",
                             )
-                            mesh = self._glue_deep(mesh, coarse=coarse)  # a split skin
+                            # a split skin
+                            mesh = self._glue_deep(mesh, coarse=coarse, rebuilt=rebuild)
                         except ExportError:
                             continue
                         self.skin_retry = (
                             "coarse"
                             if coarse
+                            else "rebuilt"
+                            if rebuild
                             else ("shifted " if shift else "") + ("mid-wall" if mid_wall else "")
                         ).strip()
                         if coarse:
@@ -1038,11 +1067,11 @@ class Lattice:
             stacklevel=3,
         )
 
-    def _glue_deep(self, mesh: Mesh, *, coarse: bool = False) -> Mesh:
+    def _glue_deep(self, mesh: Mesh, *, coarse: bool = False, rebuilt: bool = False) -> Mesh:
         """The checked skin or trim of the struts near the wall or the part's surface with
         the deep struts glued back (``conformal.skin_split``); if a cap of the split did not
         come out of the booleans as it went in, the booleans on the whole lattice, checked
-        (a skin on the same part's tessellation: ``coarse`` as ``_skinned``'s)."""
+        (a skin on the same surface: ``coarse`` and ``rebuilt`` as ``_skinned``'s)."""
         from conformal import skin as _skin
         from lattice_cad.core.mesh import Mesh
 
@@ -1053,7 +1082,7 @@ class Lattice:
         if glued is not None:
             return Mesh(vertices=glued[0], faces=glued[1])
         if self.skin is not None:
-            whole = self._skinned(split=False, coarse=coarse)
+            whole = self._skinned(split=False, coarse=coarse, rebuilt=rebuilt)
             return _checked_single_precision(whole, "the lattice")
         trimmed = self._cut(split=False)
         self.trim_report = trimmed.report
