@@ -393,6 +393,45 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
     return out
 
 
+class _HeldWarnings:
+    """Warnings issued inside ``with`` blocks of this object are held, not shown (when
+    ``active``); :meth:`release` issues them then, through the filters in force, and
+    :meth:`drop` forgets them. An exception other than ``keep_on`` leaving a block releases
+    them first. For a skin's attempts: the warnings of one whose mesh float32 cannot hold,
+    and which a retry replaces, are not the written mesh's (a knee implant's skin said
+    two different wall thicknesses, one of a skin thrown away, s38)."""
+
+    def __init__(self, *, active: bool = True, keep_on: type[BaseException] = ExportError):
+        self.active = active
+        self.keep_on = keep_on
+        self.records: list[warnings.WarningMessage] = []
+        self._blocks: list[Any] = []
+
+    def __enter__(self) -> _HeldWarnings:
+        if self.active:
+            block = warnings.catch_warnings(record=True)
+            got = block.__enter__()
+            warnings.simplefilter("always")
+            self._blocks.append((block, got))
+        return self
+
+    def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
+        if self.active:
+            block, got = self._blocks.pop()
+            block.__exit__(kind, exc, tb)
+            self.records.extend(got)
+            if kind is not None and not issubclass(kind, self.keep_on):
+                self.release()
+
+    def release(self) -> None:
+        records, self.records = self.records, []
+        for w in records:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+
+    def drop(self) -> None:
+        self.records = []
+
+
 class Lattice:
     """A lattice graph, optionally with the part it fills and a skin.
 
@@ -911,7 +950,9 @@ class Lattice:
     def _printable_mesh(self) -> Mesh:
 
         self.graph.check_precision("float32")  # before stitching: STL/3MF store float32
-        solid = self._solid_mesh
+        first = _HeldWarnings(active=self.skin is not None)  # said if its mesh is written
+        with first:
+            solid = self._solid_mesh
         # a stitched lattice keeps its clearances through the rounding; a skin or a trim
         # (manifold3d booleans) can have surfaces a float32 step apart: checked in full
         if solid is not self._lattice_mesh:
@@ -930,11 +971,14 @@ class Lattice:
             try:
                 if hopeless:
                     raise ExportError("the cut crosses itself")
-                mesh = _checked_single_precision(solid, "the lattice")
-                mesh = self._glue_deep(mesh)
+                with first:
+                    mesh = _checked_single_precision(solid, "the lattice")
+                    mesh = self._glue_deep(mesh)
+                first.release()
             except ExportError as exc:
                 rebuilt = self.skin_report is not None and self.skin_report.rebuilt
                 if self.skin is not None and rebuilt:
+                    first.release()
                     # a skin on the rebuild of a surface that folds (conformal.unfold): the
                     # retries below rebuild and rebool the same voxel walls (the folded
                     # elbow's 2 mm tube under a 0.96 mm skin: 3,137 pieces, 10 minutes)
@@ -982,22 +1026,29 @@ class Lattice:
                             self._cutting_part is not self.part
                             and not (self.part.self_crossings[0])
                         )
-                        first = [(0.0, False, True, False)] if own else []
-                        tries = [*first, (0.0, False, False, True)] + [
-                            t for t in tries if t not in first
+                        lead = [(0.0, False, True, False)] if own else []
+                        tries = [*lead, (0.0, False, False, True)] + [
+                            t for t in tries if t not in lead
                         ]
                     for shift, mid_wall, coarse, rebuild in tries:
+                        held = _HeldWarnings()
                         try:
-                            mesh = _checked_single_precision(
-                                self._skinned(
-                                    shift=shift, mid_wall=mid_wall, coarse=coarse, rebuilt=rebuild
-                                ),
-                                "the lattice",
-                            )
-                            # a split skin
-                            mesh = self._glue_deep(mesh, coarse=coarse, rebuilt=rebuild)
+                            with held:
+                                mesh = _checked_single_precision(
+                                    self._skinned(
+                                        shift=shift,
+                                        mid_wall=mid_wall,
+                                        coarse=coarse,
+                                        rebuilt=rebuild,
+                                    ),
+                                    "the lattice",
+                                )
+                                # a split skin
+                                mesh = self._glue_deep(mesh, coarse=coarse, rebuilt=rebuild)
                         except ExportError:
                             continue
+                        first.drop()  # the first skin's, thrown away
+                        held.release()
                         self.skin_retry = (
                             "coarse"
                             if coarse
@@ -1010,6 +1061,7 @@ class Lattice:
                         if self.escape_holes is not None:
                             self._verify_escape(mesh)
                         return mesh
+                    first.release()  # (no retry written: the first skin's, with the error)
                     if folded is not None:
                         raise folded from exc
                     raise
@@ -1033,6 +1085,7 @@ class Lattice:
                 self.trim_report = dataclasses.replace(self.trim_report, failed=why)
                 return self._stitched_single_precision()
         else:
+            first.release()
             mesh = self._stitched_single_precision()
         if self.escape_holes is not None:
             self._verify_escape(mesh)

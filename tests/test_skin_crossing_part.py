@@ -47,6 +47,10 @@ def test_a_skin_on_a_surface_that_crosses_itself_a_little_is_written(knee, tmp_p
     texts = [str(w.message) for w in said if issubclass(w.category, LatticeWarning)]
     assert any(f"crosses itself ({pairs} pair" in t for t in texts)
     assert lat.skin_retry == "rebuilt"
+    # the wall of the skin written, once: not also that of the first skin, thrown away
+    walls = [t for t in texts if t.startswith("the skin's wall")]
+    w = lat.skin_report.wall
+    assert len(walls) == 1 and f"is {w['min']:.4g} .. {w['max']:.4g} mm thick" in walls[0]
     h = lat.skin_report.rebuilt
     assert 0 < h < 0.5
     # said, with how far the skin stands out of the part; and it does no farther
