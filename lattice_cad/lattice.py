@@ -394,39 +394,41 @@ def _checked_single_precision_once(mesh: Mesh, name: str) -> Mesh:
 
 
 class _HeldWarnings:
-    """Warnings issued inside ``with`` blocks of this object are held, not shown (when
-    ``active``); :meth:`release` issues them then, through the filters in force, and
-    :meth:`drop` forgets them. An exception other than ``keep_on`` leaving a block releases
-    them first. For a skin's attempts: the warnings of one whose mesh float32 cannot hold,
-    and which a retry replaces, are not the written mesh's (a knee implant's skin said
-    two different wall thicknesses, one of a skin thrown away, s38)."""
+    """Warnings issued inside ``with`` blocks of this object (one at a time) are held, not
+    shown (when ``active``); :meth:`release` issues them then, each text once, through the
+    filters in force, and :meth:`drop` forgets them. An exception other than
+    :class:`ExportError` (float32 cannot hold the mesh: a retry may follow) leaving a block
+    releases them first. For a skin's attempts: the warnings of one whose mesh a retry
+    replaces are not the written mesh's (a knee implant's skin said two different wall
+    thicknesses, one of a skin thrown away, s38)."""
 
-    def __init__(self, *, active: bool = True, keep_on: type[BaseException] = ExportError):
+    def __init__(self, *, active: bool = True):
         self.active = active
-        self.keep_on = keep_on
         self.records: list[warnings.WarningMessage] = []
-        self._blocks: list[Any] = []
+        self._block: Any = None
 
     def __enter__(self) -> _HeldWarnings:
         if self.active:
-            block = warnings.catch_warnings(record=True)
-            got = block.__enter__()
+            self._block = warnings.catch_warnings(record=True)
+            self._got = self._block.__enter__()
             warnings.simplefilter("always")
-            self._blocks.append((block, got))
         return self
 
     def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
         if self.active:
-            block, got = self._blocks.pop()
-            block.__exit__(kind, exc, tb)
-            self.records.extend(got)
-            if kind is not None and not issubclass(kind, self.keep_on):
+            self._block.__exit__(kind, exc, tb)
+            self.records.extend(self._got)
+            if kind is not None and not issubclass(kind, ExportError):
                 self.release()
 
     def release(self) -> None:
         records, self.records = self.records, []
-        for w in records:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+        said = set()
+        for w in records:  # (held under "always": once each, as the "default" action)
+            key = (str(w.message), w.category, w.filename, w.lineno)
+            if key not in said:
+                said.add(key)
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
 
     def drop(self) -> None:
         self.records = []
@@ -1018,13 +1020,12 @@ class Lattice:
                         # the surface the skin was built on crosses itself, in fewer pairs
                         # than make a folded wall: the outer wall, that surface as it is,
                         # crosses itself in every retry on it (a knee implant's OFF mesh
-                        # made outside shared/data, 16 pairs: 70 crossing faces in each of
+                        # made outside shared/data, 16 pairs: 70 crossing pairs in each of
                         # four tries, 216 s, then refused). First the part's own
                         # tessellation if that one does not cross, then the surface rebuilt
                         # from the region it encloses (said in a warning), then the rest
                         own = (
-                            self._cutting_part is not self.part
-                            and not (self.part.self_crossings[0])
+                            self._cutting_part is not self.part and self.part.self_crossings[0] == 0
                         )
                         lead = [(0.0, False, True, False)] if own else []
                         tries = [*lead, (0.0, False, False, True)] + [

@@ -6,7 +6,7 @@ pushed a dimple through its 5.5 mm wall, whose tip pokes about 1 mm out of the i
 crosses itself in 16 pairs of triangles, fewer than ``config.SKIN_FOLD_PAIRS``: the skin is
 built on that surface as it is, and its outer wall crossed itself with it. Every retry (the
 mid-wall surface, the lattice shifted, both) kept the same outer wall; after four tries of
-68 crossing faces each the skin was refused ("the lattice cannot be written in single
+68 crossing pairs each the skin was refused ("the lattice cannot be written in single
 precision"), 216 s for the benchmark's setting. The retries now begin with the part's
 surface rebuilt from the region it encloses (``conformal.unfold``), said in a warning with
 how far it stands out of the part.
