@@ -967,8 +967,17 @@ def _from_shape(
             vols = sum(_mesh_volume(v[f]) for v, f in pieces)
             overlap = vols - _mesh_volume(v[f])
         note = f", overlapping by {overlap:.4g} mm^3" if overlap > 1e-6 * vols else ""
+        # its bodies: the united solids, or the outer shells of the meshes' union
+        n = len(united) if united is not None else sum(
+            _mesh_volume(v[f[c]]) > 0 for c in _components(f, len(v))
+        )  # fmt: skip
+        said = f"{len(given)} solids were united into one part{note}"
+        if n == len(given):  # (s38's print-in-place hinge: it said "united")
+            said = f"{n} solids, none touching another, make one part of {n} bodies"
+        elif n > 1:
+            said += f" of {n} bodies (those touching or overlapping were fused)"
         warnings.warn(
-            f"{name}: {len(given)} solids were united into one part{note}",
+            f"{name}: {said}",
             LatticeWarning,
             stacklevel=3,
         )
@@ -1318,9 +1327,9 @@ def _without_debris(
     v: NDArray[np.float64],
     shells: list[NDArray[np.int64]],
     volumes: list[float],
-    turned: list[bool],
+    turned: list[NDArray[np.bool_]],
     name: str,
-) -> tuple[list[NDArray[np.int64]], list[float], list[bool]]:
+) -> tuple[list[NDArray[np.int64]], list[float], list[NDArray[np.bool_]]]:
     """The closed shells of a mesh file without its debris: shells smaller than
     ``config.DEBRIS_SIZE`` of the part's diagonal whose volume is below
     ``config.DEBRIS_VOLUME`` of the largest shell's (a speck an exporter or a scan left
@@ -1490,13 +1499,14 @@ def _from_mesh_file(
     bodies = _components(f, len(v))
     shells: list[NDArray[np.int64]] = []
     volumes: list[float] = []
-    turned: list[bool] = []
+    turned: list[NDArray[np.bool_]] = []  # per shell: its triangles reversed by _orient
     for body in bodies:
         fb = f[body]
-        fixed = False
+        fixed = np.zeros(len(fb), dtype=bool)
         if _closed_problem(fb):
-            fixed = True
-            fb = _orient(fb)
+            oriented = _orient(fb)
+            fixed = np.any(oriented != fb, axis=1)
+            fb = oriented
             if _closed_problem(fb):
                 raise PartError(
                     f"{path}: body {len(shells)} cannot be oriented consistently "
@@ -1517,18 +1527,20 @@ def _from_mesh_file(
     # box's inner wall): it stays as it is and goes with the smallest shell holding it;
     # any other shell facing inward is turned outward (a mirrored body)
     holder = _cavity_holders(v, shells, volumes)
-    repaired: list[str] = []
+    repaired: list[tuple[int, str]] = []  # (triangles flipped, where)
     grouped: dict[int, list[NDArray[np.int64]]] = {}
     for k, fb in enumerate(shells):
         if holder[k] >= 0:
             continue
-        if volumes[k] < 0:
+        flipped = turned[k]
+        if volumes[k] < 0:  # inward as a whole: the triangles _orient kept were the flipped
             fb = fb[:, ::-1]
-            turned[k] = True
-        if turned[k]:
-            repaired.append("body {} at ({:.4g}, {:.4g}, {:.4g})".format(
-                k, *v[np.unique(fb)].mean(axis=0)
-            ))  # fmt: skip
+            flipped = ~flipped
+        if flipped.any():
+            n = int(np.count_nonzero(flipped))
+            repaired.append((n, "body {} at ({:.4g}, {:.4g}, {:.4g}): {:,} of {:,}".format(
+                k, *v[np.unique(fb)].mean(axis=0), n, len(fb)
+            )))  # fmt: skip
         grouped[k] = [fb]
     for k, h in enumerate(holder):
         if h >= 0:
@@ -1537,10 +1549,12 @@ def _from_mesh_file(
         (v, np.concatenate(g)) for g in grouped.values()
     ]
     if repaired:
-        which = "; ".join(repaired[:5]) + (" ..." if len(repaired) > 5 else "")
+        which = "; ".join(w for _, w in repaired[:5]) + (" ..." if len(repaired) > 5 else "")
+        n = sum(n for n, _ in repaired)
         warnings.warn(
-            f"{path}: {len(repaired)} of {len(bodies)} bodies had flipped (inward-facing) "
-            f"triangles ({which}: the mean of its vertices); they were re-oriented outward",
+            f"{path}: {n:,} flipped (inward-facing) triangle(s) in {len(repaired)} of "
+            f"{len(bodies)} bodies ({which}; a body named by the mean of its vertices); "
+            "they were re-oriented outward",
             LatticeWarning,
             stacklevel=3,
         )

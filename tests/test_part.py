@@ -90,9 +90,13 @@ def test_flipped_body_is_reoriented_with_warning():
         part = load_part(path)
     msgs = " | ".join(str(w.message) for w in rec)
     assert "re-oriented outward" in msgs and "2 bodies were united" in msgs
-    # regression: each body was counted twice ("4 of 2 bodies"); each is named by a point
-    assert "2 of 2 bodies had flipped" in msgs
-    assert "body 0 at (-0.4758, -0.6225, 0.009326)" in msgs and "body 1 at (" in msgs
+    # regression: each body was counted twice ("4 of 2 bodies"); each is named by a point;
+    # regression (s38's bracket with 9 flipped triangles: "1 of 1 bodies had flipped
+    # triangles"): the triangles are counted, per body (10 of the first box's 12 and 16 of
+    # the second's 20 face inward, by the centroid test of these near-convex boxes)
+    assert "26 flipped (inward-facing) triangle(s) in 2 of 2 bodies" in msgs
+    assert "body 0 at (-0.4758, -0.6225, 0.009326): 10 of 12" in msgs
+    assert "body 1 at (0.07422, 3.508e-08, 0.2281): 16 of 20" in msgs
     assert part.volume > 0
     # both bodies count as inside
     assert part.contains(part.vertices.mean(axis=0, keepdims=True)).dtype == bool

@@ -67,3 +67,34 @@ def test_the_cut_and_the_skin_of_a_shell_with_an_insert(golf):
     assert_valid(mesh)
     assert mesh.volume == pytest.approx(part.volume, rel=0.02)  # 2.5 mm walls: nearly solid
     assert np.isfinite(mesh.volume)
+
+
+def test_solids_apart_are_said_to_stay_apart(tmp_path):
+    """Regression (s38's print-in-place hinge, two leaves 0.3 mm apart): the load said "2
+    solids were united into one part", and every fill then gave 2 bodies. Solids that touch
+    nothing are not united: the warning says the part has as many bodies as solids; with a
+    pair that touches, it says how many bodies the fused part has."""
+    import cadquery as cq
+
+    apart = tmp_path / "apart.step"
+    a = cq.Workplane().box(10, 10, 4)
+    b = cq.Workplane().box(10, 10, 4).translate((10.3, 0, 0))
+    cq.exporters.export(cq.Workplane().add(a.val()).add(b.val()), str(apart))
+    with pytest.warns(LatticeWarning) as rec:
+        part = load_part(apart)
+    said = [str(w.message) for w in rec]
+    assert said == [f"{apart}: 2 solids, none touching another, make one part of 2 bodies"]
+    assert part.united is None  # nothing fused: tessellated one by one
+    assert part.volume == pytest.approx(800.0, rel=1e-9)
+
+    three = tmp_path / "three.step"
+    c = cq.Workplane().box(10, 10, 4).translate((0, 10, 0))  # shares a face with a
+    cq.exporters.export(cq.Workplane().add(a.val()).add(b.val()).add(c.val()), str(three))
+    with pytest.warns(LatticeWarning) as rec:
+        part = load_part(three)
+    said = [str(w.message) for w in rec]
+    assert said == [
+        f"{three}: 3 solids were united into one part of 2 bodies "
+        "(those touching or overlapping were fused)"
+    ]
+    assert len(part.united) == 2
