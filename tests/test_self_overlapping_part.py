@@ -346,3 +346,34 @@ def _said_out(said: list, what: str) -> float:
     hits = [float(m.group(1)) for m in found if m]
     assert len(hits) == 1, [str(w.message)[:200] for w in said]
     return hits[0]
+
+
+def test_a_fold_is_found_by_occts_check_without_a_finer_tessellation(monkeypatch):
+    """Regression (s38's CV-joint bellows, made outside shared/data: convolutions curving
+    tighter than the 1.6 mm wall): ``Part.folds`` tessellated the B-rep four times finer to
+    see its crossings stay, 33 s of each fill's 40-49 s. OCCT's check finds the faces that
+    intersect at once (``BRepAlgoAPI_Check``, in a child); no finer tessellation is made.
+    When the check does not answer in time, the finer tessellation decides, as before."""
+    from conformal.part import Part
+    from lattice_cad.core import config
+    from lattice_cad.occ_impl import shapes as occ
+
+    with pytest.warns(LatticeWarning, match="surface crosses itself"):
+        part = load_part(FOLDED)
+    assert occ.self_interfering(list(part.shape)) == [0]
+    refined = Part.refined
+    calls = []
+
+    def counted(self, *args, **kwargs):
+        calls.append(args)
+        return refined(self, *args, **kwargs)
+
+    monkeypatch.setattr(Part, "refined", counted)
+    assert part.folds and not calls
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LatticeWarning)
+        again = load_part(FOLDED)  # (a fresh part: folds is cached)
+    monkeypatch.setattr(config, "FOLD_CHECK_SECONDS", 1e-3)  # the check times out
+    assert again.folds and len(calls) == 1
+    # a B-rep whose faces do not intersect: none found
+    assert occ.self_interfering([load_part(_elbow()).shape[0]]) == []
