@@ -1571,8 +1571,14 @@ def _from_mesh_file(
         )
     if len(pieces) > 1:
         v, f = _union_meshes(pieces, str(path))
+        n = sum(_mesh_volume(v[f[c]]) > 0 for c in _components(f, len(v)))  # outer shells
+        said = f"{len(pieces)} bodies were united into one part"
+        if n == len(pieces):  # (two blocks touching at a corner)
+            said = f"{n} bodies, none overlapping another, make one part"
+        elif n > 1:
+            said += f" of {n} bodies (those overlapping were fused)"
         warnings.warn(
-            f"{path}: {len(pieces)} bodies were united into one part",
+            f"{path}: {said}",
             LatticeWarning,
             stacklevel=3,
         )
@@ -1607,15 +1613,22 @@ def _from_mesh_file(
 
 
 def _components(f: NDArray[np.int64], n_vertices: int) -> list[NDArray[np.int64]]:
-    """Face indices of each edge-connected body."""
+    """Face indices of each edge-connected body: triangles sharing an edge are one body;
+    bodies that share only a vertex are two (two blocks touching at a corner; taken as
+    one when vertices joined them, the fill of one was removed as a loose piece)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    rows = np.concatenate([f[:, 0], f[:, 1]])
-    cols = np.concatenate([f[:, 1], f[:, 2]])
-    g = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
-    _, lab = connected_components(g, directed=False)
-    face_lab = lab[f[:, 0]]
+    if len(f) == 0:
+        return []
+    ends = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    key = ends[:, 0].astype(np.int64) * np.int64(max(n_vertices, 1)) + ends[:, 1]
+    face = np.tile(np.arange(len(f), dtype=np.int64), 3)
+    order = np.argsort(key)
+    same = key[order[1:]] == key[order[:-1]]  # (the faces of an edge, in a chain)
+    rows, cols = face[order[:-1]][same], face[order[1:]][same]
+    g = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(f), len(f)))
+    _, face_lab = connected_components(g, directed=False)
     order = np.argsort(face_lab, kind="stable")
     splits = np.flatnonzero(np.diff(face_lab[order])) + 1
     return list(np.split(order, splits))

@@ -70,7 +70,8 @@ def test_bodies_sharing_an_edge_are_split_with_a_warning():
         part = load_part(path)
     said = " | ".join(str(w.message) for w in rec)
     assert "1 edge(s) shared by more than two triangles" in said
-    assert "e.g. at (0.5, 0.5, 0)" in said and "2 bodies were united" in said
+    assert "e.g. at (0.5, 0.5, 0)" in said
+    assert "2 bodies, none overlapping another, make one part" in said
     assert part.volume == pytest.approx(2.0, rel=1e-12)
     assert part.contains(np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]])).all()
     assert not part.contains(np.array([[1.0, 0.0, 0.0]]))[0]
@@ -84,12 +85,41 @@ def test_overlapping_solids_are_united_with_warning():
     assert Part.__name__ in repr(type(part))
 
 
+def test_bodies_touching_at_a_corner_are_two_solids_each_filled(tmp_path):
+    """Regression (s39's two blocks touching at one corner, made outside shared/data): the
+    bodies of a mesh were found by shared vertices, so the blocks were one solid, and the
+    fill of the smaller one (376 of 752 struts) was removed as a loose piece. Bodies are
+    edge-connected: two solids, one body each."""
+    from lattice_cad import Lattice
+
+    a = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
+    a.apply_translation((20.0, 15.0, 10.0))  # corner at (40, 30, 20)
+    b = trimesh.creation.box(extents=(30.0, 30.0, 25.0))
+    b.apply_translation((55.0, 45.0, 32.5))  # corner at (40, 30, 20)
+    both = trimesh.util.concatenate([a, b])
+    both.merge_vertices()
+    assert len(both.vertices) == 15  # the corner is one vertex
+    path = tmp_path / "corner.stl"
+    both.export(path)
+    with pytest.warns(LatticeWarning, match="2 bodies, none overlapping another, make one part"):
+        part = load_part(path)
+    assert len(part.solid_parts) == 2
+    assert part.volume == pytest.approx(40 * 30 * 20 + 30 * 30 * 25, rel=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no loose piece removed
+        lat = Lattice.fill(part, cell="bcc", cell_size=5.0, radius=0.4)
+    assert lat.build_report.removed_islands == 0 and lat.build_report.bodies == 2
+    inside = [float(p.contains(lat.graph.nodes).sum()) for p in part.solid_parts]
+    assert min(inside) > 0.3 * max(inside)  # both blocks filled
+
+
 def test_flipped_body_is_reoriented_with_warning():
     path = DATA / "broken" / "trimesh_multibody_flipped_body.stl"
     with pytest.warns(LatticeWarning) as rec:
         part = load_part(path)
     msgs = " | ".join(str(w.message) for w in rec)
-    assert "re-oriented outward" in msgs and "2 bodies were united" in msgs
+    assert "re-oriented outward" in msgs
+    assert "2 bodies, none overlapping another, make one part" in msgs
     # regression: each body was counted twice ("4 of 2 bodies"); each is named by a point;
     # regression (s38's bracket with 9 flipped triangles: "1 of 1 bodies had flipped
     # triangles"): the triangles are counted, per body (10 of the first box's 12 and 16 of
@@ -667,11 +697,19 @@ def test_the_depth_of_bodies_stacked_face_to_face_is_finite(tmp_path):
     a = trimesh.creation.box((40, 40, 15))
     b = a.copy().subdivide()  # the same face, other triangles
     b.apply_translation((0, 0, 15))
+    both = trimesh.util.concatenate([a, b])
+    both.merge_vertices()  # (the corners of the shared face)
+    # a file loads as 2 bodies united (since s39: bodies are edge-connected), without the
+    # sheets; the part with them, as a file gave it before
     path = tmp_path / "stacked.stl"
-    trimesh.util.concatenate([a, b]).export(path)
+    both.export(path)
+    with pytest.warns(LatticeWarning, match="^[^:]*: 2 bodies were united into one part$"):
+        united = load_part(path)
+    assert united.volume == pytest.approx(40 * 40 * 30) and len(united.solid_parts) == 1
+    assert united.inscribed_radius() == pytest.approx(15.0, abs=0.1)
+    part = Part(np.asarray(both.vertices), np.asarray(both.faces), name="stacked")
     # the two sheets touch without crossing: no "crosses itself" warning since s32 (the
     # suite turns any warning into an error)
-    part = load_part(path)
     assert part.self_crossings[0] == 0
     point, depth = part.deepest_point()
     # each box is 15 mm thick and its face to the other is a sheet of the surface

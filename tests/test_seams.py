@@ -155,7 +155,7 @@ def test_a_speck_beside_a_real_part_is_left_out_as_debris(tmp_path, fandisk):
     assert part.volume == pytest.approx(vol, rel=1e-9)
     # a body of 5 % of the part's size is kept (and united with it, as before)
     path = _beside(tmp_path / "two.stl", v, f, [0.05 * size] * 3, hi + 0.1 * size)
-    with pytest.warns(LatticeWarning, match="2 bodies were united"):
+    with pytest.warns(LatticeWarning, match="2 bodies, none overlapping another, make one part"):
         part = load_part(path)
     assert part.volume == pytest.approx(vol + (0.05 * size) ** 3, rel=1e-6)
 
@@ -179,6 +179,6 @@ def test_a_sheet_of_no_thickness_beside_a_real_part_is_left_out_as_debris(tmp_pa
     # a plate 1e-2 of the part's size thick is kept
     extents = [0.5 * size, 0.3 * size, 1e-2 * size]
     path = _beside(tmp_path / "plate.stl", v, f, extents, hi + 0.2 * size)
-    with pytest.warns(LatticeWarning, match="2 bodies were united"):
+    with pytest.warns(LatticeWarning, match="2 bodies, none overlapping another, make one part"):
         part = load_part(path)
     assert part.volume == pytest.approx(vol + float(np.prod(extents)), rel=1e-6)
