@@ -1,14 +1,14 @@
 """A face split into patches is meshed finer only when all its patches fit (s39).
 
 A mould insert made outside shared/data has an 8 mm cooling channel: a circle swept along a
-3-D spline (a B-spline face that ``split_dense_faces`` cuts into 336 patches). Its cutting
+3-D spline (a B-spline face that ``split_dense_faces`` cuts into 334 patches). Its cutting
 tessellation (chord error 0.5 % of a 0.667 mm strut radius) left one patch of 1,254
 triangles 6.7 x over the limit. ``_mesh_faces_finer`` checked that patch's growth against
-the triangle cap, then meshed every patch of the face at a tenth of the chord error (0.45 M
-triangles, predicted 3.6 M for a cap of 1.05 M): BRepMesh was still running 6 minutes later
-(about 17 at the 3.5 K triangles a second measured on that face), and the tet, conform and
-clip fills of the part timed out (400 s). The growth of all the patches
-is now what is checked; the face stays as it is, said in the chord warning.
+the triangle cap, then meshed every patch of the face at a tenth of the chord error (their
+0.37 M triangles would make the mesh 3.6 M, for a cap of 1.05 M): BRepMesh was still running
+6 minutes later (about 15 at the 3.5 K triangles a second measured on that face), and the
+tet, conform and clip fills of the part timed out (400 s). The growth of all the patches is
+now what is checked; the face stays as it is, said in the chord warning.
 """
 
 from __future__ import annotations

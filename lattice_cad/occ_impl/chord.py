@@ -791,7 +791,7 @@ def _mesh_faces_finer(
         for _key, (_, step, members) in sorted(units.items(), key=lambda u: (u[1][0], u[0])):
             # the growth of all the faces meshed finer: a face split into patches is meshed
             # finer in every patch (a mould insert's cooling channel, made outside shared/data:
-            # its one patch over the limit, 1,254 triangles, brought its 335 others, 0.45 M,
+            # its one patch over the limit, 1,254 triangles, brought its 333 others, 0.37 M,
             # to a tenth of the chord error: BRepMesh still ran 6 minutes later)
             grown = float(counts[members].sum()) * (1.0 / step - 1.0)
             if total + grown <= cap:
