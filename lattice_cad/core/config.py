@@ -424,7 +424,7 @@ CROSSING_PAIRS_CLASSIFIED = 1_000_000
 FOLD_REFINE = 4.0
 #: ``conformal.Part.folds`` first asks OCCT whether the B-rep's faces intersect one
 #: another (``BRepAlgoAPI_Check``), for at most this many seconds (0.5-1.8 s on the folds
-#: measured, the child's start included; minutes on NIST CTC-02, which never gets here).
+#: measured, 1.7-2.9 s with the child's start; minutes on NIST CTC-02, which never gets here).
 FOLD_CHECK_SECONDS = 15.0
 #: When most of a voxel fill falls apart into loose pieces, the warning says what keeps it
 #: joined, tried: the conform fill at the same size (for inside and clip), then cells of
