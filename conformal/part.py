@@ -979,9 +979,7 @@ def _from_shape(
             overlap = vols - _mesh_volume(v[f])
         note = f", overlapping by {overlap:.4g} mm^3" if overlap > 1e-6 * vols else ""
         # its bodies: the united solids, or the outer shells of the meshes' union
-        n = len(united) if united is not None else sum(
-            _mesh_volume(v[f[c]]) > 0 for c in _components(f, len(v))
-        )  # fmt: skip
+        n = len(united) if united is not None else _outer_shells(v, f)
         said = f"{len(given)} solids were united into one part{note}"
         if n == len(given):  # (s38's print-in-place hinge: it said "united")
             said = f"{n} solids, none touching another, make one part of {n} bodies"
@@ -1571,7 +1569,7 @@ def _from_mesh_file(
         )
     if len(pieces) > 1:
         v, f = _union_meshes(pieces, str(path))
-        n = sum(_mesh_volume(v[f[c]]) > 0 for c in _components(f, len(v)))  # outer shells
+        n = _outer_shells(v, f)
         said = f"{len(pieces)} bodies were united into one part"
         if n == len(pieces):  # (two blocks touching at a corner)
             said = f"{n} bodies, none overlapping another, make one part"
@@ -1632,6 +1630,15 @@ def _components(f: NDArray[np.int64], n_vertices: int) -> list[NDArray[np.int64]
     order = np.argsort(face_lab, kind="stable")
     splits = np.flatnonzero(np.diff(face_lab[order])) + 1
     return list(np.split(order, splits))
+
+
+def _outer_shells(v: NDArray[np.float64], f: NDArray[np.int64]) -> int:
+    """How many bodies a closed, outward mesh (a union's result) has: its edge-connected
+    shells that enclose a positive volume (a cavity's shell encloses a negative one).
+
+    v : (V, 3) float64, f : (F, 3) int64.
+    """
+    return sum(_mesh_volume(v[f[c]]) > 0 for c in _components(f, len(v)))
 
 
 def _orient(f: NDArray[np.int64]) -> NDArray[np.int64]:
