@@ -999,11 +999,11 @@ def stored_triangulations(
     # all nodes and triangles in one read (the same values), else node by node
     read: list[Any] = triangulation_arrays(meshed) or [None] * len(meshed)
     bulk = iter(read)
-    for face, loc, tri in found:
+    for i, (face, loc, tri) in enumerate(found):
         if tri is None:
             fan = _speck_fan(shape, face, tiny, edge_faces) if tiny > 0.0 else None
             if fan is None:
-                raise OCCTFailure("BRepMesh left a face without triangulation")
+                raise OCCTFailure(f"BRepMesh left face {i} (TopExp order) without triangulation")
             yield face, fan[0], fan[1]
             continue
         got = next(bulk)
