@@ -980,12 +980,19 @@ def _check_thickness(thickness: Any) -> None:
 
 
 def no_room_message(
-    thickness: float, greatest: float, *, strut: float | None = None, grid: float | None = None
+    thickness: float,
+    greatest: float,
+    *,
+    strut: float | None = None,
+    grid: float | None = None,
+    struts: float | None = None,
 ) -> str:
     """Why a skin of ``thickness`` (mm) leaves no cavity for a lattice in a part whose
     greatest thickness is ``greatest`` (mm; twice ``Part.inscribed_radius``), and which
     skin would; ``strut``: the cavity left was nowhere as thick as this (mm, the struts'
-    diameter: ``build_skin(min_cavity=)``) on the voxel grid of step ``grid`` (mm)."""
+    diameter: ``build_skin(min_cavity=)``) on the voxel grid of step ``grid`` (mm).
+    ``struts``: the struts' diameter (mm), for the advice only, when the inset came out
+    empty (a skin that leaves a cavity thinner than the struts would be refused next)."""
     if strut is not None:
         room = greatest - strut
         better = (
@@ -1016,12 +1023,24 @@ def no_room_message(
             f"for a cavity to hold a lattice; a skin thinner than about "
             f"{0.4 * greatest:.3g} mm leaves a cavity for the lattice there"
         )
-    return (
+    said = (
         f"the part is nowhere thicker than twice the skin thickness {thickness:g} mm: "
-        f"no room for a lattice; its greatest thickness is about {greatest:.3g} mm, so a "
-        f"skin thinner than about {0.4 * greatest:.3g} mm leaves a cavity for the lattice, "
-        "or fill it without a skin"
+        f"no room for a lattice; its greatest thickness is about {greatest:.3g} mm, so "
     )
+    if struts is None:
+        advice = f"a skin thinner than about {0.4 * greatest:.3g} mm leaves a cavity for a lattice"
+    elif greatest > struts:
+        advice = (
+            f"a skin thinner than about {0.4 * (greatest - struts):.3g} mm leaves a cavity as "
+            f"thick as the struts ({struts:.3g} mm across)"
+        )
+    else:  # (a tapered tube's 2 mm wall, 2.44 mm struts: the advised skin was refused next)
+        advice = (
+            f"no skin leaves a cavity as thick as the struts ({struts:.3g} mm across): struts "
+            f"of radius below {0.25 * greatest:.3g} mm under a skin thinner than about "
+            f"{0.2 * greatest:.3g} mm would fit"
+        )
+    return f"{said}{advice}, or fill it without a skin"
 
 
 def _no_room(part: Any, thickness: float) -> bool:
@@ -1213,7 +1232,11 @@ def build_skin(
     outer, inner = surfaces[0], surfaces[1]
     if inner.is_empty():
         strut = min_cavity if closed is not None else None
-        raise SkinError(no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=strut, grid=h))
+        raise SkinError(
+            no_room_message(
+                thickness, 2.0 * p.inscribed_radius(), strut=strut, grid=h, struts=min_cavity
+            )
+        )
     surface = _as_part(outer)  # one distance structure for the islands and the wall
     if used == "occt":  # the voxel surface: projecting its creases folds faces (screw)
         inner = _project_to_offset(inner, surface, thickness, refine=True)

@@ -125,3 +125,19 @@ def test_the_no_room_message_does_not_contradict_the_thickness_it_gives():
     spots = no_room_message(33.3333, 73.2)
     assert "nowhere thicker" not in spots
     assert "came out empty" in spots and "73.2 mm" in spots and "29.3 mm" in spots
+
+
+def test_the_no_room_advice_leaves_room_for_the_struts():
+    """Regression (s40, a tapered tube with 2 mm walls made outside shared/data, struts
+    2.44 mm across): "a skin thinner than about 0.798 mm leaves a cavity for the lattice",
+    and that skin was refused next, its 0.4 mm cavity thinner than the struts. The advice
+    now counts the struts: a skin it gives leaves a cavity at least as thick as they are."""
+    from conformal.skin import no_room_message
+
+    tube = no_room_message(2.44444, 2.0, struts=2.44444)
+    assert "no skin leaves a cavity as thick as the struts (2.44 mm across)" in tube
+    assert "radius below 0.5 mm" in tube and "thinner than about 0.4 mm" in tube
+    # (struts of radius 0.5 under a 0.4 mm skin: a 2 - 0.8 = 1.2 mm cavity, 1 mm struts)
+    rib = no_room_message(2.66602, 3.01, struts=1.0)
+    assert "thinner than about 0.804 mm leaves a cavity as thick as the struts" in rib
+    assert 3.01 - 2 * 0.804 >= 1.0
