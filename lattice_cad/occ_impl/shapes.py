@@ -928,9 +928,9 @@ def face_triangulations(
     """Triangulate ``shape`` with BRepMesh and yield each face's triangulation.
 
     ``min_size`` > 0: BRepMesh's ``MinSize``, no triangle edge shorter (its default is a
-    tenth of ``deflection``). Where a face's curvature radius falls to about that size (an
-    offset surface near its focal line), its surface check adds nodes without end: an
-    OpenCascade offset of a mould insert's swept cooling channel meshed in 3.6 s at
+    tenth of ``deflection``). On some faces BRepMesh's Delaunay refinement otherwise adds
+    nodes for minutes: OpenCascade's offset of a mould insert's swept cooling channel
+    (one of its faces, meshed alone, still running after 3 minutes) meshed in 3.6 s at
     ``min_size`` = ``deflection`` and had not finished after 10 minutes without it.
 
     ``on_meshed``, if given, is called (without arguments) once BRepMesh is done, before
