@@ -984,16 +984,16 @@ def no_room_message(
     greatest: float,
     *,
     strut: float | None = None,
+    closed: bool = False,
     grid: float | None = None,
-    struts: float | None = None,
 ) -> str:
     """Why a skin of ``thickness`` (mm) leaves no cavity for a lattice in a part whose
     greatest thickness is ``greatest`` (mm; twice ``Part.inscribed_radius``), and which
-    skin would; ``strut``: the cavity left was nowhere as thick as this (mm, the struts'
-    diameter: ``build_skin(min_cavity=)``) on the voxel grid of step ``grid`` (mm).
-    ``struts``: the struts' diameter (mm), for the advice only, when the inset came out
-    empty (a skin that leaves a cavity thinner than the struts would be refused next)."""
-    if strut is not None:
+    skin would. ``strut``: the struts' diameter (mm, ``build_skin(min_cavity=)``): a skin
+    advised leaves a cavity at least that thick (one leaving a thinner cavity would be
+    refused next). ``closed``: the cavity left was nowhere as thick as ``strut`` on the
+    voxel grid of step ``grid`` (mm), and was made solid wall."""
+    if strut is not None and closed:
         room = greatest - strut
         better = (
             f"a skin thinner than about {0.4 * room:.3g} mm leaves room for them"
@@ -1027,16 +1027,16 @@ def no_room_message(
         f"the part is nowhere thicker than twice the skin thickness {thickness:g} mm: "
         f"no room for a lattice; its greatest thickness is about {greatest:.3g} mm, so "
     )
-    if struts is None:
+    if strut is None:
         advice = f"a skin thinner than about {0.4 * greatest:.3g} mm leaves a cavity for a lattice"
-    elif greatest > struts:
+    elif greatest > strut:
         advice = (
-            f"a skin thinner than about {0.4 * (greatest - struts):.3g} mm leaves a cavity as "
-            f"thick as the struts ({struts:.3g} mm across)"
+            f"a skin thinner than about {0.4 * (greatest - strut):.3g} mm leaves a cavity as "
+            f"thick as the struts ({strut:.3g} mm across)"
         )
     else:  # (a tapered tube's 2 mm wall, 2.44 mm struts: the advised skin was refused next)
         advice = (
-            f"no skin leaves a cavity as thick as the struts ({struts:.3g} mm across): struts "
+            f"no skin leaves a cavity as thick as the struts ({strut:.3g} mm across): struts "
             f"of radius below {0.25 * greatest:.3g} mm under a skin thinner than about "
             f"{0.2 * greatest:.3g} mm would fit"
         )
@@ -1231,10 +1231,13 @@ def build_skin(
     )
     outer, inner = surfaces[0], surfaces[1]
     if inner.is_empty():
-        strut = min_cavity if closed is not None else None
         raise SkinError(
             no_room_message(
-                thickness, 2.0 * p.inscribed_radius(), strut=strut, grid=h, struts=min_cavity
+                thickness,
+                2.0 * p.inscribed_radius(),
+                strut=min_cavity,
+                closed=closed is not None,
+                grid=h,
             )
         )
     surface = _as_part(outer)  # one distance structure for the islands and the wall
@@ -1312,7 +1315,9 @@ def build_skin(
         if closed is not None:
             if inner.is_empty():
                 raise SkinError(
-                    no_room_message(thickness, 2.0 * p.inscribed_radius(), strut=min_cavity, grid=h)
+                    no_room_message(
+                        thickness, 2.0 * p.inscribed_radius(), strut=min_cavity, closed=True, grid=h
+                    )
                 )
             solid, split, bodies, islands, voids = booleans(inner)
     if closed is not None:

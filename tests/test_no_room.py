@@ -134,10 +134,10 @@ def test_the_no_room_advice_leaves_room_for_the_struts():
     now counts the struts: a skin it gives leaves a cavity at least as thick as they are."""
     from conformal.skin import no_room_message
 
-    tube = no_room_message(2.44444, 2.0, struts=2.44444)
+    tube = no_room_message(2.44444, 2.0, strut=2.44444)
     assert "no skin leaves a cavity as thick as the struts (2.44 mm across)" in tube
     assert "radius below 0.5 mm" in tube and "thinner than about 0.4 mm" in tube
     # (struts of radius 0.5 under a 0.4 mm skin: a 2 - 0.8 = 1.2 mm cavity, 1 mm struts)
-    rib = no_room_message(2.66602, 3.01, struts=1.0)
+    rib = no_room_message(2.66602, 3.01, strut=1.0)
     assert "thinner than about 0.804 mm leaves a cavity as thick as the struts" in rib
     assert 3.01 - 2 * 0.804 >= 1.0

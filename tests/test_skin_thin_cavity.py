@@ -161,11 +161,12 @@ def test_no_room_in_a_part_thick_enough_says_the_grid_missed_it():
     shared/data) was refused with "a cavity nowhere as thick as the struts" beside its own
     17.7 mm, which leaves 6.6 mm: its cavity is that thick only within about 0.4 mm of
     its mid-surface, narrower than the voxel grid (1.85 mm) keeps. The message says so."""
-    text = _skin.no_room_message(5.55556, 17.7, strut=5.55556, grid=1.85)
+    text = _skin.no_room_message(5.55556, 17.7, strut=5.55556, closed=True, grid=1.85)
     assert "as thick as the struts (5.56 mm across) only in spots narrower than its voxel " in text
     assert "grid keeps (1.85 mm)" in text and "nowhere" not in text
     assert "a skin thinner than about 4.86 mm leaves room" in text
-    plate = _skin.no_room_message(1.0, 3.0, strut=1.6, grid=0.33)  # 3 < 2 + 1.6: nowhere
+    # 3 < 2 + 1.6: nowhere
+    plate = _skin.no_room_message(1.0, 3.0, strut=1.6, closed=True, grid=0.33)
     assert "leaves a cavity nowhere as thick as the struts (1.6 mm across)" in plate
-    occt = _skin.no_room_message(5.55556, 17.7, strut=5.55556, grid=float("nan"))
+    occt = _skin.no_room_message(5.55556, 17.7, strut=5.55556, closed=True, grid=float("nan"))
     assert "nowhere" in occt

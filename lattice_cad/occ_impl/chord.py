@@ -567,13 +567,9 @@ def _params(deflection: float, angular: float, parallel: bool) -> IMeshTools_Par
     the largest deflection of its edges' discretisation, which edges with a large B-rep
     tolerance raise (Ventilator face 26: tolerance 4.25e-3 mm, asked 4.4e-3, meshed at
     8.4e-3: 1.9 % r for 1 % r asked; 1.0 % r with it)."""
-    params = IMeshTools_Parameters()
-    params.Deflection = float(deflection)
-    params.Angle = float(angular)
-    params.Relative = False
-    params.InParallel = bool(parallel)
-    params.ForceFaceDeflection = True
-    return params
+    from lattice_cad.occ_impl.shapes import mesh_parameters
+
+    return mesh_parameters(deflection, angular, parallel, force_face=True)
 
 
 def _mesh(shape: TopoDS_Shape, deflection: float, angular: float, parallel: bool) -> None:

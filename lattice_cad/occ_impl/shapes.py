@@ -915,6 +915,29 @@ def triangle_growth(shape: TopoDS_Shape) -> NDArray[np.float64]:
 
 
 # ------------------------------------------------------------ tessellation
+def mesh_parameters(
+    deflection: float,
+    angular: float,
+    parallel: bool,
+    *,
+    force_face: bool = False,
+    min_size: float = 0.0,
+) -> IMeshTools_Parameters:
+    """BRepMesh's parameters: absolute chord error ``deflection``, ``angular``, in parallel
+    or not (as ``BRepMesh_IncrementalMesh(shape, deflection, False, angular, parallel)``
+    sets them); ``force_face``: ``ForceFaceDeflection``; ``min_size`` > 0: ``MinSize``
+    (see :func:`face_triangulations`)."""
+    params = IMeshTools_Parameters()
+    params.Deflection = float(deflection)
+    params.Angle = float(angular)
+    params.Relative = False
+    params.InParallel = bool(parallel)
+    params.ForceFaceDeflection = bool(force_face)
+    if min_size > 0:
+        params.MinSize = float(min_size)
+    return params
+
+
 def face_triangulations(
     shape: TopoDS_Shape,
     deflection: float,
@@ -957,12 +980,7 @@ def face_triangulations(
         BRepMesh is not done, or leaves a face without triangulation.
     """
     if min_size > 0:
-        params = IMeshTools_Parameters()  # (as the positional constructor sets them)
-        params.Deflection = float(deflection)
-        params.Angle = float(angular)
-        params.Relative = False
-        params.InParallel = bool(parallel)
-        params.MinSize = float(min_size)
+        params = mesh_parameters(deflection, angular, parallel, min_size=min_size)
         mesher = BRepMesh_IncrementalMesh(shape, params)
     else:
         mesher = BRepMesh_IncrementalMesh(shape, float(deflection), False, float(angular), parallel)
