@@ -21,7 +21,7 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -109,6 +109,30 @@ def tet_mesh(
     PartError
         gmsh failed; the message has gmsh's error and the volume entity tags.
     """
+    nodes, tets, _ = _tet_mesh(
+        part, size, algorithm=algorithm, surface_angle=surface_angle, timeout=timeout,
+        progress=progress,
+    )  # fmt: skip
+    return nodes, tets
+
+
+#: How a B-rep part's tet mesh is sought (:func:`_tet_mesh`): its B-rep first; its
+#: triangulated surface first, then its B-rep; its triangulated surface only.
+BrepOrder = Literal["brep", "surface", "no-brep"]
+
+
+def _tet_mesh(
+    part: Part,
+    size: float,
+    *,
+    algorithm: Algorithm = "hxt",
+    surface_angle: float = 40.0,
+    timeout: float | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+    brep: BrepOrder = "brep",
+) -> tuple[NDArray[np.float64], NDArray[np.int64], str]:
+    """:func:`tet_mesh`, and which input gave it (``"brep"``, ``"surface"`` or
+    ``"resampled"``); ``brep`` places a B-rep part's B-rep among the ways tried."""
     import gmsh
 
     if not (isinstance(size, (int, float)) and math.isfinite(size) and size > 0):
@@ -141,19 +165,28 @@ def tet_mesh(
         # far more triangles than the size needs: gmsh spends a minute and more on each
         # attempt at the surface as it is; its resampled surface first
         surfaces.sort(key=lambda s: s[0] == "surface")  # (stable: the B-rep still first)
-    if part.shape is not None:
+    if part.shape is not None and brep == "brep":
         # the exact B-rep first; when gmsh cannot mesh it (e.g. overlapping surface meshes of
         # close faces, NIST CTC-02), the part's own closed triangulation as for a mesh part
         surfaces = [("brep", "brep", 0.0), *surfaces]
+    elif part.shape is not None and brep == "surface":
+        # (the B-rep's faces would crowd the nodes: see tet_lattice) its surface
+        # re-parametrised at the angles first
+        k = len(angles)
+        surfaces = [*surfaces[:k], ("brep", "brep", 0.0), *surfaces[k:]]
     if timeout is None:
         expected = 2.0 * abs(part.volume) / (size**3 / (6.0 * math.sqrt(2.0)))
         timeout = config.TET_ATTEMPT_SECONDS + expected / config.TET_ATTEMPT_RATE
     failures: list[str] = []
+    brep_failure = ""  # the first reason the B-rep failed, if it was tried and did
+    tried = 0  # failures before the B-rep's attempt
     deadline = time.monotonic() + config.TET_TOTAL_ATTEMPTS * timeout
     inputs = _GmshInputs(part, size)
     label = {"brep": "B-rep", "surface": "surface", "resampled": "resampled surface"}
     with tempfile.TemporaryDirectory(prefix="conformal_tet_") as tmp:
         for step, (source, how, angle) in enumerate(surfaces):
+            if source == "brep":
+                tried = len(failures)
             if time.monotonic() >= deadline:
                 failures.append(
                     f"the other ways not tried: the attempts took "
@@ -163,6 +196,7 @@ def tet_mesh(
             sources = inputs.files(source, Path(tmp))
             if sources is None:
                 failures.append("the solids could not be fused into one B-rep")
+                brep_failure = brep_failure or (failures[-1] if source == "brep" else "")
                 continue
             what = f"{label[source]}{', ' + how if source != 'brep' else ''}"
             what += f" {angle:g} deg" if angle else ""
@@ -209,10 +243,12 @@ def tet_mesh(
                 if len(got) <= k:
                     break  # a piece failed: the next strategy
             if len(got) < len(sources):
+                if source == "brep" and len(failures) > tried:
+                    brep_failure = failures[tried]
                 continue
-            if source != "brep" and part.shape is not None:
+            if source != "brep" and brep_failure:
                 warnings.warn(
-                    f"{part.name}: gmsh could not mesh the B-rep ({failures[0]}); the "
+                    f"{part.name}: gmsh could not mesh the B-rep ({brep_failure}); the "
                     f"tetrahedra come from its triangulated surface ({what}, {algo})",
                     LatticeWarning,
                     stacklevel=2,
@@ -227,7 +263,7 @@ def tet_mesh(
                     LatticeWarning,
                     stacklevel=2,
                 )
-            return _joined([_compact(*g) for g in got])
+            return (*_joined([_compact(*g) for g in got]), source)
     raise PartError(
         f"{part.name}: gmsh could not mesh the part: "
         + "; ".join(failures)
@@ -593,7 +629,20 @@ def tet_lattice(
     rep = BuildReport()
     asked = radius
     t0 = time.perf_counter()
-    nodes, tets = tet_mesh(part, size, algorithm=algorithm, progress=progress)
+    first: BrepOrder = "brep"
+    crowd = _brep_crowding(part, size)
+    if crowd is not None and crowd[0] > config.TET_BREP_CROWDING * crowd[1]:
+        first = "surface"
+    nodes, tets, used = _tet_mesh(part, size, algorithm=algorithm, progress=progress, brep=first)
+    if crowd is not None and used == "surface" and first == "surface":
+        warnings.warn(
+            f"{part.name}: the edges of its B-rep's faces would crowd the tetrahedra's nodes "
+            f"({crowd[0]:,} nodes on them, where about {crowd[1]:,.0f} cover its surface at "
+            f"size {size:.3g}): the tetrahedra come from its triangulated surface, re-meshed "
+            "at the size",
+            LatticeWarning,
+            stacklevel=2,
+        )
     rep.seconds["mesh"] = time.perf_counter() - t0
     if progress is not None:
         progress("graph repair and radii", 0, 1)
@@ -605,6 +654,27 @@ def tet_lattice(
             nodes, edges, r, surface=boundary_nodes(tets, len(nodes)), tolerance=tolerance,
             segments=segments, profile=profile,
         )  # fmt: skip
+        if (
+            used == "brep"
+            and fix.unfit > config.TET_RETRY_THIN_SHARE * len(edges)
+            and _flat_share(part, nodes, edges, fitted, r, size, tolerance) < 0.5
+        ):
+            # struts thinned where the part is thick for the size: the B-rep's small faces
+            # crowd the nodes (an M6 screw's thread: 1,047 of 6,296 struts beyond the
+            # tolerance; from its triangulated surface 47 of 5,759); the surface is tried,
+            # and the lattice with the smaller share of such struts kept
+            other = _surface_try(part, size, algorithm, radius, tolerance, segments, profile)
+            if other is not None and other[3].unfit * len(edges) < fix.unfit * len(other[1]):
+                warnings.warn(
+                    f"{part.name}: the tetrahedra of its B-rep left {fix.unfit:,} of "
+                    f"{len(edges):,} struts thinner than {tolerance:g} x the radius asked, "
+                    f"those of its triangulated surface (re-meshed at the size) "
+                    f"{other[3].unfit:,} of {len(other[1]):,}: the latter are used",
+                    LatticeWarning,
+                    stacklevel=2,
+                )
+                nodes, edges, fitted, fix, r = other
+                used = "surface"
         rep.merged_nodes, rep.removed_short = fix.merged, fix.dropped
         rep.radii_reduced = fix.thinned
         if fix.unfit:
@@ -613,7 +683,9 @@ def tet_lattice(
                 f"{fix.unfit} strut(s) of the tet lattice of {part.name} had to be made thinner "
                 f"than {tolerance:g} x the radius asked even after the graph repair "
                 f"({fix.merged} struts collapsed, {fix.dropped} dropped), e.g. at {where}"
-                + _thin_advice(part, nodes, edges, fitted, r, size, tolerance),
+                + _thin_advice(
+                    part, nodes, edges, fitted, r, size, tolerance, from_brep=used == "brep"
+                ),
                 LatticeWarning,
                 stacklevel=2,
             )
@@ -633,6 +705,74 @@ def tet_lattice(
     return (graph, rep) if return_report else graph
 
 
+def _brep_crowding(part: Part, size: float) -> tuple[int, float] | None:
+    """(nodes on the edges of the B-rep's faces at ``size``, nodes of its surface meshed
+    at ``size``) for a B-rep part, or None (a mesh part, or OCCT could not measure it).
+
+    gmsh meshing a B-rep puts a node on every vertex and every ``size`` along every edge
+    of its faces (:func:`lattice_cad.occ_impl.shapes.edge_nodes`); a surface meshed at
+    ``size`` has about one node per two equilateral triangles of that edge. A helical
+    gear whose flanks are 744 narrow B-spline faces (made outside shared/data): 4,583
+    against 1,001 at size 3.47; the shared STEP parts at the benchmark's size: 0.25-2.5.
+    """
+    if part.shape is None:
+        return None
+    from lattice_cad.core.errors import OCCTFailure
+    from lattice_cad.occ_impl import shapes as _occ
+
+    try:
+        forced = sum(_occ.edge_nodes(s, size) for s in part.shape)
+    except OCCTFailure:
+        return None
+    return forced, float(abs(part.area) / (size * size * math.sqrt(3.0) / 4.0) / 2.0)
+
+
+def _surface_try(
+    part: Part,
+    size: float,
+    algorithm: Algorithm,
+    radius: RadiusSpec,
+    tolerance: float,
+    segments: int,
+    profile: Profile,
+) -> tuple[Any, ...] | None:
+    """(nodes, edges, fitted radii, repair, radii asked) of the tet lattice of a B-rep
+    part's triangulated surface (its B-rep not tried), or None when gmsh fails on it."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LatticeWarning)
+            nodes, tets, _ = _tet_mesh(part, size, algorithm=algorithm, brep="no-brep")
+    except PartError:
+        return None
+    edges = tet_edges(tets)
+    r = resolve_radii(radius, nodes, edges)
+    nodes, edges, fitted, fix = repair_graph(
+        nodes, edges, r, surface=boundary_nodes(tets, len(nodes)), tolerance=tolerance,
+        segments=segments, profile=profile,
+    )  # fmt: skip
+    return nodes, edges, fitted, fix, r
+
+
+def _flat_share(
+    part: Part,
+    nodes: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    fitted: NDArray[np.float64],
+    asked: NDArray[np.float64],
+    size: float,
+    tolerance: float,
+) -> float:
+    """The share of the ends of the struts thinned beyond ``tolerance`` (of the largest
+    radius asked) where the part is at most ``THIN_FOR_TETS`` times ``size`` thick (0 when none
+    is): there it is thin for tetrahedra of that size, whatever their input."""
+    r0 = float(np.max(asked))  # (the radii asked, per strut before the repair)
+    thin = fitted.min(axis=1) < tolerance * r0 * (1 - 1e-9)
+    if not thin.any():
+        return 0.0
+    ends = np.unique(edges[thin])
+    return float(np.mean(_local_thickness(part, nodes[ends], size) < THIN_FOR_TETS * size))
+
+
 def _thin_advice(
     part: Part,
     nodes: NDArray[np.float64],
@@ -641,9 +781,12 @@ def _thin_advice(
     asked: NDArray[np.float64],
     size: float,
     tolerance: float,
+    *,
+    from_brep: bool = True,
 ) -> str:
     """The end of the warning about struts thinned beyond ``tolerance``: how thin (for one
-    radius asked), and what helps:
+    radius asked), and what helps (``from_brep``: the tetrahedra came from the part's
+    B-rep, not from a surface gmsh re-meshed):
 
     - where the part is at most ``THIN_FOR_TETS`` times ``size`` thick about most of
       their ends (its greatest thickness within ``size`` of the end,
@@ -699,9 +842,10 @@ def _thin_advice(
     cause = (
         "the part's small features (teeth, chamfers, fillets, small faces) crowd the "
         "tetrahedra's nodes, which follow the edges of its faces (a smaller size helps little)"
-        if part.shape is not None
+        if part.shape is not None and from_brep
         else "the surface gmsh re-meshed for the tetrahedra crowds their nodes there (where "
-        "a mesh part's surface curves or is rough, its new triangles are shorter than the size)"
+        "the surface curves or is rough, or has features smaller than the size, its new "
+        "triangles are shorter than the size)"
     )
     return out + (
         f", {100 * (1 - flat):.0f} % of them where the part is thicker than the size {size:.3g} "

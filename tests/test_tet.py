@@ -311,29 +311,37 @@ def test_voxel_fills_count_struts_thinned_beyond_the_tolerance():
 
 def _bench_tet(name: str) -> tuple:
     """A shared STEP part's tet lattice at the parts benchmark's setting (cell = extent /
-    15, r = cell / 12): the part, graph, report and the thinned-struts warnings."""
+    15, r = cell / 12): the part, graph, report, the thinned-struts warnings and the
+    warnings that the triangulated surface was used instead of the B-rep."""
     part = load_part(DATA / "step" / name)
     h = float(part.size.max()) / 15
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LatticeWarning)
         g, rep = tet_lattice(part, size=h, radius=h / 12, return_report=True)
     said = [str(w.message) for w in caught if "had to be made thinner" in str(w.message)]
-    return part, g, rep, said
+    swapped = [str(w.message) for w in caught if "the latter are used" in str(w.message)]
+    return part, g, rep, said, swapped
 
 
 def test_tet_lattice_of_small_features_is_not_called_thin():
     """Regression (s21 review): the tet lattice of a STEP M10 bolt thinned 1,068 of 2,053
     struts at its thread and 0.8 mm head chamfer, and the warning said "the part is thin
-    for tetrahedra", which it is not (its shank is 10 mm across, the size 3.1 mm). The part's
-    thickness about the thin struts is now measured: where it is thicker than the size,
-    the small features are named as the cause. Shared data's M6 countersunk screw is the
-    same case (1,024 of 6,423 struts, all where it is thicker than the size 0.8 mm).
-    """
-    _, g, rep, said = _bench_tet("build123d_M6-1x12-countersunk-screw.step")
-    assert len(said) == 1 and rep.thinned_beyond_tolerance > 0.1 * g.num_edges  # 1,024 of 6,423
-    assert "the part is thin for tetrahedra" not in said[0], said[0]
-    assert re.search(r"\d+ % of them where the part is thicker than the size", said[0]), said[0]
-    assert "the part's small features" in said[0] and "--fill conform" in said[0]
+    for tetrahedra", which it is not (its shank is 10 mm across, the size 3.1 mm). Shared
+    data's M6 countersunk screw is the same case: from its B-rep 1,047 of 6,296 struts
+    beyond 0.7 r, all where it is thicker than the size 0.8 mm. Such a lattice is now made
+    from the part's triangulated surface too (s41), and the one with fewer such struts
+    kept: the M6's, 47 of 5,759, and a warning says which was used and both counts. What
+    is still thinned is not said to be for want of thickness."""
+    _, g, rep, said, swapped = _bench_tet("build123d_M6-1x12-countersunk-screw.step")
+    assert len(swapped) == 1, swapped
+    counts = re.search(
+        r"left ([\d,]+) of ([\d,]+) struts .* surface .* ([\d,]+) of ([\d,]+)", swapped[0]
+    )
+    assert counts, swapped[0]
+    brep_thin, brep_all, surf_thin, surf_all = (int(c.replace(",", "")) for c in counts.groups())
+    assert brep_thin > 0.1 * brep_all and surf_thin * brep_all < brep_thin * surf_all
+    assert rep.thinned_beyond_tolerance == surf_thin < 0.02 * g.num_edges
+    assert len(said) <= 1 and all("the part is thin for tetrahedra" not in w for w in said)
 
 
 def test_local_thickness_closed_form():
@@ -358,11 +366,12 @@ def test_tet_lattice_of_a_thin_part_says_it_is_thin():
     conform fill thins far fewer, which it does (2 of 316 struts)."""
     from lattice_cad import Lattice
 
-    part, g, rep, said = _bench_tet("dolfiny_spanner25_lo.step")
+    part, g, rep, said, swapped = _bench_tet("dolfiny_spanner25_lo.step")
     h = float(part.size.max()) / 15
     assert len(said) == 1 and rep.thinned_beyond_tolerance > 0.5 * g.num_edges
     assert "100 % of their ends lie on the part's surface" in said[0], said[0]
     assert "the part is thin for tetrahedra" in said[0] and "larger size makes" in said[0]
+    assert not swapped  # (thin for the size: its surface's tetrahedra would not help)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LatticeWarning)
         lat = Lattice.fill(part, "kelvin", h, h / 12, fill="conform")

@@ -466,6 +466,18 @@ TET_FEATURE_PATCH_SHARE = 0.5
 TET_DENSE_TRIANGLES = 200_000
 TET_DENSE_PER_SQUARE = 200.0
 
+#: A B-rep part's tetrahedra come from its triangulated surface (re-meshed at the size)
+#: before its B-rep when the edges of its faces would carry more than this many times the
+#: nodes of a surface meshed at the size (conformal.tet._brep_crowding): a helical gear
+#: whose flanks are 744 narrow faces (made outside shared/data), 4.6 x at size 3.47, gave
+#: 29,438 of 35,070 struts beyond the thin tolerance in 129 s from its B-rep, 2,072 of
+#: 7,492 in 7 s from its surface. The shared STEP parts at the benchmark's size: 0.25-2.5.
+TET_BREP_CROWDING = 3.0
+#: When more than this share of a tet lattice's struts from a B-rep are thinned beyond the
+#: tolerance where the part is thick for the size, the lattice of its triangulated surface
+#: is made too, and the one with the smaller share kept (conformal.tet.tet_lattice).
+TET_RETRY_THIN_SHARE = 0.1
+
 #: Fewest nodes gmsh puts on a B-rep circle (on an arc in proportion to its angle), and
 #: on any other curve, for the tet method (gmsh's defaults: 7 and 3). At gmsh's defaults
 #: a small fillet's or hole's edges carry nodes a fraction of the size asked apart, and

@@ -888,6 +888,34 @@ def count(shape: TopoDS_Shape, kind: Any, avoid: Any = None) -> int:
     return n
 
 
+def edge_nodes(shape: TopoDS_Shape, size: float) -> int:
+    """How many nodes a mesher that follows the edges of ``shape``'s faces must place on
+    them at element size ``size`` (mm): each vertex, and the points that divide each
+    edge into pieces no longer than ``size`` (gmsh meshing a B-rep does so).
+
+    Where this is far more than a surface meshed at ``size`` has nodes, the faces'
+    edges crowd the mesh (a gear whose flanks are hundreds of narrow faces, a thread).
+    """
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.GCPnts import GCPnts_AbscissaPoint
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
+    from OCP.TopExp import TopExp
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    edges, vertices = TopTools_IndexedMapOfShape(), TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_EDGE, edges)
+    TopExp.MapShapes_s(shape, TopAbs_VERTEX, vertices)
+    n = vertices.Size()
+    for i in range(1, edges.Size() + 1):
+        edge = TopoDS.Edge_s(edges.FindKey(i))
+        if BRep_Tool.Degenerated_s(edge):
+            continue
+        with occt_errors(f"length of edge {i - 1}"):
+            length = GCPnts_AbscissaPoint.Length_s(BRepAdaptor_Curve(edge))
+        n += max(0, int(np.ceil(length / size)) - 1)
+    return n
+
+
 def surface_kinds(shape: TopoDS_Shape) -> list[str]:
     """The surface type of each face of ``shape`` (TopExp order): ``"Plane"``,
     ``"Cylinder"``, ``"BSplineSurface"``, ... (``GeomAbs_SurfaceType`` without its prefix)."""
