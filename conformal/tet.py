@@ -649,11 +649,7 @@ def tet_lattice(
     t0 = time.perf_counter()
     edges = tet_edges(tets)
     if repair:
-        r = resolve_radii(radius, nodes, edges)
-        nodes, edges, fitted, fix = repair_graph(
-            nodes, edges, r, surface=boundary_nodes(tets, len(nodes)), tolerance=tolerance,
-            segments=segments, profile=profile,
-        )  # fmt: skip
+        nodes, edges, fitted, fix, r = _repaired(nodes, tets, radius, tolerance, segments, profile)
         if (
             used == "brep"
             and fix.unfit > config.TET_RETRY_THIN_SHARE * len(edges)
@@ -744,6 +740,19 @@ def _surface_try(
             nodes, tets, _ = _tet_mesh(part, size, algorithm=algorithm, brep="no-brep")
     except PartError:
         return None
+    return _repaired(nodes, tets, radius, tolerance, segments, profile)
+
+
+def _repaired(
+    nodes: NDArray[np.float64],
+    tets: NDArray[np.int64],
+    radius: RadiusSpec,
+    tolerance: float,
+    segments: int,
+    profile: Profile,
+) -> tuple[Any, ...]:
+    """(nodes, edges, fitted radii, repair report, radii asked per tet edge): the graph of
+    a tet mesh repaired by :func:`conformal.radius.repair_graph`."""
     edges = tet_edges(tets)
     r = resolve_radii(radius, nodes, edges)
     nodes, edges, fitted, fix = repair_graph(
