@@ -650,10 +650,11 @@ def tet_lattice(
     edges = tet_edges(tets)
     if repair:
         nodes, edges, fitted, fix, r = _repaired(nodes, tets, radius, tolerance, segments, profile)
+        thin = fitted.min(axis=1) < tolerance * float(np.max(r)) * (1 - 1e-9)
         if (
             used == "brep"
             and fix.unfit > config.TET_RETRY_THIN_SHARE * len(edges)
-            and _flat_share(part, nodes, edges, fitted, r, size, tolerance) < 0.5
+            and np.mean(_thin_ends(part, nodes, edges, thin, size)[1] < THIN_FOR_TETS * size) < 0.5
         ):
             # struts thinned where the part is thick for the size: the B-rep's small faces
             # crowd the nodes (an M6 screw's thread: 1,047 of 6,296 struts beyond the
@@ -762,24 +763,14 @@ def _repaired(
     return nodes, edges, fitted, fix, r
 
 
-def _flat_share(
-    part: Part,
-    nodes: NDArray[np.float64],
-    edges: NDArray[np.int64],
-    fitted: NDArray[np.float64],
-    asked: NDArray[np.float64],
-    size: float,
-    tolerance: float,
-) -> float:
-    """The share of the ends of the struts thinned beyond ``tolerance`` (of the largest
-    radius asked) where the part is at most ``THIN_FOR_TETS`` times ``size`` thick (0 when none
-    is): there it is thin for tetrahedra of that size, whatever their input."""
-    r0 = float(np.max(asked))  # (the radii asked, per strut before the repair)
-    thin = fitted.min(axis=1) < tolerance * r0 * (1 - 1e-9)
-    if not thin.any():
-        return 0.0
+def _thin_ends(
+    part: Part, nodes: NDArray[np.float64], edges: NDArray[np.int64], thin: Any, size: float
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The ends of the struts ``thin`` ((M,) bool) and the part's local thickness about each
+    (:func:`_local_thickness`): where it is at most ``THIN_FOR_TETS`` times ``size``, the
+    part is thin for tetrahedra of that size, whatever their input."""
     ends = np.unique(edges[thin])
-    return float(np.mean(_local_thickness(part, nodes[ends], size) < THIN_FOR_TETS * size))
+    return ends, _local_thickness(part, nodes[ends], size)
 
 
 def _thin_advice(
@@ -818,14 +809,13 @@ def _thin_advice(
     thin = ratio < tolerance * (1 - 1e-9)
     if not thin.any():
         return "; a larger size or a thinner radius avoids it"
-    ends = np.unique(edges[thin])
+    ends, local = _thin_ends(part, nodes, edges, thin, size)
     near = 0.05 * size
     on = float(np.mean(part.distance(nodes[ends], max_distance=near) <= near))
     out = (
         f" (median {float(np.median(ratio[thin])):.2g} x, thinnest {float(ratio.min()):.2g} x); "
         f"{100 * on:.0f} % of their ends lie on the part's surface"
     )
-    local = _local_thickness(part, nodes[ends], size)
     flat = float(np.mean(local < THIN_FOR_TETS * size))
     if flat < 0.5 and on < 0.8:
         # neither cause dominates (the hammer and the dragon scans came here, when their
