@@ -6,7 +6,11 @@ The part is meshed with gmsh (target edge length ``size``): a CAD part
 through its exact B-rep (OCCT kernel; several solids are fused first), a mesh
 part by re-meshing its surface (``classifySurfaces`` / ``createGeometry``). When gmsh
 cannot mesh a B-rep (NIST CTC-02: overlapping surface meshes of close faces), the
-part's closed triangulation is meshed as a mesh part's, with a warning.
+part's closed triangulation is meshed as a mesh part's, with a warning; so it is first
+when the edges of the B-rep's faces would crowd the tetrahedra's nodes (a gear of
+hundreds of narrow faces), and also when the B-rep's lattice has struts thinned where
+the part is thick for the size (a thread), the better of the two then kept
+(:func:`tet_lattice`).
 Every tetrahedron vertex becomes a node and every distinct tetrahedron edge a
 strut, so surface nodes lie on the part's surface and the lattice conforms to
 it.
