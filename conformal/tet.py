@@ -638,7 +638,7 @@ def tet_lattice(
     if crowd is not None and crowd[0] > config.TET_BREP_CROWDING * crowd[1]:
         first = "surface"
     nodes, tets, used = _tet_mesh(part, size, algorithm=algorithm, progress=progress, brep=first)
-    if crowd is not None and used == "surface" and first == "surface":
+    if crowd is not None and first == used == "surface":
         warnings.warn(
             f"{part.name}: the edges of its B-rep's faces would crowd the tetrahedra's nodes "
             f"({crowd[0]:,} nodes on them, where about {crowd[1]:,.0f} cover its surface at "
@@ -651,20 +651,22 @@ def tet_lattice(
     if progress is not None:
         progress("graph repair and radii", 0, 1)
     t0 = time.perf_counter()
-    edges = tet_edges(tets)
-    if repair:
+    if not repair:
+        edges = tet_edges(tets)
+    else:
         nodes, edges, fitted, fix, r = _repaired(nodes, tets, radius, tolerance, segments, profile)
-        thin = fitted.min(axis=1) < tolerance * float(np.max(r)) * (1 - 1e-9)
-        if (
-            used == "brep"
-            and fix.unfit > config.TET_RETRY_THIN_SHARE * len(edges)
-            and np.mean(_thin_ends(part, nodes, edges, thin, size)[1] < THIN_FOR_TETS * size) < 0.5
-        ):
+        if used == "brep" and fix.unfit > config.TET_RETRY_THIN_SHARE * len(edges):
             # struts thinned where the part is thick for the size: the B-rep's small faces
             # crowd the nodes (an M6 screw's thread: 1,047 of 6,296 struts beyond the
             # tolerance; from its triangulated surface 47 of 5,759); the surface is tried,
             # and the lattice with the smaller share of such struts kept
-            other = _surface_try(part, size, algorithm, radius, tolerance, segments, profile)
+            thin = fitted.min(axis=1) < tolerance * float(np.max(r)) * (1 - 1e-9)
+            _, local = _thin_ends(part, nodes, edges, thin, size)
+            other = (
+                _surface_try(part, size, algorithm, radius, tolerance, segments, profile)
+                if np.mean(local < THIN_FOR_TETS * size) < 0.5
+                else None
+            )
             if other is not None and other[3].unfit * len(edges) < fix.unfit * len(other[1]):
                 warnings.warn(
                     f"{part.name}: the tetrahedra of its B-rep left {fix.unfit:,} of "
